@@ -1,0 +1,1 @@
+//! bettimill-deform (being written).

@@ -1,0 +1,1 @@
+//! bettimill-executor (being written).

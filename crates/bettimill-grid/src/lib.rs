@@ -1,0 +1,394 @@
+//! The voxel grid: the one image type every other bettimill crate speaks.
+//!
+//! A [`BinaryImage`] is a 2-, 3- or 4-dimensional array of voxels stored in C order (last
+//! axis fastest), one byte per voxel, each byte 0 (background) or 1 (foreground). Its shape
+//! need not be a hypercube: `bettimill betti` accepts any user image. The [`npy`] module
+//! reads and writes such images as `.npy` files, and [`neighbourhood`] holds the offset
+//! tables of the (3^d-1)- and 2d-neighbourhoods that homology, shapes and deformations share.
+
+pub mod neighbourhood;
+pub mod npy;
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// The number of axes of an image. Only 2, 3 and 4 exist, so every function that takes a
+/// `Dim` can rely on that instead of re-checking it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(try_from = "u8", into = "u8")]
+pub enum Dim {
+    /// Planar images.
+    Two,
+    /// Volumes.
+    Three,
+    /// Four-dimensional images.
+    Four,
+}
+
+impl Dim {
+    /// All dimensions, in increasing order.
+    pub const ALL: [Dim; 3] = [Dim::Two, Dim::Three, Dim::Four];
+
+    /// The number of axes as a plain number.
+    pub fn get(self) -> usize {
+        match self {
+            Dim::Two => 2,
+            Dim::Three => 3,
+            Dim::Four => 4,
+        }
+    }
+
+    /// `Some(dim)` for 2, 3 and 4, `None` otherwise.
+    pub fn new(n: usize) -> Option<Dim> {
+        match n {
+            2 => Some(Dim::Two),
+            3 => Some(Dim::Three),
+            4 => Some(Dim::Four),
+            _ => None,
+        }
+    }
+}
+
+impl TryFrom<u8> for Dim {
+    type Error = String;
+    fn try_from(value: u8) -> Result<Self, Self::Error> {
+        Dim::new(value as usize).ok_or_else(|| format!("dimension must be 2, 3 or 4, not {value}"))
+    }
+}
+
+impl From<Dim> for u8 {
+    fn from(dim: Dim) -> u8 {
+        dim.get() as u8
+    }
+}
+
+impl fmt::Display for Dim {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.get())
+    }
+}
+
+/// Why an image could not be made.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum GridError {
+    /// The shape has fewer than 2 or more than 4 axes.
+    #[error("an image must have 2, 3 or 4 axes, this one has {0}")]
+    BadRank(usize),
+    /// An axis has length zero.
+    #[error("axis {axis} has length 0")]
+    EmptyAxis {
+        /// The offending axis.
+        axis: usize,
+    },
+    /// The voxel count does not fit in memory addressing.
+    #[error("shape {shape:?} has too many voxels")]
+    TooLarge {
+        /// The requested shape.
+        shape: Vec<usize>,
+    },
+    /// The data length does not match the shape.
+    #[error("shape {shape:?} needs {expected} voxels, got {found}")]
+    LengthMismatch {
+        /// The requested shape.
+        shape: Vec<usize>,
+        /// Voxels the shape needs.
+        expected: usize,
+        /// Voxels supplied.
+        found: usize,
+    },
+    /// A voxel value other than 0 or 1.
+    #[error("voxel {index} has value {value}; a binary image holds only 0 and 1")]
+    NotBinary {
+        /// Flat index of the first bad voxel.
+        index: usize,
+        /// Its value.
+        value: u8,
+    },
+}
+
+/// A binary image in C order, one byte (0 or 1) per voxel.
+#[derive(Clone, PartialEq, Eq, Hash)]
+pub struct BinaryImage {
+    dim: Dim,
+    shape: [usize; 4],
+    strides: [usize; 4],
+    data: Vec<u8>,
+}
+
+impl fmt::Debug for BinaryImage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("BinaryImage")
+            .field("shape", &self.shape())
+            .field("foreground", &self.count_foreground())
+            .finish()
+    }
+}
+
+fn checked_len(shape: &[usize]) -> Result<(Dim, usize), GridError> {
+    let dim = Dim::new(shape.len()).ok_or(GridError::BadRank(shape.len()))?;
+    let mut len: usize = 1;
+    for (axis, &n) in shape.iter().enumerate() {
+        if n == 0 {
+            return Err(GridError::EmptyAxis { axis });
+        }
+        len = len.checked_mul(n).ok_or_else(|| GridError::TooLarge {
+            shape: shape.to_vec(),
+        })?;
+    }
+    // Keep every flat index addressable as i64 offsets too (neighbour arithmetic).
+    if len > (isize::MAX as usize) / 2 {
+        return Err(GridError::TooLarge {
+            shape: shape.to_vec(),
+        });
+    }
+    Ok((dim, len))
+}
+
+impl BinaryImage {
+    /// An all-background image of the given shape.
+    pub fn zeros(shape: &[usize]) -> Result<BinaryImage, GridError> {
+        let (_, len) = checked_len(shape)?;
+        BinaryImage::from_vec(shape, vec![0; len])
+    }
+
+    /// An all-background hypercube of side `side`.
+    pub fn cube(dim: Dim, side: usize) -> Result<BinaryImage, GridError> {
+        BinaryImage::zeros(&vec![side; dim.get()])
+    }
+
+    /// Wraps C-order data; every byte must be 0 or 1.
+    pub fn from_vec(shape: &[usize], data: Vec<u8>) -> Result<BinaryImage, GridError> {
+        let (dim, len) = checked_len(shape)?;
+        if data.len() != len {
+            return Err(GridError::LengthMismatch {
+                shape: shape.to_vec(),
+                expected: len,
+                found: data.len(),
+            });
+        }
+        if let Some(index) = data.iter().position(|&v| v > 1) {
+            return Err(GridError::NotBinary {
+                index,
+                value: data[index],
+            });
+        }
+        let mut full = [1usize; 4];
+        full[..shape.len()].copy_from_slice(shape);
+        let mut strides = [0usize; 4];
+        let mut stride = 1;
+        for axis in (0..shape.len()).rev() {
+            strides[axis] = stride;
+            stride *= shape[axis];
+        }
+        Ok(BinaryImage {
+            dim,
+            shape: full,
+            strides,
+            data,
+        })
+    }
+
+    /// The number of axes.
+    pub fn dim(&self) -> Dim {
+        self.dim
+    }
+
+    /// The length of each axis.
+    pub fn shape(&self) -> &[usize] {
+        &self.shape[..self.dim.get()]
+    }
+
+    /// The flat-index step of each axis (C order).
+    pub fn strides(&self) -> &[usize] {
+        &self.strides[..self.dim.get()]
+    }
+
+    /// The number of voxels.
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+
+    /// Always false: an image has at least one voxel. Present for clippy's sake.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    /// The voxels in C order.
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+
+    /// The voxels in C order, writable. Callers must keep every byte 0 or 1.
+    pub fn data_mut(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+
+    /// Consumes the image and returns its voxels.
+    pub fn into_vec(self) -> Vec<u8> {
+        self.data
+    }
+
+    /// The flat index of a coordinate (no bounds check beyond debug assertions).
+    #[inline]
+    pub fn index(&self, coords: &[usize]) -> usize {
+        debug_assert_eq!(coords.len(), self.dim.get());
+        coords
+            .iter()
+            .zip(self.strides())
+            .map(|(&c, &s)| c * s)
+            .sum()
+    }
+
+    /// The coordinate of a flat index.
+    #[inline]
+    pub fn coords(&self, mut index: usize) -> [usize; 4] {
+        let mut out = [0usize; 4];
+        for axis in 0..self.dim.get() {
+            out[axis] = index / self.strides[axis];
+            index %= self.strides[axis];
+        }
+        out
+    }
+
+    /// Whether the voxel at `coords` is foreground.
+    #[inline]
+    pub fn get(&self, coords: &[usize]) -> bool {
+        self.data[self.index(coords)] != 0
+    }
+
+    /// Sets the voxel at `coords`.
+    #[inline]
+    pub fn set(&mut self, coords: &[usize], value: bool) {
+        let i = self.index(coords);
+        self.data[i] = value as u8;
+    }
+
+    /// The number of foreground voxels (the sample's hypervolume).
+    pub fn count_foreground(&self) -> u64 {
+        self.data.iter().map(|&v| v as u64).sum()
+    }
+
+    /// Whether a coordinate (possibly negative or past the end) lies inside the image.
+    pub fn contains(&self, coords: &[i64]) -> bool {
+        coords
+            .iter()
+            .zip(self.shape())
+            .all(|(&c, &n)| c >= 0 && (c as usize) < n)
+    }
+
+    /// A copy surrounded by `width` layers of background on every side.
+    pub fn padded(&self, width: usize) -> BinaryImage {
+        let new_shape: Vec<usize> = self.shape().iter().map(|&n| n + 2 * width).collect();
+        let mut out = BinaryImage::zeros(&new_shape).expect("padding a valid image stays valid");
+        let d = self.dim.get();
+        let row = self.shape[d - 1];
+        let rows = self.len() / row;
+        for r in 0..rows {
+            let src = r * row;
+            let c = self.coords(src);
+            let mut dst_coords = [0usize; 4];
+            for axis in 0..d {
+                dst_coords[axis] = c[axis] + width;
+            }
+            let dst = out.index(&dst_coords[..d]);
+            out.data[dst..dst + row].copy_from_slice(&self.data[src..src + row]);
+        }
+        out
+    }
+
+    /// The inverse of [`BinaryImage::padded`]: drops `width` layers on every side.
+    /// Panics if an axis is not longer than `2 * width` (a caller bug).
+    pub fn cropped(&self, width: usize) -> BinaryImage {
+        let d = self.dim.get();
+        let new_shape: Vec<usize> = self
+            .shape()
+            .iter()
+            .map(|&n| {
+                assert!(n > 2 * width, "cropping {width} layers from an axis of {n}");
+                n - 2 * width
+            })
+            .collect();
+        let mut out = BinaryImage::zeros(&new_shape).expect("cropping a valid image");
+        let row = new_shape[d - 1];
+        let rows = out.len() / row;
+        for r in 0..rows {
+            let dst = r * row;
+            let c = out.coords(dst);
+            let mut src_coords = [0usize; 4];
+            for axis in 0..d {
+                src_coords[axis] = c[axis] + width;
+            }
+            let src = self.index(&src_coords[..d]);
+            out.data[dst..dst + row].copy_from_slice(&self.data[src..src + row]);
+        }
+        out
+    }
+
+    /// The complement: foreground and background swapped.
+    pub fn complement(&self) -> BinaryImage {
+        let mut out = self.clone();
+        for v in out.data.iter_mut() {
+            *v ^= 1;
+        }
+        out
+    }
+
+    /// Whether every voxel of the outermost layer is background.
+    pub fn border_is_background(&self) -> bool {
+        let d = self.dim.get();
+        (0..self.len()).all(|i| {
+            if self.data[i] == 0 {
+                return true;
+            }
+            let c = self.coords(i);
+            (0..d).all(|a| c[a] > 0 && c[a] + 1 < self.shape[a])
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pad_then_crop_round_trips() {
+        let mut img = BinaryImage::zeros(&[3, 4, 5]).unwrap();
+        img.set(&[0, 0, 0], true);
+        img.set(&[2, 3, 4], true);
+        img.set(&[1, 2, 0], true);
+        let padded = img.padded(2);
+        assert_eq!(padded.shape(), &[7, 8, 9]);
+        assert!(padded.get(&[2, 2, 2]));
+        assert!(padded.get(&[4, 5, 6]));
+        assert!(padded.border_is_background());
+        assert!(!img.border_is_background());
+        assert_eq!(padded.count_foreground(), 3);
+        assert_eq!(padded.cropped(2), img);
+    }
+
+    #[test]
+    fn shape_errors_are_reported() {
+        assert_eq!(BinaryImage::zeros(&[4]), Err(GridError::BadRank(1)));
+        assert_eq!(
+            BinaryImage::zeros(&[4, 0]),
+            Err(GridError::EmptyAxis { axis: 1 })
+        );
+        assert!(matches!(
+            BinaryImage::zeros(&[usize::MAX, 4]),
+            Err(GridError::TooLarge { .. })
+        ));
+        assert!(matches!(
+            BinaryImage::from_vec(&[2, 2], vec![0, 1, 2, 0]),
+            Err(GridError::NotBinary { index: 2, value: 2 })
+        ));
+    }
+
+    #[test]
+    fn coords_and_index_agree() {
+        let img = BinaryImage::zeros(&[3, 4, 5, 6]).unwrap();
+        for i in 0..img.len() {
+            let c = img.coords(i);
+            assert_eq!(img.index(&c[..4]), i);
+        }
+    }
+}

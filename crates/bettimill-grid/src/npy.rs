@@ -1,0 +1,445 @@
+//! Reading and writing `.npy` files (NumPy format versions 1.0, 2.0 and 3.0).
+//!
+//! Layout: the magic `\x93NUMPY`, a major and minor version byte, the header length
+//! (u16 little-endian for 1.0, u32 for 2.0 and 3.0), then an ASCII Python dict literal
+//! `{'descr': '<u1', 'fortran_order': False, 'shape': (n0, n1, ...), }` padded with spaces
+//! and a newline so that the data starts at a multiple of 64 bytes, then the raw data.
+//!
+//! Reading treats the file as untrusted: the header is at most 64 KiB, the shape is checked
+//! against the bytes actually present before anything is allocated, and every failure is a
+//! [`NpyError`] that says what was wrong. Accepted dtypes: bool and signed or unsigned
+//! integers of 1, 2, 4 or 8 bytes in either byte order; any non-zero value is foreground.
+//! Floats, objects and Fortran order are refused. Writing always produces version 1.0 with
+//! a canonical header, so the same image always gives the same bytes.
+
+use crate::{BinaryImage, GridError};
+use std::path::Path;
+
+/// An integer or boolean element type of a `.npy` array.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dtype {
+    /// `b` (bool), `i` (signed) or `u` (unsigned).
+    pub kind: char,
+    /// Bytes per element: 1, 2, 4 or 8.
+    pub size: usize,
+    /// True when the bytes are big-endian.
+    pub big_endian: bool,
+}
+
+impl Dtype {
+    /// `|u1`, the dtype bettimill writes for its own samples.
+    pub const U8: Dtype = Dtype {
+        kind: 'u',
+        size: 1,
+        big_endian: false,
+    };
+
+    /// The NumPy `descr` string of this dtype.
+    pub fn descr(&self) -> String {
+        let order = if self.size == 1 {
+            '|'
+        } else if self.big_endian {
+            '>'
+        } else {
+            '<'
+        };
+        format!("{order}{}{}", self.kind, self.size)
+    }
+}
+
+/// Why a `.npy` file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum NpyError {
+    /// The file could not be read at all.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// The file is not in the `.npy` format or its header is malformed.
+    #[error("not a valid .npy file: {0}")]
+    Format(String),
+    /// The dtype is not boolean or integer.
+    #[error("unsupported dtype {0:?}: bettimill reads bool and integer arrays (non-zero = foreground)")]
+    Dtype(String),
+    /// The array is stored in Fortran order.
+    #[error("Fortran-order arrays are not supported; save with numpy.ascontiguousarray")]
+    FortranOrder,
+    /// The file holds fewer bytes than the header promises.
+    #[error("truncated data: the header promises {expected} bytes of data, the file has {found}")]
+    Truncated {
+        /// Bytes the shape and dtype need.
+        expected: u64,
+        /// Bytes present.
+        found: u64,
+    },
+    /// The file holds more bytes than the header promises.
+    #[error("{extra} unexpected bytes after the array data")]
+    TrailingBytes {
+        /// Bytes past the end of the data.
+        extra: u64,
+    },
+    /// The shape is not an image bettimill handles.
+    #[error("unsupported shape: {0}")]
+    Shape(#[from] GridError),
+    /// `strict` reading met a value other than 0 or 1.
+    #[error("voxel {index} has value {value}; with --strict only 0 and 1 are allowed")]
+    NotBinary {
+        /// Flat C-order index.
+        index: usize,
+        /// The value found.
+        value: i128,
+    },
+}
+
+/// A `.npy` array read as a binary image, remembering the dtype it came with.
+#[derive(Clone, Debug)]
+pub struct NpyImage {
+    /// Non-zero voxels as 1.
+    pub image: BinaryImage,
+    /// The element type in the file.
+    pub dtype: Dtype,
+}
+
+const MAGIC: &[u8] = b"\x93NUMPY";
+const MAX_HEADER: usize = 65536;
+
+/// Reads a `.npy` file from disk.
+pub fn read_path(path: &Path, strict: bool) -> Result<NpyImage, NpyError> {
+    let bytes = std::fs::read(path).map_err(|source| NpyError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    read_bytes(&bytes, strict)
+}
+
+/// Parses `.npy` bytes. With `strict`, values other than 0 and 1 are an error; otherwise
+/// every non-zero value is foreground.
+pub fn read_bytes(bytes: &[u8], strict: bool) -> Result<NpyImage, NpyError> {
+    let (header, data_start) = split_header(bytes)?;
+    let (dtype, shape) = parse_header(header)?;
+    let n_voxels = shape
+        .iter()
+        .try_fold(1u64, |acc, &n| acc.checked_mul(n as u64))
+        .ok_or_else(|| NpyError::Format(format!("shape {shape:?} overflows")))?;
+    let expected = n_voxels
+        .checked_mul(dtype.size as u64)
+        .ok_or_else(|| NpyError::Format(format!("shape {shape:?} overflows")))?;
+    let found = (bytes.len() - data_start) as u64;
+    if found < expected {
+        return Err(NpyError::Truncated { expected, found });
+    }
+    if found > expected {
+        return Err(NpyError::TrailingBytes {
+            extra: found - expected,
+        });
+    }
+    // Shape validity (rank, zero axes) is checked before the voxel buffer is allocated.
+    if !(2..=4).contains(&shape.len()) {
+        return Err(GridError::BadRank(shape.len()).into());
+    }
+    if let Some(axis) = shape.iter().position(|&n| n == 0) {
+        return Err(GridError::EmptyAxis { axis }.into());
+    }
+    let raw = &bytes[data_start..];
+    let mut voxels = Vec::with_capacity(n_voxels as usize);
+    for (index, chunk) in raw.chunks_exact(dtype.size).enumerate() {
+        let value = element_value(chunk, dtype);
+        if strict && value != 0 && value != 1 {
+            return Err(NpyError::NotBinary { index, value });
+        }
+        voxels.push((value != 0) as u8);
+    }
+    let image = BinaryImage::from_vec(&shape, voxels)?;
+    Ok(NpyImage { image, dtype })
+}
+
+fn element_value(chunk: &[u8], dtype: Dtype) -> i128 {
+    let mut buf = [0u8; 8];
+    if dtype.big_endian {
+        for (k, &b) in chunk.iter().rev().enumerate() {
+            buf[k] = b;
+        }
+    } else {
+        buf[..chunk.len()].copy_from_slice(chunk);
+    }
+    let unsigned = u64::from_le_bytes(buf);
+    if dtype.kind == 'i' {
+        let shift = 64 - 8 * dtype.size as u32;
+        (((unsigned << shift) as i64) >> shift) as i128
+    } else {
+        unsigned as i128
+    }
+}
+
+fn split_header(bytes: &[u8]) -> Result<(&str, usize), NpyError> {
+    if bytes.len() < 10 || &bytes[..6] != MAGIC {
+        return Err(NpyError::Format("missing the \\x93NUMPY magic".into()));
+    }
+    let major = bytes[6];
+    let (header_len, start) = match major {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 => {
+            if bytes.len() < 12 {
+                return Err(NpyError::Format("file ends inside the header".into()));
+            }
+            (
+                u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+                12,
+            )
+        }
+        v => return Err(NpyError::Format(format!("unknown format version {v}"))),
+    };
+    if header_len > MAX_HEADER {
+        return Err(NpyError::Format(format!(
+            "header of {header_len} bytes (at most {MAX_HEADER} allowed)"
+        )));
+    }
+    let end = start + header_len;
+    if bytes.len() < end {
+        return Err(NpyError::Format("file ends inside the header".into()));
+    }
+    let header = std::str::from_utf8(&bytes[start..end])
+        .map_err(|_| NpyError::Format("header is not text".into()))?;
+    Ok((header, end))
+}
+
+/// Finds `'key': value` in the header dict and returns the value text up to the next
+/// top-level comma or closing brace.
+fn dict_value<'a>(header: &'a str, key: &str) -> Result<&'a str, NpyError> {
+    let needle_single = format!("'{key}'");
+    let needle_double = format!("\"{key}\"");
+    let pos = header
+        .find(&needle_single)
+        .or_else(|| header.find(&needle_double))
+        .ok_or_else(|| NpyError::Format(format!("header has no '{key}'")))?;
+    let rest = &header[pos + key.len() + 2..];
+    let rest = rest
+        .trim_start()
+        .strip_prefix(':')
+        .ok_or_else(|| NpyError::Format(format!("no ':' after '{key}'")))?
+        .trim_start();
+    let mut depth = 0i32;
+    for (i, ch) in rest.char_indices() {
+        match ch {
+            '(' | '[' => depth += 1,
+            ')' | ']' => {
+                depth -= 1;
+                if depth < 0 {
+                    return Ok(rest[..i].trim());
+                }
+                if depth == 0 && ch == ')' {
+                    return Ok(rest[..=i].trim());
+                }
+            }
+            ',' | '}' if depth == 0 => return Ok(rest[..i].trim()),
+            _ => {}
+        }
+    }
+    Err(NpyError::Format(format!("unterminated value of '{key}'")))
+}
+
+fn parse_header(header: &str) -> Result<(Dtype, Vec<usize>), NpyError> {
+    let header = header.trim();
+    if !header.starts_with('{') || !header.ends_with('}') {
+        return Err(NpyError::Format("header is not a dict".into()));
+    }
+    let descr = dict_value(header, "descr")?;
+    let descr = descr.trim_matches(|c| c == '\'' || c == '"');
+    let dtype = parse_descr(descr)?;
+    let fortran = dict_value(header, "fortran_order")?;
+    match fortran {
+        "False" => {}
+        "True" => return Err(NpyError::FortranOrder),
+        other => {
+            return Err(NpyError::Format(format!(
+                "fortran_order is {other:?}, not True or False"
+            )))
+        }
+    }
+    let shape_text = dict_value(header, "shape")?;
+    let inner = shape_text
+        .strip_prefix('(')
+        .and_then(|s| s.strip_suffix(')'))
+        .ok_or_else(|| NpyError::Format(format!("shape {shape_text:?} is not a tuple")))?;
+    let mut shape = Vec::new();
+    for part in inner.split(',') {
+        let part = part.trim();
+        if part.is_empty() {
+            continue;
+        }
+        let part = part.trim_end_matches('L');
+        let n: usize = part
+            .parse()
+            .map_err(|_| NpyError::Format(format!("shape entry {part:?} is not a length")))?;
+        shape.push(n);
+        if shape.len() > 32 {
+            return Err(NpyError::Format("shape has more than 32 axes".into()));
+        }
+    }
+    Ok((dtype, shape))
+}
+
+fn parse_descr(descr: &str) -> Result<Dtype, NpyError> {
+    let bad = || NpyError::Dtype(descr.to_string());
+    let mut chars = descr.chars();
+    let first = chars.next().ok_or_else(bad)?;
+    let (big_endian, rest) = match first {
+        '<' | '|' | '=' => (false, &descr[1..]),
+        '>' => (true, &descr[1..]),
+        _ => (false, descr),
+    };
+    let mut rest_chars = rest.chars();
+    let kind = rest_chars.next().ok_or_else(bad)?;
+    let size: usize = rest_chars.as_str().parse().map_err(|_| bad())?;
+    let ok = match kind {
+        'b' => size == 1,
+        'i' | 'u' => matches!(size, 1 | 2 | 4 | 8),
+        _ => false,
+    };
+    if !ok {
+        return Err(bad());
+    }
+    Ok(Dtype {
+        kind,
+        size,
+        big_endian,
+    })
+}
+
+/// Encodes an image as `.npy` bytes with the given dtype (voxels written as 0 or 1).
+/// The header is canonical, so equal images give equal bytes.
+pub fn write_bytes(image: &BinaryImage, dtype: Dtype) -> Vec<u8> {
+    let shape: Vec<String> = image.shape().iter().map(|n| n.to_string()).collect();
+    let shape_text = if shape.len() == 1 {
+        format!("({},)", shape[0])
+    } else {
+        format!("({})", shape.join(", "))
+    };
+    let mut header = format!(
+        "{{'descr': '{}', 'fortran_order': False, 'shape': {}, }}",
+        dtype.descr(),
+        shape_text
+    );
+    // Pad so that magic (6) + version (2) + length (2) + header is a multiple of 64.
+    let unpadded = 10 + header.len() + 1;
+    let padding = (64 - unpadded % 64) % 64;
+    header.extend(std::iter::repeat_n(' ', padding));
+    header.push('\n');
+    let mut out = Vec::with_capacity(10 + header.len() + image.len() * dtype.size);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&[1, 0]);
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    for &v in image.data() {
+        let mut element = [0u8; 8];
+        if dtype.big_endian {
+            element[dtype.size - 1] = v;
+        } else {
+            element[0] = v;
+        }
+        out.extend_from_slice(&element[..dtype.size]);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn replace(bytes: &[u8], from: &str, to: &str) -> Vec<u8> {
+        assert_eq!(from.len(), to.len(), "replacements keep the header length");
+        let pos = bytes
+            .windows(from.len())
+            .position(|w| w == from.as_bytes())
+            .expect("pattern present");
+        let mut out = bytes.to_vec();
+        out[pos..pos + to.len()].copy_from_slice(to.as_bytes());
+        out
+    }
+
+    fn sample() -> BinaryImage {
+        let mut img = BinaryImage::zeros(&[2, 3, 4]).unwrap();
+        img.set(&[1, 2, 3], true);
+        img.set(&[0, 1, 0], true);
+        img
+    }
+
+    #[test]
+    fn round_trips_every_integer_dtype() {
+        let img = sample();
+        for descr in ["|u1", "|i1", "|b1", "<u2", ">i2", "<i4", ">u4", "<i8", ">u8"] {
+            let dtype = parse_descr(descr).unwrap();
+            let bytes = write_bytes(&img, dtype);
+            assert_eq!((bytes.len() - img.len() * dtype.size) % 64, 0);
+            let back = read_bytes(&bytes, true).unwrap();
+            assert_eq!(back.image, img, "{descr}");
+            assert_eq!(back.dtype, dtype);
+        }
+    }
+
+    #[test]
+    fn refuses_floats_fortran_and_truncation() {
+        let img = sample();
+        let good = write_bytes(&img, Dtype::U8);
+        let text = replace(&good, "|u1", "<f4");
+        assert!(matches!(
+            read_bytes(&text, false),
+            Err(NpyError::Dtype(_))
+        ));
+        let text = replace(&good, "False", "True ");
+        assert!(matches!(
+            read_bytes(&text, false),
+            Err(NpyError::FortranOrder)
+        ));
+        assert!(matches!(
+            read_bytes(&good[..good.len() - 1], false),
+            Err(NpyError::Truncated { .. })
+        ));
+        assert!(matches!(read_bytes(&good[..20], false), Err(NpyError::Format(_))));
+        let mut extra = good.clone();
+        extra.push(0);
+        assert!(matches!(
+            read_bytes(&extra, false),
+            Err(NpyError::TrailingBytes { extra: 1 })
+        ));
+    }
+
+    #[test]
+    fn a_lying_header_does_not_allocate() {
+        let img = sample();
+        let good = write_bytes(&img, Dtype::U8);
+        let text = replace(&good, "(2, 3, 4)", "(99,99,9)");
+        assert!(matches!(
+            read_bytes(&text, false),
+            Err(NpyError::Truncated { .. })
+        ));
+    }
+
+    #[test]
+    fn strict_refuses_values_other_than_0_and_1() {
+        let img = sample();
+        let mut bytes = write_bytes(&img, Dtype::U8);
+        let last = bytes.len() - 1;
+        bytes[last] = 7;
+        assert!(matches!(
+            read_bytes(&bytes, true),
+            Err(NpyError::NotBinary { value: 7, .. })
+        ));
+        let lenient = read_bytes(&bytes, false).unwrap();
+        assert!(lenient.image.data()[img.len() - 1] == 1);
+    }
+
+    #[test]
+    fn wrong_rank_is_refused() {
+        let img = sample();
+        let bytes = write_bytes(&img, Dtype::U8);
+        let text = replace(&bytes, "(2, 3, 4)", "(24,)    ");
+        assert!(matches!(
+            read_bytes(&text, false),
+            Err(NpyError::Shape(GridError::BadRank(1)))
+        ));
+    }
+}

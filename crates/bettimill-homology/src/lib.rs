@@ -1,0 +1,1 @@
+//! bettimill-homology (being written).

@@ -1,0 +1,1 @@
+//! bettimill-manifest (being written).

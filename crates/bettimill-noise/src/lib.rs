@@ -1,0 +1,1 @@
+//! bettimill-noise (being written).

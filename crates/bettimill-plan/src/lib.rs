@@ -1,0 +1,1 @@
+//! bettimill-plan (being written).

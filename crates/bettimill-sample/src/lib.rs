@@ -1,0 +1,1 @@
+//! bettimill-sample (being written).

@@ -1,0 +1,1 @@
+//! bettimill-shapes (being written).

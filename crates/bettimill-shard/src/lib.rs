@@ -1,0 +1,1 @@
+//! bettimill-shard (being written).
