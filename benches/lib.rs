@@ -1,0 +1,1 @@
+//! Shared helpers for the benchmarks in `benches/benches/` (kept empty until needed).
