@@ -1,0 +1,543 @@
+//! The simple-point test: can one voxel be flipped without changing the topology?
+//!
+//! Both deformations of the paper (hypervolume-preserving moves and topology-preserving
+//! dilation) are sequences of simple-point flips, so this test is on the hot path of the
+//! generator and has to be exact in 2D, 3D and 4D.
+//!
+//! The 3^d - 1 neighbours of a voxel x correspond one-to-one to the proper faces of the
+//! boundary of x's closed cube: offset delta is the face that fixes coordinate i at +-1/2
+//! wherever delta_i != 0. The attachment set A(x) is the part of that boundary covered by
+//! the other foreground voxels, i.e. the union of the closures of the faces of the
+//! foreground neighbours. x is simple iff A(x) is collapsible, which (see
+//! `/work/shared/notes/simple-points.md`) is decided exactly by three cheap conditions:
+//!
+//! - T = 1: the foreground neighbours form one (3^d-1)-connected component;
+//! - Tbar = 1: the background face-neighbours form one component, two of them (s*e_i and
+//!   t*e_j) being joined when the voxel s*e_i + t*e_j is background too;
+//! - chi(A) = 1.
+//!
+//! In 2D and 3D the first two suffice; the Euler test is what makes 4D exact. Faces are
+//! stored in the same bit layout as configurations (bit k = the face of neighbour k in
+//! [`full_offsets`] order), so A(x) and its Euler characteristic are a few word operations.
+//!
+//! Answers come from a 256-entry table in 2D, a 2^26-bit (8 MiB) table in 3D built once per
+//! process on first use (about a second on two cores), and direct evaluation in 4D where a
+//! table (2^80 entries) is impossible.
+
+use bettimill_grid::neighbourhood::{full_offsets, is_interior};
+use bettimill_grid::{BinaryImage, Dim};
+use rayon::prelude::*;
+use std::sync::{Arc, OnceLock};
+
+/// Precomputed tables for one dimension; cloning shares them.
+#[derive(Clone, Debug)]
+pub struct SimpleTester {
+    tables: Arc<Tables>,
+}
+
+/// Everything the three-condition test needs, laid out in configuration bit order.
+#[derive(Debug)]
+struct Tables {
+    dim: Dim,
+    n_neighbours: usize,
+    /// Bit index of the centre in the 3^d lexicographic block (the bit dropped from it).
+    centre: usize,
+    offsets: Vec<[i8; 4]>,
+    /// closure[k]: the faces (as neighbour bits) in the closure of neighbour k's face.
+    closure: Vec<u128>,
+    /// adjacency[k]: the other neighbours within one step of neighbour k in every axis.
+    adjacency: Vec<u128>,
+    /// cofaces[k]: faces of one dimension more whose closure contains face k.
+    cofaces: Vec<u128>,
+    even_faces: u128,
+    odd_faces: u128,
+    /// Neighbour index of each face-neighbour (slot s = 2 * axis + (sign > 0)).
+    face_neighbours: Vec<usize>,
+    /// (slot a, slot b, neighbour index of the voxel that joins them).
+    face_links: Vec<(u8, u8, usize)>,
+    /// The 2D answers, bit c of the 256-bit table (4 words).
+    table_2d: Option<[u64; 4]>,
+}
+
+/// The 3D table is 8 MiB and identical for every tester, so one copy serves the process.
+static TABLE_3D: OnceLock<Vec<u64>> = OnceLock::new();
+
+impl Tables {
+    fn build(dim: Dim) -> Tables {
+        let d = dim.get();
+        let offsets = full_offsets(dim);
+        let n = offsets.len();
+        let centre = n / 2;
+        let mut closure = vec![0u128; n];
+        let mut adjacency = vec![0u128; n];
+        let mut cofaces = vec![0u128; n];
+        let face_dim = |k: usize| offsets[k][..d].iter().filter(|&&o| o == 0).count();
+        for k in 0..n {
+            for j in 0..n {
+                let (a, b) = (&offsets[k][..d], &offsets[j][..d]);
+                // Face j lies in the closure of face k iff it fixes every coordinate k fixes.
+                if (0..d).all(|i| a[i] == 0 || a[i] == b[i]) {
+                    closure[k] |= 1 << j;
+                    if face_dim(j) + 1 == face_dim(k) {
+                        cofaces[j] |= 1 << k;
+                    }
+                }
+                if j != k && (0..d).all(|i| (a[i] - b[i]).abs() <= 1) {
+                    adjacency[k] |= 1 << j;
+                }
+            }
+        }
+        let (mut even_faces, mut odd_faces) = (0u128, 0u128);
+        for k in 0..n {
+            if face_dim(k) % 2 == 0 {
+                even_faces |= 1 << k;
+            } else {
+                odd_faces |= 1 << k;
+            }
+        }
+        let index_of = |off: [i8; 4]| {
+            offsets
+                .iter()
+                .position(|o| *o == off)
+                .expect("every non-zero offset in {-1,0,1}^d is a neighbour")
+        };
+        let mut face_neighbours = Vec::with_capacity(2 * d);
+        for axis in 0..d {
+            for sign in [-1i8, 1] {
+                let mut off = [0i8; 4];
+                off[axis] = sign;
+                face_neighbours.push(index_of(off));
+            }
+        }
+        let mut face_links = Vec::new();
+        for a in 0..2 * d {
+            for b in a + 1..2 * d {
+                let (axis_a, axis_b) = (a / 2, b / 2);
+                if axis_a == axis_b {
+                    continue;
+                }
+                let mut off = [0i8; 4];
+                off[axis_a] = if a % 2 == 0 { -1 } else { 1 };
+                off[axis_b] = if b % 2 == 0 { -1 } else { 1 };
+                face_links.push((a as u8, b as u8, index_of(off)));
+            }
+        }
+        let mut tables = Tables {
+            dim,
+            n_neighbours: n,
+            centre,
+            offsets,
+            closure,
+            adjacency,
+            cofaces,
+            even_faces,
+            odd_faces,
+            face_neighbours,
+            face_links,
+            table_2d: None,
+        };
+        if dim == Dim::Two {
+            let mut table = [0u64; 4];
+            for config in 0..256u128 {
+                if tables.evaluate(config) {
+                    table[(config >> 6) as usize] |= 1 << (config & 63);
+                }
+            }
+            tables.table_2d = Some(table);
+        }
+        tables
+    }
+
+    /// The attachment set A(x) as a face mask.
+    #[inline]
+    fn attachment(&self, config: u128) -> u128 {
+        let mut faces = 0u128;
+        let mut rest = config;
+        while rest != 0 {
+            let k = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            faces |= self.closure[k];
+        }
+        faces
+    }
+
+    #[inline]
+    fn background_faces_connected(&self, config: u128) -> bool {
+        let mut background = 0u8;
+        for (slot, &k) in self.face_neighbours.iter().enumerate() {
+            if config >> k & 1 == 0 {
+                background |= 1 << slot;
+            }
+        }
+        if background == 0 {
+            return false;
+        }
+        let mut links = [0u8; 8];
+        for &(a, b, joint) in &self.face_links {
+            if config >> joint & 1 == 0 {
+                links[a as usize] |= 1 << b;
+                links[b as usize] |= 1 << a;
+            }
+        }
+        let mut component = background & background.wrapping_neg();
+        loop {
+            let mut grown = component;
+            let mut rest = component;
+            while rest != 0 {
+                let slot = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                grown |= links[slot] & background;
+            }
+            if grown == component {
+                return component == background;
+            }
+            component = grown;
+        }
+    }
+
+    #[inline]
+    fn foreground_connected(&self, config: u128) -> bool {
+        if config == 0 {
+            return false;
+        }
+        let mut component = config & config.wrapping_neg();
+        let mut frontier = component;
+        while frontier != 0 {
+            let mut grown = 0u128;
+            let mut rest = frontier;
+            while rest != 0 {
+                let k = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                grown |= self.adjacency[k];
+            }
+            frontier = grown & config & !component;
+            component |= frontier;
+        }
+        component == config
+    }
+
+    /// The three-condition test, cheapest condition first.
+    #[inline]
+    fn evaluate(&self, config: u128) -> bool {
+        if !self.background_faces_connected(config) {
+            return false;
+        }
+        if self.dim == Dim::Four {
+            let faces = self.attachment(config);
+            let chi = (faces & self.even_faces).count_ones() as i32
+                - (faces & self.odd_faces).count_ones() as i32;
+            if chi != 1 {
+                return false;
+            }
+        }
+        self.foreground_connected(config)
+    }
+
+    /// The slow oracle: greedily collapse A(x) through free faces and report whether one
+    /// vertex remains.
+    fn collapses_to_a_point(&self, config: u128) -> bool {
+        let mut faces = self.attachment(config);
+        'collapse: loop {
+            let mut rest = faces;
+            while rest != 0 {
+                let k = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                let cofaces = self.cofaces[k] & faces;
+                // By the diamond property the unique coface of a free face is maximal, so
+                // removing the pair keeps A a closed complex.
+                if cofaces.count_ones() == 1 {
+                    faces &= !(1u128 << k) & !cofaces;
+                    continue 'collapse;
+                }
+            }
+            break;
+        }
+        faces.count_ones() == 1
+    }
+}
+
+fn table_3d(tables: &Tables) -> &'static [u64] {
+    TABLE_3D.get_or_init(|| {
+        let words = (1usize << 26) / 64;
+        (0..words)
+            .into_par_iter()
+            .map(|word| {
+                let mut bits = 0u64;
+                for low in 0..64u128 {
+                    if tables.evaluate(((word as u128) << 6) | low) {
+                        bits |= 1 << low;
+                    }
+                }
+                bits
+            })
+            .collect()
+    })
+}
+
+impl SimpleTester {
+    /// Builds the tables for `dim` (cheap; the 3D bitset is built on first use).
+    pub fn new(dim: Dim) -> SimpleTester {
+        SimpleTester {
+            tables: Arc::new(Tables::build(dim)),
+        }
+    }
+
+    /// The dimension this tester answers for.
+    pub fn dim(&self) -> Dim {
+        self.tables.dim
+    }
+
+    /// Bitmask of the 3^d-1 neighbours of voxel `index` (bit k = neighbour k in
+    /// [`full_offsets`] order) that are foreground.
+    ///
+    /// Panics if `index` is not at least one voxel away from every face of the image, or if
+    /// the image's dimension differs from the tester's: both are caller bugs, because every
+    /// editing loop keeps a padding layer that is never touched.
+    pub fn configuration(&self, image: &BinaryImage, index: usize) -> u128 {
+        let tables = &*self.tables;
+        assert_eq!(
+            image.dim(),
+            tables.dim,
+            "a {}D simple-point tester was given a {}D image",
+            tables.dim,
+            image.dim()
+        );
+        assert!(
+            index < image.len() && is_interior(image, index, 1),
+            "voxel {index} of an image of shape {:?} is on or outside the border; the \
+             simple-point test needs all 3^d-1 neighbours inside the image",
+            image.shape()
+        );
+        let d = tables.dim.get();
+        let strides = image.strides();
+        let data = image.data();
+        let start = index - strides.iter().sum::<usize>();
+        // Walk the 3^d block in lexicographic order, one contiguous row of three bytes
+        // along the last axis at a time.
+        let mut block = 0u128;
+        let rows = 3usize.pow(d as u32 - 1);
+        for row in 0..rows {
+            let mut offset = 0;
+            let mut rest = row;
+            for axis in (0..d - 1).rev() {
+                offset += (rest % 3) * strides[axis];
+                rest /= 3;
+            }
+            let p = start + offset;
+            let bits = data[p] as u128 | (data[p + 1] as u128) << 1 | (data[p + 2] as u128) << 2;
+            block |= bits << (3 * row);
+        }
+        let centre = tables.centre;
+        (block & ((1u128 << centre) - 1)) | ((block >> (centre + 1)) << centre)
+    }
+
+    /// Whether a voxel with this neighbourhood configuration is simple (deleting it if it is
+    /// foreground, or adding it if background, changes no topology). The centre voxel's own
+    /// value does not matter. Bits beyond the 3^d-1 neighbours are ignored.
+    #[inline]
+    pub fn is_simple_configuration(&self, config: u128) -> bool {
+        let tables = &*self.tables;
+        let config = config & ((1u128 << tables.n_neighbours) - 1);
+        match tables.dim {
+            Dim::Two => {
+                let table = tables
+                    .table_2d
+                    .as_ref()
+                    .expect("2D tables carry their table");
+                table[(config >> 6) as usize] >> (config & 63) & 1 == 1
+            }
+            Dim::Three => table_3d(tables)[(config >> 6) as usize] >> (config & 63) & 1 == 1,
+            Dim::Four => tables.evaluate(config),
+        }
+    }
+
+    /// [`SimpleTester::configuration`] followed by [`SimpleTester::is_simple_configuration`].
+    #[inline]
+    pub fn is_simple(&self, image: &BinaryImage, index: usize) -> bool {
+        self.is_simple_configuration(self.configuration(image, index))
+    }
+
+    /// The offsets of the neighbours, in configuration bit order.
+    pub fn offsets(&self) -> &[[i8; 4]] {
+        &self.tables.offsets
+    }
+
+    /// Evaluates the three-condition test directly, bypassing any lookup table.
+    #[cfg(test)]
+    fn evaluate(&self, config: u128) -> bool {
+        self.tables.evaluate(config)
+    }
+
+    /// The slow oracle: greedily collapses the attachment set A(x) through free faces and
+    /// answers whether a single vertex remains. Same answers as
+    /// [`SimpleTester::is_simple_configuration`] (the tests check it), tens of times slower;
+    /// meant for other crates' tests.
+    pub fn is_simple_by_collapse(&self, config: u128) -> bool {
+        let config = config & ((1u128 << self.tables.n_neighbours) - 1);
+        self.tables.collapses_to_a_point(config)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn golden_count_2d() {
+        let tester = SimpleTester::new(Dim::Two);
+        let simple = (0..256u128)
+            .filter(|&c| tester.is_simple_configuration(c))
+            .count();
+        assert_eq!(simple, 116);
+    }
+
+    #[test]
+    fn golden_count_3d() {
+        let tester = SimpleTester::new(Dim::Three);
+        let table = table_3d(&tester.tables);
+        let simple: u64 = table.iter().map(|w| w.count_ones() as u64).sum();
+        assert_eq!(simple, 25_985_144);
+    }
+
+    #[test]
+    fn three_conditions_agree_with_collapse_in_2d() {
+        let tester = SimpleTester::new(Dim::Two);
+        for config in 0..256u128 {
+            assert_eq!(
+                tester.is_simple_configuration(config),
+                tester.is_simple_by_collapse(config),
+                "2D configuration {config:#010b}"
+            );
+        }
+    }
+
+    #[test]
+    fn three_conditions_agree_with_collapse_on_sampled_3d() {
+        let tester = SimpleTester::new(Dim::Three);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..200_000 {
+            // Mix densities so that both simple and non-simple cases are common.
+            let density: f64 = rng.gen_range(0.05..0.95);
+            let mut config = 0u128;
+            for k in 0..26 {
+                if rng.gen_bool(density) {
+                    config |= 1 << k;
+                }
+            }
+            assert_eq!(
+                tester.is_simple_configuration(config),
+                tester.is_simple_by_collapse(config),
+                "3D configuration {config:#x}"
+            );
+        }
+    }
+
+    #[test]
+    fn three_conditions_agree_with_collapse_on_sampled_4d() {
+        let tester = SimpleTester::new(Dim::Four);
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let mut n_simple = 0;
+        let mut n_euler_decided = 0;
+        for _ in 0..200_000 {
+            let density: f64 = rng.gen_range(0.05..0.95);
+            let mut config = 0u128;
+            for k in 0..80 {
+                if rng.gen_bool(density) {
+                    config |= 1 << k;
+                }
+            }
+            let fast = tester.is_simple_configuration(config);
+            assert_eq!(
+                fast,
+                tester.is_simple_by_collapse(config),
+                "4D configuration {config:#x}"
+            );
+            n_simple += fast as u32;
+            let tables = &tester.tables;
+            if !fast
+                && tables.background_faces_connected(config)
+                && tables.foreground_connected(config)
+            {
+                n_euler_decided += 1;
+            }
+        }
+        // The sample must exercise both answers and the Euler condition, or it proves little.
+        assert!(n_simple > 1000, "only {n_simple} simple samples");
+        assert!(
+            n_euler_decided > 100,
+            "Euler test decided only {n_euler_decided}"
+        );
+    }
+
+    #[test]
+    fn configuration_reads_neighbours_in_canonical_order() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for dim in Dim::ALL {
+            let tester = SimpleTester::new(dim);
+            let shape: Vec<usize> = (0..dim.get()).map(|a| 4 + a).collect();
+            let mut image = BinaryImage::zeros(&shape).unwrap();
+            for v in image.data_mut() {
+                *v = rng.gen_range(0..2);
+            }
+            for index in 0..image.len() {
+                if !is_interior(&image, index, 1) {
+                    continue;
+                }
+                let c = image.coords(index);
+                let mut expected = 0u128;
+                for (k, off) in tester.offsets().iter().enumerate() {
+                    let n: Vec<usize> = (0..dim.get())
+                        .map(|a| (c[a] as i64 + off[a] as i64) as usize)
+                        .collect();
+                    if image.get(&n) {
+                        expected |= 1 << k;
+                    }
+                }
+                assert_eq!(tester.configuration(&image, index), expected);
+            }
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "on or outside the border")]
+    fn configuration_refuses_border_voxels() {
+        let image = BinaryImage::zeros(&[4, 4]).unwrap();
+        SimpleTester::new(Dim::Two).configuration(&image, 1);
+    }
+
+    #[test]
+    fn tables_agree_with_direct_evaluation() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let tester = SimpleTester::new(Dim::Three);
+        for _ in 0..100_000 {
+            let config = rng.gen::<u128>() & ((1 << 26) - 1);
+            assert_eq!(
+                tester.is_simple_configuration(config),
+                tester.evaluate(config)
+            );
+        }
+    }
+
+    #[test]
+    fn centre_value_and_extra_bits_are_ignored() {
+        // An isolated voxel is never simple; a voxel with one face neighbour always is.
+        for dim in Dim::ALL {
+            let tester = SimpleTester::new(dim);
+            let shape = vec![3; dim.get()];
+            let mut image = BinaryImage::zeros(&shape).unwrap();
+            let centre = image.len() / 2;
+            image.data_mut()[centre] = 1;
+            assert!(!tester.is_simple(&image, centre));
+            let mut one = vec![1; dim.get()];
+            one[0] = 0;
+            image.set(&one, true);
+            assert!(tester.is_simple(&image, centre));
+            image.data_mut()[centre] = 0;
+            assert!(tester.is_simple(&image, centre));
+            let config = tester.configuration(&image, centre);
+            assert!(tester.is_simple_configuration(config | (1u128 << 127)));
+        }
+    }
+}
