@@ -1,0 +1,331 @@
+//! Tests of [`crate::topology`]: constructed shapes with known labels (labels.md), the
+//! object/cavity duality, invariance under simple-point flips, and agreement with the
+//! slow oracles on thousands of random and adversarial small images.
+
+use super::*;
+use crate::simple::SimpleTester;
+use bettimill_grid::neighbourhood::is_interior;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// An image of side `side` whose voxel centres satisfy `inside` (coordinates relative to
+/// the image centre).
+fn shape(d: usize, side: usize, inside: impl Fn(&[f64]) -> bool) -> BinaryImage {
+    let mut image = BinaryImage::cube(Dim::new(d).unwrap(), side).unwrap();
+    let centre = (side as f64 - 1.0) / 2.0;
+    for index in 0..image.len() {
+        let c = image.coords(index);
+        let p: Vec<f64> = (0..d).map(|a| c[a] as f64 - centre).collect();
+        if inside(&p) {
+            image.data_mut()[index] = 1;
+        }
+    }
+    image
+}
+
+/// The cube with the object carved out: every voxel but the outer layer and the object.
+fn cavity(object: &BinaryImage) -> BinaryImage {
+    let mut out = object.complement();
+    for index in 0..out.len() {
+        if !is_interior(&out, index, 1) {
+            out.data_mut()[index] = 0;
+        }
+    }
+    out
+}
+
+fn norm(p: &[f64]) -> f64 {
+    p.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Distance from (p0, p1) to the circle of radius r in that plane, with the rest of p.
+fn circle_distance(r: f64, p: &[f64]) -> f64 {
+    let radial = (p[0] * p[0] + p[1] * p[1]).sqrt() - r;
+    let rest: f64 = p[2..].iter().map(|x| x * x).sum();
+    (radial * radial + rest).sqrt()
+}
+
+fn check(name: &str, image: &BinaryImage, object: &[u64], carved: &[u64]) {
+    // labels.md: objects need two voxels of clearance from the border, or the cavity
+    // leaks into the outside.
+    assert!(
+        (0..image.len()).all(|i| image.data()[i] == 0 || is_interior(image, i, 2)),
+        "{name} comes closer than two voxels to the border"
+    );
+    let found = topology(image);
+    assert_eq!(found.betti, object, "{name} as an object");
+    assert_eq!(
+        found,
+        topology_by_thinning(image.padded(1)),
+        "{name} by thinning"
+    );
+    let found = topology(&cavity(image));
+    assert_eq!(found.betti, carved, "{name} as a cavity");
+    // labels.md duality, checked on the computed numbers too.
+    let d = object.len();
+    let b = &topology(image).betti;
+    let mut dual = vec![1 + b[d - 1]];
+    dual.extend((1..d - 1).map(|k| b[d - 1 - k]));
+    dual.push(b[0]);
+    assert_eq!(found.betti, dual, "{name} duality");
+}
+
+#[test]
+fn labels_2d() {
+    check("disk", &shape(2, 18, |p| norm(p) <= 5.0), &[1, 0], &[1, 1]);
+    check(
+        "annulus",
+        &shape(2, 22, |p| (3.0..=7.0).contains(&norm(p))),
+        &[1, 1],
+        &[2, 1],
+    );
+}
+
+#[test]
+fn labels_3d() {
+    check(
+        "ball",
+        &shape(3, 16, |p| norm(p) <= 4.5),
+        &[1, 0, 0],
+        &[1, 0, 1],
+    );
+    check(
+        "solid torus",
+        &shape(3, 22, |p| circle_distance(5.5, p) <= 2.2),
+        &[1, 1, 0],
+        &[1, 1, 1],
+    );
+    let genus_two = shape(3, 32, |p| {
+        let left = [p[0] + 5.0, p[1], p[2]];
+        let right = [p[0] - 5.0, p[1], p[2]];
+        circle_distance(5.0, &left) <= 2.0 || circle_distance(5.0, &right) <= 2.0
+    });
+    check("genus-2 handlebody", &genus_two, &[1, 2, 0], &[1, 2, 1]);
+    check(
+        "spherical shell",
+        &shape(3, 20, |p| (4.0..=6.5).contains(&norm(p))),
+        &[1, 0, 1],
+        &[2, 0, 1],
+    );
+    check(
+        "torus shell",
+        &shape(3, 28, |p| (1.6..=3.6).contains(&circle_distance(7.0, p))),
+        &[1, 2, 1],
+        &[2, 2, 1],
+    );
+    let hopf = shape(3, 28, |p| {
+        let first = [p[0] + 3.0, p[1], p[2]];
+        let second = [p[0] - 3.0, p[2], p[1]];
+        circle_distance(6.0, &first) <= 1.8 || circle_distance(6.0, &second) <= 1.8
+    });
+    check("Hopf link", &hopf, &[2, 2, 0], &[1, 2, 2]);
+}
+
+#[test]
+fn labels_4d() {
+    check(
+        "B4",
+        &shape(4, 14, |p| norm(p) <= 3.5),
+        &[1, 0, 0, 0],
+        &[1, 0, 0, 1],
+    );
+    check(
+        "S1xB3",
+        &shape(4, 18, |p| circle_distance(4.0, p) <= 1.8),
+        &[1, 1, 0, 0],
+        &[1, 0, 1, 1],
+    );
+    check(
+        "S2xB2",
+        &shape(4, 18, |p| {
+            let radial = norm(&p[..3]) - 4.0;
+            (radial * radial + p[3] * p[3]).sqrt() <= 1.8
+        }),
+        &[1, 0, 1, 0],
+        &[1, 1, 0, 1],
+    );
+    check(
+        "T2xB2",
+        &shape(4, 24, |p| {
+            // Distance to the torus surface in the first three axes, thickened in 4D.
+            let tube = circle_distance(5.0, &p[..3]) - 2.6;
+            (tube * tube + p[3] * p[3]).sqrt() <= 1.4
+        }),
+        &[1, 2, 1, 0],
+        &[1, 1, 2, 1],
+    );
+    check(
+        "S3 shell",
+        &shape(4, 18, |p| (3.5..=5.5).contains(&norm(p))),
+        &[1, 0, 0, 1],
+        &[2, 0, 0, 1],
+    );
+}
+
+fn random_image(rng: &mut ChaCha8Rng, shape: &[usize], density: f64) -> BinaryImage {
+    let mut image = BinaryImage::zeros(shape).unwrap();
+    for v in image.data_mut() {
+        *v = rng.gen_bool(density) as u8;
+    }
+    image
+}
+
+fn agree_with_reference(d: usize, side: usize, n: usize, seed: u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let shape = vec![side; d];
+    for trial in 0..n {
+        let density = rng.gen_range(0.1..0.9);
+        let image = random_image(&mut rng, &shape, density);
+        let expected = reference::topology(&image);
+        assert_eq!(topology(&image), expected, "{d}D trial {trial}: {image:?}");
+        assert_eq!(
+            euler::euler_characteristic(&image.padded(1)),
+            expected.euler,
+            "{d}D trial {trial}: Euler characteristic"
+        );
+    }
+}
+
+#[test]
+fn agrees_with_reference_on_random_2d() {
+    agree_with_reference(2, 6, 3000, 20);
+}
+
+#[test]
+fn agrees_with_reference_on_random_3d() {
+    agree_with_reference(3, 5, 1500, 30);
+}
+
+#[test]
+fn agrees_with_reference_on_random_4d() {
+    agree_with_reference(4, 3, 300, 40);
+    agree_with_reference(4, 4, 60, 41);
+}
+
+#[test]
+fn thinning_agrees_with_counting_in_2d_and_3d() {
+    let mut rng = ChaCha8Rng::seed_from_u64(50);
+    for (d, side) in [(2, 12), (3, 8)] {
+        for _ in 0..300 {
+            let density = rng.gen_range(0.2..0.8);
+            let image = random_image(&mut rng, &vec![side; d], density);
+            assert_eq!(
+                topology_by_thinning(image.padded(1)),
+                topology(&image),
+                "{image:?}"
+            );
+        }
+    }
+}
+
+/// Images that break naive methods: corner-only contacts, checkerboards, thin shells,
+/// objects touching along edges.
+fn adversarial(d: usize) -> Vec<(&'static str, BinaryImage)> {
+    let side = match d {
+        2 => 8,
+        3 => 6,
+        _ => 4,
+    };
+    let cube = |f: &dyn Fn(&[usize]) -> bool| {
+        let mut image = BinaryImage::cube(Dim::new(d).unwrap(), side).unwrap();
+        for index in 0..image.len() {
+            let c = image.coords(index);
+            image.data_mut()[index] = f(&c[..d]) as u8;
+        }
+        image
+    };
+    vec![
+        ("checkerboard", cube(&|c| c.iter().sum::<usize>() % 2 == 0)),
+        (
+            "anti-checkerboard",
+            cube(&|c| c.iter().sum::<usize>() % 2 == 1),
+        ),
+        ("diagonal", cube(&|c| c.iter().all(|&x| x == c[0]))),
+        (
+            "anti-diagonal corners",
+            cube(&|c| c.iter().all(|&x| x % 2 == 0)),
+        ),
+        (
+            "one-voxel shell",
+            cube(&|c| {
+                c.iter().all(|&x| (1..side - 1).contains(&x))
+                    && c.iter().any(|&x| x == 1 || x == side - 2)
+            }),
+        ),
+        ("full cube", cube(&|_| true)),
+        (
+            "slabs touching on an edge",
+            cube(&|c| (c[0] < side / 2) == (c[1] < side / 2)),
+        ),
+    ]
+}
+
+#[test]
+fn adversarial_images_agree_with_reference() {
+    for d in 2..=4 {
+        for (name, image) in adversarial(d) {
+            let expected = reference::topology(&image);
+            assert_eq!(topology(&image), expected, "{d}D {name}");
+            assert_eq!(
+                topology(&image.complement()),
+                reference::topology(&image.complement()),
+                "{d}D {name} complemented"
+            );
+        }
+    }
+    // Two diagonal voxels are one component; their complement has no hole.
+    let mut pair = BinaryImage::zeros(&[2, 2]).unwrap();
+    pair.set(&[0, 0], true);
+    pair.set(&[1, 1], true);
+    assert_eq!(topology(&pair).betti, vec![1, 0]);
+}
+
+/// Voxels flipped at random among simple points, keeping a border of background.
+fn random_simple_flips(image: &mut BinaryImage, rng: &mut ChaCha8Rng, n_flips: usize) {
+    let tester = SimpleTester::new(image.dim());
+    let mut done = 0;
+    for _ in 0..n_flips * 20 {
+        let index = rng.gen_range(0..image.len());
+        if !is_interior(image, index, 2) {
+            continue;
+        }
+        if tester.is_simple(image, index) {
+            image.data_mut()[index] ^= 1;
+            done += 1;
+            if done == n_flips {
+                break;
+            }
+        }
+    }
+    assert!(done > 0, "no simple point was flipped");
+}
+
+#[test]
+fn simple_flips_preserve_topology() {
+    let mut rng = ChaCha8Rng::seed_from_u64(60);
+    for (d, side, n) in [(2, 16, 40), (3, 10, 30), (4, 7, 10)] {
+        for _ in 0..n {
+            let density = rng.gen_range(0.3..0.7);
+            let mut image = random_image(&mut rng, &vec![side; d], density);
+            let before = topology(&image);
+            random_simple_flips(&mut image, &mut rng, side * side);
+            assert_eq!(topology(&image), before, "{d}D after simple flips");
+        }
+    }
+}
+
+#[test]
+fn agrees_with_the_dual_construction_of_the_background() {
+    let mut rng = ChaCha8Rng::seed_from_u64(70);
+    for (d, side, n) in [(2, 7, 500), (3, 5, 300), (4, 3, 100)] {
+        for _ in 0..n {
+            let density = rng.gen_range(0.2..0.8);
+            let image = random_image(&mut rng, &vec![side; d], density);
+            assert_eq!(
+                topology(&image),
+                reference::topology_by_duality(&image),
+                "{d}D {image:?}"
+            );
+        }
+    }
+}
