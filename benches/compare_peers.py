@@ -1,0 +1,153 @@
+#!/usr/bin/env python3
+"""Time bettimill's exact Betti numbers against CubicalRipser and GUDHI on the same images.
+
+Images: "blob" (uniform noise smoothed by three passes of a periodic box blur of radius 2,
+thresholded at its median, so about half the voxels are foreground) and "random" (each
+voxel foreground with probability 0.5), generated with a fixed seed and saved as .npy.
+
+Peers are set up to match bettimill's model (labels.md): f = 0 on foreground, 1 on
+background, padded with one background layer; CubicalRipser's T-construction
+(`computePH_T`) and GUDHI's `CubicalComplex(top_dimensional_cells=f)` with
+`homology_coeff_field=2`; b_k = intervals of dimension k born at 0 that die after 0.
+Every tool's Betti numbers must agree or the script exits non-zero.
+
+Our side runs `bettimill betti IMAGE.npy --json` when --bettimill is given, otherwise the
+`betti` example of bettimill-homology (build it first:
+`cargo build --release -p bettimill-homology --example betti`). Our time is the wall time
+of the whole process (file read included), so the comparison does not flatter us.
+
+Usage:
+  python benches/compare_peers.py [--cases 3:64:blob,4:32:blob,...] [--skip-gudhi]
+      [--bettimill PATH | --example PATH] [--workdir DIR] [--json OUT.json]
+
+Needs numpy, cripser and gudhi (pip install numpy cripser gudhi).
+"""
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+
+def blob(dim, side, seed):
+    rng = np.random.default_rng(seed)
+    f = rng.random((side,) * dim)
+    for _ in range(3):
+        for axis in range(dim):
+            f = sum(np.roll(f, s, axis=axis) for s in range(-2, 3)) / 5.0
+    return (f > np.median(f)).astype(np.uint8)
+
+
+def random_image(dim, side, seed):
+    rng = np.random.default_rng(seed)
+    return (rng.random((side,) * dim) < 0.5).astype(np.uint8)
+
+
+def betti_from_pairs(pairs, dim):
+    """pairs: iterable of (k, birth, death)."""
+    betti = [0] * dim
+    for k, birth, death in pairs:
+        if k < dim and birth == 0 and death > 0:
+            betti[int(k)] += 1
+    return betti
+
+
+def peer_input(image):
+    return np.pad(1.0 - image.astype(np.float64), 1, constant_values=1.0)
+
+
+def run_cripser(image):
+    import cripser
+
+    f = peer_input(image)
+    start = time.perf_counter()
+    ph = cripser.computePH_T(f, maxdim=image.ndim - 1)
+    seconds = time.perf_counter() - start
+    return betti_from_pairs(((row[0], row[1], row[2]) for row in ph), image.ndim), seconds
+
+
+def run_gudhi(image):
+    import gudhi
+
+    f = peer_input(image)
+    start = time.perf_counter()
+    complex_ = gudhi.CubicalComplex(top_dimensional_cells=f)
+    pers = complex_.persistence(homology_coeff_field=2)
+    seconds = time.perf_counter() - start
+    return betti_from_pairs(((k, b, d) for k, (b, d) in pers), image.ndim), seconds
+
+
+def run_ours(path, args):
+    if args.bettimill:
+        command = [args.bettimill, "betti", path, "--json"]
+    else:
+        command = [args.example, path]
+    start = time.perf_counter()
+    out = subprocess.run(command, check=True, capture_output=True, text=True).stdout
+    seconds = time.perf_counter() - start
+    record = json.loads(out.strip().splitlines()[-1])
+    return record["betti"], seconds, record.get("seconds")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cases", default="3:64:blob,3:64:random,4:16:blob,4:32:blob,4:32:random,4:48:blob")
+    parser.add_argument("--bettimill", help="path of the bettimill CLI")
+    parser.add_argument(
+        "--example",
+        default=os.path.join(os.path.dirname(__file__), "..", "target", "release", "examples", "betti"),
+        help="path of the betti example binary",
+    )
+    parser.add_argument("--skip-gudhi", action="store_true")
+    parser.add_argument("--skip-cripser", action="store_true")
+    parser.add_argument("--workdir")
+    parser.add_argument("--json", help="also write the results here")
+    parser.add_argument("--seed", type=int, default=2024)
+    args = parser.parse_args()
+
+    workdir = args.workdir or tempfile.mkdtemp(prefix="bettimill-peers-")
+    os.makedirs(workdir, exist_ok=True)
+    results = []
+    failed = False
+    print(f"# {platform.node()} {platform.processor() or platform.machine()} {os.cpu_count()} cpus, "
+          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}", flush=True)
+    print(f"{'case':18} {'betti':18} {'ours s':>9} {'(kernel)':>9} {'cripser s':>10} {'gudhi s':>9} {'x cripser':>9}", flush=True)
+    for case in args.cases.split(","):
+        dim, side, kind = case.split(":")
+        dim, side = int(dim), int(side)
+        image = (blob if kind == "blob" else random_image)(dim, side, args.seed)
+        path = os.path.join(workdir, f"{kind}_{dim}d_{side}.npy")
+        np.save(path, image)
+        row = {"case": case, "dim": dim, "side": side, "kind": kind,
+               "foreground": int(image.sum())}
+        ours, row["ours_seconds"], row["ours_kernel_seconds"] = run_ours(path, args)
+        row["betti"] = ours
+        if not args.skip_cripser:
+            theirs, row["cripser_seconds"] = run_cripser(image)
+            if theirs != ours:
+                print(f"MISMATCH {case}: ours {ours} cripser {theirs}", file=sys.stderr)
+                failed = True
+        if not args.skip_gudhi:
+            theirs, row["gudhi_seconds"] = run_gudhi(image)
+            if theirs != ours:
+                print(f"MISMATCH {case}: ours {ours} gudhi {theirs}", file=sys.stderr)
+                failed = True
+        speedup = row.get("cripser_seconds", float("nan")) / row["ours_seconds"]
+        print(f"{case:18} {str(ours):18} {row['ours_seconds']:9.3f} {row['ours_kernel_seconds'] or float('nan'):9.3f} "
+              f"{row.get('cripser_seconds', float('nan')):10.3f} {row.get('gudhi_seconds', float('nan')):9.3f} "
+              f"{speedup:9.1f}", flush=True)
+        results.append(row)
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump(results, out, indent=1)
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
