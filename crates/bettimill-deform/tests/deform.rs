@@ -1,0 +1,407 @@
+//! End-to-end properties of the deformations in 2D, 3D and 4D: topology (exact Betti
+//! numbers from `bettimill_homology::topology`) never changes, moves keep the hypervolume,
+//! results are a pure function of (image, settings, seed) whatever the thread count, and
+//! seed scenes carry the Betti numbers they claim.
+
+use bettimill_deform::seeds::{random_scene, SceneSpec, SeedBuilder};
+use bettimill_deform::{
+    deform, target_hypervolume, DeformError, DeformSettings, Method, MAX_DISTANCE,
+};
+use bettimill_grid::BinaryImage;
+use bettimill_homology::topology;
+
+fn betti(image: &BinaryImage) -> Vec<u64> {
+    topology(image).betti
+}
+
+fn disc(side: usize, radius: f64) -> BinaryImage {
+    let mut image = BinaryImage::zeros(&[side, side]).unwrap();
+    let c = (side as f64 - 1.0) / 2.0;
+    for y in 0..side {
+        for x in 0..side {
+            let (dx, dy) = (x as f64 - c, y as f64 - c);
+            if dx * dx + dy * dy <= radius * radius {
+                image.set(&[y, x], true);
+            }
+        }
+    }
+    image
+}
+
+/// Two rings touching at one point: one component, two holes.
+fn figure_eight(side: usize) -> BinaryImage {
+    let mut image = BinaryImage::zeros(&[side, side]).unwrap();
+    let r = side as f64 / 5.0;
+    let cy = (side as f64 - 1.0) / 2.0;
+    for (cx, _) in [(cy - r, 0), (cy + r, 1)] {
+        for y in 0..side {
+            for x in 0..side {
+                let d = ((x as f64 - cx).powi(2) + (y as f64 - cy).powi(2)).sqrt();
+                if d <= r + 1.0 && d >= r - 3.0 {
+                    image.set(&[y, x], true);
+                }
+            }
+        }
+    }
+    image
+}
+
+fn settings(method: Method, steps: u32) -> DeformSettings {
+    DeformSettings {
+        method,
+        steps,
+        ..DeformSettings::default()
+    }
+}
+
+/// A seed scene grown by a few iterations of full dilation, so moves have a boundary.
+fn grown_scene(shape: &[usize], spec: &SceneSpec, seed: u64, iterations: u32) -> BinaryImage {
+    let scene = random_scene(shape, spec, seed).unwrap();
+    let mut image = scene.image;
+    deform(&mut image, &settings(Method::Dilate, iterations), seed).unwrap();
+    assert_eq!(betti(&image), scene.betti);
+    image
+}
+
+fn scene_3d() -> SceneSpec {
+    SceneSpec {
+        curves: 2,
+        circles: 2,
+        knots: 1,
+        bridges: 1,
+        tentacles: 2,
+        spheres: 1,
+        tori: 1,
+    }
+}
+
+fn scene_4d() -> SceneSpec {
+    SceneSpec {
+        curves: 1,
+        circles: 2,
+        spheres: 1,
+        tentacles: 1,
+        ..SceneSpec::default()
+    }
+}
+
+#[test]
+fn moves_keep_topology_and_hypervolume_in_2d() {
+    for (name, image) in [("disc", disc(64, 15.0)), ("figure eight", figure_eight(64))] {
+        let expected = betti(&image);
+        for seed in 0..3 {
+            let mut moved = image.clone();
+            let report = deform(&mut moved, &settings(Method::Moves, 600), seed).unwrap();
+            assert_eq!(report.applied, 600, "{name} seed {seed}: {report:?}");
+            assert_eq!(moved.count_foreground(), image.count_foreground(), "{name}");
+            assert_eq!(report.foreground_after, report.foreground_before);
+            assert_eq!(betti(&moved), expected, "{name} seed {seed}");
+            assert_ne!(moved, image, "{name}: nothing moved");
+            assert!(moved.border_is_background());
+        }
+    }
+    assert_eq!(betti(&figure_eight(64)), vec![1, 2]);
+}
+
+#[test]
+fn moves_with_a_longer_reach_keep_topology() {
+    for max_distance in [2, 3, MAX_DISTANCE] {
+        let image = figure_eight(48);
+        let mut moved = image.clone();
+        let s = DeformSettings {
+            max_distance,
+            ..settings(Method::Moves, 400)
+        };
+        let report = deform(&mut moved, &s, 7).unwrap();
+        assert!(report.applied > 100, "{report:?}");
+        assert_eq!(moved.count_foreground(), image.count_foreground());
+        assert_eq!(betti(&moved), betti(&image), "max_distance {max_distance}");
+    }
+}
+
+#[test]
+fn moves_keep_topology_and_hypervolume_in_3d_and_4d() {
+    let cases = [
+        (grown_scene(&[40, 40, 40], &scene_3d(), 3, 1), 3000),
+        (grown_scene(&[18, 18, 18, 18], &scene_4d(), 4, 1), 2000),
+    ];
+    for (image, steps) in cases {
+        let expected = betti(&image);
+        let mut moved = image.clone();
+        let report = deform(&mut moved, &settings(Method::Moves, steps), 11).unwrap();
+        assert!(report.applied > steps as u64 / 2, "{report:?}");
+        assert_eq!(moved.count_foreground(), image.count_foreground());
+        assert_eq!(betti(&moved), expected, "{:?}", image.shape());
+    }
+}
+
+#[test]
+fn dilation_and_erosion_keep_topology_in_every_dimension() {
+    let cases = [
+        random_scene(
+            &[64, 64],
+            &SceneSpec {
+                curves: 3,
+                circles: 4,
+                bridges: 2,
+                tentacles: 3,
+                ..SceneSpec::default()
+            },
+            1,
+        )
+        .unwrap(),
+        random_scene(&[40, 40, 40], &scene_3d(), 2).unwrap(),
+        random_scene(&[18, 18, 18, 18], &scene_4d(), 3).unwrap(),
+    ];
+    for scene in cases {
+        let mut image = scene.image.clone();
+        for probability in [1.0, 0.4] {
+            let grow = DeformSettings {
+                growth_probability: probability,
+                ..settings(Method::Dilate, 3)
+            };
+            let before = image.count_foreground();
+            let report = deform(&mut image, &grow, 5).unwrap();
+            assert!(image.count_foreground() > before, "{report:?}");
+            assert_eq!(betti(&image), scene.betti, "dilate {probability}");
+            let shrink = DeformSettings {
+                growth_probability: probability,
+                ..settings(Method::Erode, 2)
+            };
+            let before = image.count_foreground();
+            deform(&mut image, &shrink, 6).unwrap();
+            assert!(image.count_foreground() < before);
+            assert_eq!(betti(&image), scene.betti, "erode {probability}");
+            assert!(image.border_is_background());
+        }
+    }
+}
+
+#[test]
+fn lumpy_dilation_grows_only_part_of_the_frontier() {
+    let image = disc(96, 20.0);
+    let mut full = image.clone();
+    let mut lumpy = image.clone();
+    deform(&mut full, &settings(Method::Dilate, 3), 1).unwrap();
+    let s = DeformSettings {
+        growth_probability: 0.3,
+        ..settings(Method::Dilate, 3)
+    };
+    deform(&mut lumpy, &s, 1).unwrap();
+    let (g_full, g_lumpy) = (
+        full.count_foreground() - image.count_foreground(),
+        lumpy.count_foreground() - image.count_foreground(),
+    );
+    assert!(g_lumpy > 0 && g_lumpy * 2 < g_full, "{g_lumpy} vs {g_full}");
+    assert_eq!(betti(&lumpy), vec![1, 0]);
+}
+
+#[test]
+fn erosion_thins_a_disc_to_a_point_and_keeps_a_ring() {
+    let mut image = disc(40, 12.0);
+    deform(&mut image, &settings(Method::Erode, 100), 0).unwrap();
+    assert_eq!(image.count_foreground(), 1);
+    let mut ring = figure_eight(40);
+    deform(&mut ring, &settings(Method::Erode, 100), 0).unwrap();
+    assert_eq!(betti(&ring), vec![1, 2]);
+    assert!(ring.count_foreground() < figure_eight(40).count_foreground() / 2);
+}
+
+#[test]
+fn same_seed_gives_the_same_result_and_seeds_differ() {
+    let image = grown_scene(&[32, 32, 32], &scene_3d(), 9, 1);
+    for method in [Method::Moves, Method::Dilate, Method::Erode] {
+        let s = DeformSettings {
+            growth_probability: 0.5,
+            ..settings(method, if method == Method::Moves { 500 } else { 2 })
+        };
+        let run = |seed| {
+            let mut out = image.clone();
+            let report = deform(&mut out, &s, seed).unwrap();
+            (out, report)
+        };
+        let (a, report_a) = run(1);
+        let (b, report_b) = run(1);
+        let (c, _) = run(2);
+        assert_eq!(a, b, "{method:?}");
+        assert_eq!(report_a, report_b);
+        assert_ne!(a, c, "{method:?}: the seed is ignored");
+    }
+    let scene = |seed| {
+        random_scene(
+            &[40, 40],
+            &SceneSpec {
+                circles: 3,
+                curves: 2,
+                ..SceneSpec::default()
+            },
+            seed,
+        )
+        .unwrap()
+    };
+    assert_eq!(scene(4), scene(4));
+    assert_ne!(scene(4).image, scene(5).image);
+}
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    // A ball this big has subfields of more than 256 voxels (about 4 pi 34^2 * 0.6 / 27),
+    // which are decided on rayon.
+    let side = 80;
+    let mut image = BinaryImage::zeros(&[side, side, side]).unwrap();
+    let c = (side as f64 - 1.0) / 2.0;
+    for v in 0..image.len() {
+        let p = image.coords(v);
+        let r2: f64 = (0..3).map(|a| (p[a] as f64 - c).powi(2)).sum();
+        if r2 <= 34.0f64.powi(2) {
+            image.data_mut()[v] = 1;
+        }
+    }
+    let run = |threads: usize, method: Method| {
+        let mut out = image.clone();
+        let s = DeformSettings {
+            growth_probability: 0.6,
+            ..settings(method, 2)
+        };
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| deform(&mut out, &s, 3).unwrap());
+        out
+    };
+    for method in [Method::Dilate, Method::Erode] {
+        let one = run(1, method);
+        assert_ne!(one, image);
+        assert_eq!(one, run(2, method), "{method:?}");
+    }
+}
+
+#[test]
+fn target_hypervolume_grows_and_shrinks_exactly() {
+    let scene = random_scene(&[24, 24, 24], &scene_3d(), 8).unwrap();
+    let mut image = scene.image.clone();
+    let start = image.count_foreground();
+    let report = target_hypervolume(&mut image, start * 4, start * 5, 1).unwrap();
+    assert_eq!(image.count_foreground(), start * 4);
+    assert_eq!(report.foreground_after, start * 4);
+    assert_eq!(betti(&image), scene.betti);
+    let report = target_hypervolume(&mut image, start * 2, start * 3, 1).unwrap();
+    assert_eq!(image.count_foreground(), start * 3, "{report:?}");
+    assert_eq!(betti(&image), scene.betti);
+    // Already in range: nothing to do.
+    let before = image.clone();
+    let report = target_hypervolume(&mut image, 0, u64::MAX, 1).unwrap();
+    assert_eq!((report.applied, &image), (0, &before));
+}
+
+#[test]
+fn impossible_targets_are_errors_and_leave_the_image_alone() {
+    let mut empty = BinaryImage::zeros(&[16, 16]).unwrap();
+    assert!(matches!(
+        target_hypervolume(&mut empty, 10, 20, 0),
+        Err(DeformError::HypervolumeUnreachable { reached: 0, .. })
+    ));
+    let ring = figure_eight(40);
+    let mut image = ring.clone();
+    let err = target_hypervolume(&mut image, 1, 5, 0).unwrap_err();
+    assert!(
+        matches!(err, DeformError::HypervolumeUnreachable { reached, .. } if reached > 5),
+        "{err}"
+    );
+    assert_eq!(image, ring);
+    assert_eq!(
+        target_hypervolume(&mut image, 5, 4, 0),
+        Err(DeformError::EmptyRange { lo: 5, hi: 4 })
+    );
+    let bad = DeformSettings {
+        octaves: 0,
+        ..DeformSettings::default()
+    };
+    assert!(matches!(
+        deform(&mut image, &bad, 0),
+        Err(DeformError::InvalidSetting {
+            field: "octaves",
+            ..
+        })
+    ));
+    assert_eq!(image, ring);
+}
+
+#[test]
+fn the_outer_layer_is_never_edited() {
+    // A bar touching the border on both ends: dilation and moves must not change the
+    // outer layer, but may change everything inside.
+    let mut image = BinaryImage::zeros(&[20, 20]).unwrap();
+    for x in 0..20 {
+        for y in 8..12 {
+            image.set(&[y, x], true);
+        }
+    }
+    let border = |img: &BinaryImage| -> Vec<bool> {
+        (0..img.len())
+            .filter(|&v| !bettimill_grid::neighbourhood::is_interior(img, v, 1))
+            .map(|v| img.data()[v] == 1)
+            .collect()
+    };
+    for method in [Method::Moves, Method::Dilate, Method::Erode] {
+        let mut out = image.clone();
+        deform(&mut out, &settings(method, 50), 2).unwrap();
+        assert_ne!(out, image, "{method:?}");
+        assert_eq!(border(&out), border(&image), "{method:?}");
+        assert_eq!(betti(&out), betti(&image));
+    }
+}
+
+#[test]
+fn seed_scenes_have_the_betti_numbers_they_claim() {
+    let plane = SceneSpec {
+        curves: 4,
+        circles: 5,
+        bridges: 2,
+        tentacles: 4,
+        ..SceneSpec::default()
+    };
+    for seed in 0..4 {
+        for (shape, spec) in [
+            (vec![96, 96], plane.clone()),
+            (vec![40, 40, 40], scene_3d()),
+            (vec![20, 20, 20, 20], scene_4d()),
+        ] {
+            let scene = random_scene(&shape, &spec, seed).unwrap();
+            assert_eq!(betti(&scene.image), scene.betti, "{shape:?} seed {seed}");
+            assert!(scene.placed.circles >= 1, "{:?}", scene.placed);
+            assert!(scene.image.border_is_background());
+        }
+    }
+}
+
+#[test]
+fn four_dimensional_spheres_and_tori_are_what_they_claim() {
+    let mut b = SeedBuilder::new(&[24, 24, 24, 24], 3).unwrap();
+    assert!((0..20).any(|_| b.add_torus(5.0, 2.5)));
+    assert_eq!(b.betti(), vec![1, 2, 1, 0]);
+    assert!((0..20).any(|_| b.add_sphere(4.0)));
+    assert_eq!(b.betti(), vec![2, 2, 2, 0]);
+    assert!((0..40).any(|_| b.add_bridge()));
+    assert_eq!(b.betti(), vec![1, 2, 2, 0]);
+    let (image, claimed) = b.finish();
+    assert_eq!(betti(&image), claimed);
+    // Growing them gives S^1 x S^1 x B^2 and S^2 x B^2, joined.
+    let mut grown = image.clone();
+    deform(&mut grown, &settings(Method::Dilate, 2), 0).unwrap();
+    assert!(grown.count_foreground() > 3 * image.count_foreground());
+    assert_eq!(betti(&grown), claimed);
+}
+
+#[test]
+fn seeds_reject_shapes_that_are_too_small() {
+    assert!(matches!(
+        SeedBuilder::new(&[6, 40], 0),
+        Err(DeformError::InvalidSetting { field: "shape", .. })
+    ));
+    assert!(SeedBuilder::new(&[40], 0).is_err());
+    let mut b = SeedBuilder::new(&[12, 12], 0).unwrap();
+    assert!(!b.add_sphere(3.0), "no 2-spheres in 2D");
+    assert!(!b.add_bridge(), "nothing to bridge");
+}
