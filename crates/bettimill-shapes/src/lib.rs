@@ -1,1 +1,364 @@
-//! bettimill-shapes (being written).
+//! The shape library: voxel objects with analytically known Betti numbers.
+//!
+//! Every construction of the paper is a [`Family`]; [`generate`] draws one random instance
+//! (random size, rotation and position from the caller's `ChaCha8Rng`) in a 2D, 3D or 4D
+//! image, in one of two [`Mode`]s: the object(s) in empty space, or a solid cube with the
+//! object(s) cut out as cavities. The label comes from the construction, not from a
+//! computation: [`Family::expected_betti`] states it, and the verifier in
+//! `bettimill-homology` checks every sample against it, because even well-conditioned
+//! shapes can digitise with local defects.
+//!
+//! Model (see `notes/labels.md`): an image is the union of its closed foreground voxels,
+//! foreground (3^d-1)-adjacency, background 2d-adjacency, Betti numbers over Z/2. Carve
+//! labels follow from embed labels by the duality b0(C) = 1 + b_{d-1}(O),
+//! b_k(C) = b_{d-1-k}(O), b_{d-1}(C) = b0(O).
+//!
+//! Every object is a skeleton (point, circle, sphere, torus, polyline, ...) thickened by a
+//! radius of at least two voxels, or a thin shell around such a thickening; a thickening
+//! thinner than the skeleton's feature size has the skeleton's homotopy type. Objects keep
+//! at least two background voxels to each other, to the border and (carve mode) to the
+//! cube's boundary.
+
+mod curves;
+mod families;
+mod geometry;
+mod place;
+
+pub use bettimill_grid::{BinaryImage, Dim};
+pub use families::{paper_scene_3d, paper_scene_family};
+
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// Where the objects go.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Objects (foreground) in empty space.
+    Embed,
+    /// A solid cube filling the image except a one-voxel margin, with the objects removed
+    /// as cavities.
+    Carve,
+}
+
+impl fmt::Display for Mode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Mode::Embed => "embed",
+            Mode::Carve => "carve",
+        })
+    }
+}
+
+/// A knot: the core curve of a knotted solid torus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KnotKind {
+    /// A round circle.
+    Unknot,
+    /// The trefoil (3_1).
+    Trefoil,
+    /// The figure-eight knot (4_1).
+    FigureEight,
+    /// The cinquefoil, torus knot T(2,5) (5_1).
+    Cinquefoil,
+}
+
+impl KnotKind {
+    /// The knot's name as used in labels.
+    pub fn name(self) -> &'static str {
+        match self {
+            KnotKind::Unknot => "unknot",
+            KnotKind::Trefoil => "trefoil",
+            KnotKind::FigureEight => "figure_eight",
+            KnotKind::Cinquefoil => "cinquefoil",
+        }
+    }
+}
+
+/// A link of several closed curves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinkKind {
+    /// Two circles linked once.
+    Hopf,
+    /// The Whitehead link: linking number zero, yet linked.
+    Whitehead,
+    /// Three rings, no two of them linked.
+    Borromean,
+    /// Solomon's knot, the torus link T(4,2).
+    Solomon,
+}
+
+impl LinkKind {
+    /// The link's name as used in labels.
+    pub fn name(self) -> &'static str {
+        match self {
+            LinkKind::Hopf => "hopf",
+            LinkKind::Whitehead => "whitehead",
+            LinkKind::Borromean => "borromean",
+            LinkKind::Solomon => "solomon",
+        }
+    }
+
+    /// The number of closed curves.
+    pub fn components(self) -> u64 {
+        match self {
+            LinkKind::Borromean => 3,
+            _ => 2,
+        }
+    }
+}
+
+/// A family of constructions, as written in a manifest class: e.g. TOML
+/// `{ family = "ball" }`, `{ family = "handlebody", genus = 2 }`,
+/// `{ family = "connected_sum", g = 1, h = 0, i = 1, j = 2 }`,
+/// `{ family = "knot", knot = "trefoil" }`, `{ family = "scene", objects = [...] }`.
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(tag = "family", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Family {
+    /// A d-ball.
+    Ball,
+    /// S1 x B(d-1): an annulus in 2D, a solid torus in 3D, S1xB3 in 4D.
+    Handle,
+    /// A thickened (d-1)-sphere: annulus, spherical shell, thickened S3.
+    Shell,
+    /// A thickened (d-1)-torus: annulus in 2D, torus shell in 3D, thickened T3 in 4D.
+    TorusShell,
+    /// A thickened graph with `genus` independent cycles (circles joined by bars): a disk
+    /// with holes in 2D, a genus-g handlebody in 3D, a boundary sum of S1xB3 in 4D.
+    Handlebody {
+        /// Number of handles (at least 1).
+        genus: u32,
+    },
+    /// 4D: a thickened 2-sphere, S2xB2.
+    #[serde(rename = "s2_x_b2")]
+    S2xB2,
+    /// 4D: a thickened torus, T2xB2 = S1xS1xB2.
+    #[serde(rename = "t2_x_b2")]
+    T2xB2,
+    /// S1 x (boundary sum of j copies of S1xB(d-2)), built by spinning a thickened planar
+    /// graph with j cycles about a plane (3D: about an axis).
+    #[serde(rename = "s1_x_handlebody")]
+    S1xHandlebody {
+        /// Cycles of the spun graph (at least 1).
+        j: u32,
+    },
+    /// Table I of the paper: the boundary connected sum of g copies of S1xB(d-1), h of
+    /// S2xB(d-2) and i of S1 x (boundary sum of j S1xB(d-2)), in 4D (and its 3D analogue).
+    ConnectedSum {
+        /// Copies of S1xB(d-1).
+        g: u32,
+        /// Copies of S2xB(d-2).
+        h: u32,
+        /// Copies of S1 x (boundary sum of j copies of S1xB(d-2)).
+        i: u32,
+        /// Cycles in each of the i summands.
+        j: u32,
+    },
+    /// Carve mode only: a tunnel through the cube, I^intervals x K, where the cross-section
+    /// K is a ball, or (with `circle`) a thickened circle S1xB. The I factors run from
+    /// face to face.
+    Tunnel {
+        /// Interval factors (1 or 2).
+        intervals: u32,
+        /// Whether the cross-section is a thickened circle instead of a ball.
+        #[serde(default)]
+        circle: bool,
+    },
+    /// A thickened smooth open curve (contractible).
+    Curve,
+    /// A knotted solid torus in 3D; in 4D the knot times an interval (circles do not knot
+    /// in 4D).
+    Knot {
+        /// Which knot.
+        knot: KnotKind,
+    },
+    /// The torus knot or link T(p,q): gcd(p,q) thickened components.
+    TorusKnot {
+        /// Turns around the torus' axis.
+        p: u32,
+        /// Turns through the torus' hole.
+        q: u32,
+    },
+    /// A link of thickened closed curves in 3D; in 4D the link times an interval.
+    Link {
+        /// Which link.
+        link: LinkKind,
+    },
+    /// 4D: Artin's spun knot, a knotted 2-sphere (thickened): a knotted arc with its ends
+    /// on a plane, spun about that plane.
+    SpunKnot {
+        /// The knot whose arc is spun.
+        knot: KnotKind,
+    },
+    /// 4D: a link spun about a plane: every component becomes a (thickened) torus; the
+    /// spun Hopf link is two linked T2xB2.
+    SpunLink {
+        /// The link that is spun.
+        link: LinkKind,
+    },
+    /// 4D: a thickened Klein bottle. Over Z/2 its Betti numbers are (1,2,1,0); over Q
+    /// they are (1,1,0,0).
+    KleinBottle,
+    /// An object with thickened curves ("tentacles") attached at one end: same topology.
+    Tentacled {
+        /// The object (a tube-like family: ball, handle, handlebody, curve, knot, link).
+        object: Box<Family>,
+        /// Number of tentacles.
+        tentacles: u32,
+    },
+    /// Several objects, each with a random rotation, scale and position, kept apart by at
+    /// least two background voxels.
+    Scene {
+        /// The objects to place.
+        objects: Vec<Family>,
+    },
+}
+
+/// Why a shape could not be generated.
+#[derive(Debug, thiserror::Error, Clone, PartialEq, Eq)]
+pub enum ShapeError {
+    /// The family does not exist in this dimension or mode.
+    #[error("{family} is not available in {dim}D {mode} mode: {reason}")]
+    Unsupported {
+        /// The family's label.
+        family: String,
+        /// The requested dimension.
+        dim: usize,
+        /// The requested mode.
+        mode: Mode,
+        /// What is missing.
+        reason: String,
+    },
+    /// The parameters are outside the family's domain.
+    #[error("invalid parameters for {family}: {reason}")]
+    InvalidParameters {
+        /// The family's label.
+        family: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The construction cannot fit at this side length.
+    #[error("{family} does not fit in a {dim}D image of side {side} ({mode} mode): {reason}")]
+    DoesNotFit {
+        /// The family's label.
+        family: String,
+        /// The requested dimension.
+        dim: usize,
+        /// The requested side length.
+        side: usize,
+        /// The requested mode.
+        mode: Mode,
+        /// Sizes involved.
+        reason: String,
+    },
+}
+
+/// One random instance with its label.
+#[derive(Clone, Debug)]
+pub struct Generated {
+    /// The image, shape `[side; dim]`.
+    pub image: BinaryImage,
+    /// Analytic Betti numbers over Z/2 (len == dim).
+    pub betti: Vec<u64>,
+    /// Analytic Betti numbers over Q when they differ (Klein bottle), else None.
+    pub betti_rational: Option<Vec<u64>>,
+    /// How it was built (families, parameters, placement, rotation); keys sorted.
+    pub construction: serde_json::Value,
+    /// Knot/link type label ("unknot", "trefoil", "hopf", ...), or "none".
+    pub knot_type: String,
+    /// Number of objects placed (b0 of the object in Embed mode).
+    pub components: u64,
+}
+
+impl Family {
+    /// Analytic Betti numbers over Z/2 for this family in `dim` and `mode`; Err if the
+    /// family does not exist in that dimension.
+    pub fn expected_betti(&self, dim: Dim, mode: Mode) -> Result<Vec<u64>, ShapeError> {
+        families::expected(self, dim, mode).map(|(z2, _)| z2)
+    }
+
+    /// Analytic Betti numbers over Q (differ from Z/2 only for the Klein bottle).
+    pub fn expected_betti_rational(&self, dim: Dim, mode: Mode) -> Result<Vec<u64>, ShapeError> {
+        families::expected(self, dim, mode).map(|(z2, q)| q.unwrap_or(z2))
+    }
+
+    /// Plan-time feasibility: Err with a clear reason if the construction cannot fit at
+    /// this side length (never an endless retry later).
+    pub fn check_fits(&self, dim: Dim, side: usize, mode: Mode) -> Result<(), ShapeError> {
+        families::check_fits(self, dim, side, mode)
+    }
+
+    /// The smallest side length at which [`Family::check_fits`] succeeds (up to 1024).
+    pub fn min_side(&self, dim: Dim, mode: Mode) -> Result<usize, ShapeError> {
+        families::expected(self, dim, mode)?;
+        (4..=1024)
+            .find(|&side| self.check_fits(dim, side, mode).is_ok())
+            .ok_or_else(|| ShapeError::DoesNotFit {
+                family: self.label(),
+                dim: dim.get(),
+                side: 1024,
+                mode,
+                reason: "does not fit at any side up to 1024".into(),
+            })
+    }
+
+    /// A short stable name for tables ("ball", "handlebody(genus=2)", ...).
+    pub fn label(&self) -> String {
+        match self {
+            Family::Ball => "ball".into(),
+            Family::Handle => "handle".into(),
+            Family::Shell => "shell".into(),
+            Family::TorusShell => "torus_shell".into(),
+            Family::Handlebody { genus } => format!("handlebody(genus={genus})"),
+            Family::S2xB2 => "s2_x_b2".into(),
+            Family::T2xB2 => "t2_x_b2".into(),
+            Family::S1xHandlebody { j } => format!("s1_x_handlebody(j={j})"),
+            Family::ConnectedSum { g, h, i, j } => {
+                format!("connected_sum(g={g},h={h},i={i},j={j})")
+            }
+            Family::Tunnel { intervals, circle } => {
+                format!("tunnel(intervals={intervals},circle={circle})")
+            }
+            Family::Curve => "curve".into(),
+            Family::Knot { knot } => format!("knot({})", knot.name()),
+            Family::TorusKnot { p, q } => format!("torus_knot(p={p},q={q})"),
+            Family::Link { link } => format!("link({})", link.name()),
+            Family::SpunKnot { knot } => format!("spun_knot({})", knot.name()),
+            Family::SpunLink { link } => format!("spun_link({})", link.name()),
+            Family::KleinBottle => "klein_bottle".into(),
+            Family::Tentacled { object, tentacles } => {
+                format!("tentacled({},tentacles={tentacles})", object.label())
+            }
+            Family::Scene { objects } => {
+                let inner: Vec<String> = objects.iter().map(Family::label).collect();
+                format!("scene({})", inner.join(","))
+            }
+        }
+    }
+}
+
+impl fmt::Display for Family {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.label())
+    }
+}
+
+/// Draws one random instance. Image shape is `[side; dim]`.
+pub fn generate(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    rng: &mut ChaCha8Rng,
+) -> Result<Generated, ShapeError> {
+    families::generate(family, dim, side, mode, rng)
+}
+
+#[cfg(test)]
+mod check;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,523 @@
+//! Continuous geometry: skeletons, their distance functions, and rotations.
+//!
+//! Every object is described in its own local frame as a *skeleton* (points, segments,
+//! circles, spheres, polylines, surfaces) thickened by a radius, or as a thin shell around
+//! such a thickening. The homotopy type of a thickening equals that of its skeleton as long
+//! as the radius stays below the skeleton's feature size, which is what makes the Betti
+//! numbers analytic. Points always carry four coordinates; lower-dimensional objects leave
+//! the trailing ones at zero, so one code path serves 2D, 3D and 4D.
+//!
+//! Only `+ - * /`, `f64::sqrt` and the `libm` crate are used, so every platform computes the
+//! same bits and rasterises the same voxels.
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use serde_json::{json, Value};
+
+/// A point or vector in up to four dimensions (unused axes are zero).
+pub(crate) type P = [f64; 4];
+
+pub(crate) const ORIGIN: P = [0.0; 4];
+
+pub(crate) fn sub(a: P, b: P) -> P {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]]
+}
+
+pub(crate) fn add(a: P, b: P) -> P {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]
+}
+
+pub(crate) fn scale(a: P, s: f64) -> P {
+    [a[0] * s, a[1] * s, a[2] * s, a[3] * s]
+}
+
+pub(crate) fn dot(a: P, b: P) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
+}
+
+pub(crate) fn norm(a: P) -> f64 {
+    dot(a, a).sqrt()
+}
+
+pub(crate) fn axis(i: usize) -> P {
+    let mut p = ORIGIN;
+    p[i] = 1.0;
+    p
+}
+
+/// Uniform in `[lo, hi]`; written out (instead of `gen_range`) so the mapping from random
+/// bits to values is ours and cannot change with a `rand` release.
+pub(crate) fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    if hi <= lo {
+        return lo;
+    }
+    let u: f64 = rng.gen::<f64>();
+    lo + (hi - lo) * u
+}
+
+/// Uniform integer in `lo..=hi`.
+pub(crate) fn uniform_int(rng: &mut ChaCha8Rng, lo: u64, hi: u64) -> u64 {
+    if hi <= lo {
+        return lo;
+    }
+    lo + rng.gen::<u64>() % (hi - lo + 1)
+}
+
+/// Rounds for the construction record, so it stays readable; the geometry itself keeps
+/// full precision.
+pub(crate) fn round6(x: f64) -> f64 {
+    libm::round(x * 1e6) / 1e6
+}
+
+pub(crate) fn point_json(p: P, dim: usize) -> Value {
+    Value::Array(p[..dim].iter().map(|&x| json!(round6(x))).collect())
+}
+
+/// One piece of a skeleton, in the object's local frame.
+#[derive(Clone, Debug)]
+pub(crate) enum Piece {
+    /// A single point.
+    Point(P),
+    /// A straight segment.
+    Segment(P, P),
+    /// A circle of `radius` around `centre` in the plane spanned by orthonormal `u`, `v`.
+    Circle { centre: P, radius: f64, u: P, v: P },
+    /// The round sphere of `radius` around `centre` inside the span of the first
+    /// `axes` coordinate axes (axes = 3 in 4D is a 2-sphere; axes = d is the full
+    /// (d-1)-sphere).
+    Sphere { centre: P, radius: f64, axes: usize },
+    /// A polyline through `points`, closed when `closed`.
+    Polyline { points: Vec<P>, closed: bool },
+    /// The torus of revolution in the first three axes: the circle of radius `minor`
+    /// around the circle of radius `major` in the (x0, x1)-plane.
+    Torus { major: f64, minor: f64 },
+    /// The Klein bottle embedded in R^4 as
+    /// `((R + a cos v) cos u, (R + a cos v) sin u, a sin v cos(u/2), a sin v sin(u/2))`.
+    /// Its distance is measured inside the 3D half-space at the point's own angle u,
+    /// which is not the Euclidean distance but gives a neighbourhood that is a fibre
+    /// bundle over the circle with a thickened circle as fibre and a reflection as
+    /// monodromy: homotopy equivalent to the Klein bottle.
+    Klein { major: f64, minor: f64 },
+    /// The inner skeleton rotated about the plane x0 = x1 = 0 (moved to `centre`): a
+    /// point q = p - centre is evaluated at `(sqrt(q0^2 + q1^2), q2, q3)`. For an inner
+    /// set in the half-space x0 > 0 this is the product with a circle; an arc whose ends
+    /// lie on x0 = 0 becomes a 2-sphere.
+    Spun { centre: P, inner: Vec<Piece> },
+    /// The inner piece with the axes from `keep` on ignored: a cylinder over it (the
+    /// cross-section of a tunnel).
+    Prism { inner: Box<Piece>, keep: usize },
+}
+
+impl Piece {
+    /// Distance from `p` to the piece (see [`Piece::Klein`] for the one exception).
+    pub(crate) fn distance(&self, p: P) -> f64 {
+        match self {
+            Piece::Point(c) => norm(sub(p, *c)),
+            Piece::Segment(a, b) => segment_distance(p, *a, *b),
+            Piece::Circle {
+                centre,
+                radius,
+                u,
+                v,
+            } => {
+                let q = sub(p, *centre);
+                let a = dot(q, *u);
+                let b = dot(q, *v);
+                let in_plane = (a * a + b * b).sqrt();
+                let perp2 = (dot(q, q) - a * a - b * b).max(0.0);
+                let radial = in_plane - radius;
+                (radial * radial + perp2).sqrt()
+            }
+            Piece::Sphere {
+                centre,
+                radius,
+                axes,
+            } => {
+                let q = sub(p, *centre);
+                let mut inside = 0.0;
+                let mut outside = 0.0;
+                for (k, &x) in q.iter().enumerate() {
+                    if k < *axes {
+                        inside += x * x;
+                    } else {
+                        outside += x * x;
+                    }
+                }
+                let radial = inside.sqrt() - radius;
+                (radial * radial + outside).sqrt()
+            }
+            Piece::Polyline { points, closed } => {
+                let n = points.len();
+                let segments = if *closed { n } else { n.saturating_sub(1) };
+                let mut best = f64::INFINITY;
+                for k in 0..segments {
+                    let d = segment_distance(p, points[k], points[(k + 1) % n]);
+                    if d < best {
+                        best = d;
+                    }
+                }
+                if n == 1 {
+                    best = norm(sub(p, points[0]));
+                }
+                best
+            }
+            Piece::Torus { major, minor } => {
+                let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
+                let to_core = ((rho - major) * (rho - major) + p[2] * p[2]).sqrt();
+                let radial = to_core - minor;
+                (radial * radial + p[3] * p[3]).sqrt()
+            }
+            Piece::Klein { major, minor } => {
+                let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
+                let angle = libm::atan2(p[1], p[0]);
+                let n0 = libm::cos(angle / 2.0);
+                let n1 = libm::sin(angle / 2.0);
+                // Coordinates in the 3D half-space at this angle: radial offset, the
+                // component along the turning normal, and the one across it.
+                let a = rho - major;
+                let b = p[2] * n0 + p[3] * n1;
+                let c = -p[2] * n1 + p[3] * n0;
+                let radial = (a * a + b * b).sqrt() - minor;
+                (radial * radial + c * c).sqrt()
+            }
+            Piece::Spun { centre, inner } => {
+                let q = sub(p, *centre);
+                let rho = (q[0] * q[0] + q[1] * q[1]).sqrt();
+                let meridian = [rho, q[2], q[3], 0.0];
+                inner
+                    .iter()
+                    .map(|piece| piece.distance(meridian))
+                    .fold(f64::INFINITY, f64::min)
+            }
+            Piece::Prism { inner, keep } => {
+                let mut q = p;
+                for slot in q.iter_mut().skip(*keep) {
+                    *slot = 0.0;
+                }
+                inner.distance(q)
+            }
+        }
+    }
+
+    /// An upper bound of `|x|` over the piece (for bounding balls).
+    pub(crate) fn extent(&self) -> f64 {
+        match self {
+            Piece::Point(c) => norm(*c),
+            Piece::Segment(a, b) => norm(*a).max(norm(*b)),
+            Piece::Circle { centre, radius, .. } => norm(*centre) + radius,
+            Piece::Sphere { centre, radius, .. } => norm(*centre) + radius,
+            Piece::Polyline { points, .. } => points.iter().map(|&q| norm(q)).fold(0.0, f64::max),
+            Piece::Torus { major, minor } | Piece::Klein { major, minor } => major + minor,
+            // Spinning maps (rho, x2, x3) to points of the same norm.
+            Piece::Spun { centre, inner } => {
+                norm(*centre) + inner.iter().map(Piece::extent).fold(0.0, f64::max)
+            }
+            // Only the kept axes are bounded; the others are handled by the caller.
+            Piece::Prism { inner, .. } => inner.extent(),
+        }
+    }
+
+    /// Points on the piece, for attaching tentacles. Empty for pieces where that is not
+    /// offered.
+    #[allow(dead_code)] // Used by tentacles, which are being written.
+    pub(crate) fn sample_points(&self) -> Vec<P> {
+        match self {
+            Piece::Point(c) => vec![*c],
+            Piece::Segment(a, b) => (0..=8)
+                .map(|k| add(*a, scale(sub(*b, *a), k as f64 / 8.0)))
+                .collect(),
+            Piece::Circle {
+                centre,
+                radius,
+                u,
+                v,
+            } => (0..64)
+                .map(|k| {
+                    let t = 2.0 * std::f64::consts::PI * k as f64 / 64.0;
+                    add(
+                        *centre,
+                        add(
+                            scale(*u, radius * libm::cos(t)),
+                            scale(*v, radius * libm::sin(t)),
+                        ),
+                    )
+                })
+                .collect(),
+            Piece::Polyline { points, .. } => points.clone(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// A compact description for the construction record.
+    pub(crate) fn describe(&self, dim: usize) -> Value {
+        match self {
+            Piece::Point(c) => json!({"piece": "point", "at": point_json(*c, dim)}),
+            Piece::Segment(a, b) => json!({
+                "piece": "segment", "from": point_json(*a, dim), "to": point_json(*b, dim)
+            }),
+            Piece::Circle {
+                centre,
+                radius,
+                u,
+                v,
+            } => json!({
+                "piece": "circle", "centre": point_json(*centre, dim), "radius": round6(*radius),
+                "u": point_json(*u, dim), "v": point_json(*v, dim)
+            }),
+            Piece::Sphere {
+                centre,
+                radius,
+                axes,
+            } => json!({
+                "piece": "sphere", "centre": point_json(*centre, dim),
+                "radius": round6(*radius), "axes": axes
+            }),
+            Piece::Polyline { points, closed } => json!({
+                "piece": "polyline", "closed": closed, "vertices": points.len(),
+                "extent": round6(self.extent())
+            }),
+            Piece::Torus { major, minor } => json!({
+                "piece": "torus", "major": round6(*major), "minor": round6(*minor)
+            }),
+            Piece::Klein { major, minor } => json!({
+                "piece": "klein_bottle", "major": round6(*major), "minor": round6(*minor)
+            }),
+            Piece::Spun { centre, inner } => json!({
+                "piece": "spun", "centre": point_json(*centre, dim),
+                "inner": inner.iter().map(|q| q.describe(3)).collect::<Vec<_>>()
+            }),
+            Piece::Prism { inner, keep } => json!({
+                "piece": "prism", "cross_section_axes": keep, "inner": inner.describe(*keep)
+            }),
+        }
+    }
+}
+
+pub(crate) fn segment_distance(p: P, a: P, b: P) -> f64 {
+    let ab = sub(b, a);
+    let ap = sub(p, a);
+    let len2 = dot(ab, ab);
+    let t = if len2 > 0.0 {
+        (dot(ap, ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    norm(sub(ap, scale(ab, t)))
+}
+
+/// A skeleton with a thickening rule: the set an object occupies in its local frame.
+#[derive(Clone, Debug)]
+pub(crate) enum Solid {
+    /// Points within `radius` of some piece (each piece has its own radius).
+    Tube(Vec<(Piece, f64)>),
+    /// Points whose distance to `piece` lies in `[offset - radius, offset + radius]`: a
+    /// thickened boundary of the `offset`-neighbourhood of the piece.
+    Shell {
+        piece: Piece,
+        offset: f64,
+        radius: f64,
+    },
+}
+
+impl Solid {
+    pub(crate) fn contains(&self, p: P) -> bool {
+        match self {
+            Solid::Tube(parts) => parts.iter().any(|(piece, r)| piece.distance(p) <= *r),
+            Solid::Shell {
+                piece,
+                offset,
+                radius,
+            } => (piece.distance(p) - offset).abs() <= *radius,
+        }
+    }
+
+    /// Radius of a ball around the local origin that contains the solid.
+    pub(crate) fn extent(&self) -> f64 {
+        match self {
+            Solid::Tube(parts) => parts
+                .iter()
+                .map(|(piece, r)| piece.extent() + r)
+                .fold(0.0, f64::max),
+            Solid::Shell {
+                piece,
+                offset,
+                radius,
+            } => piece.extent() + offset + radius,
+        }
+    }
+
+    pub(crate) fn describe(&self, dim: usize) -> Value {
+        match self {
+            Solid::Tube(parts) => json!({
+                "kind": "tube",
+                "parts": parts.iter().map(|(piece, r)| {
+                    json!({"skeleton": piece.describe(dim), "radius": round6(*r)})
+                }).collect::<Vec<_>>()
+            }),
+            Solid::Shell {
+                piece,
+                offset,
+                radius,
+            } => json!({
+                "kind": "shell", "skeleton": piece.describe(dim),
+                "offset": round6(*offset), "radius": round6(*radius)
+            }),
+        }
+    }
+}
+
+/// A rotation of R^4 (acting on the first `dim` axes), local frame to image frame.
+#[derive(Clone, Debug)]
+pub(crate) struct Rotation {
+    /// Row-major matrix: `world = m * local`.
+    m: [[f64; 4]; 4],
+    /// The axis permutation applied first (tunnels), for the construction record.
+    permutation: Option<Vec<usize>>,
+    /// The Givens angles that built it, for the construction record.
+    angles: Vec<(usize, usize, f64)>,
+}
+
+impl Rotation {
+    pub(crate) fn identity() -> Rotation {
+        let mut m = [[0.0; 4]; 4];
+        for (k, row) in m.iter_mut().enumerate() {
+            row[k] = 1.0;
+        }
+        Rotation {
+            m,
+            permutation: None,
+            angles: Vec::new(),
+        }
+    }
+
+    /// A product of plane rotations with uniform angles, one for every pair of the
+    /// given axes (all axes for a free object; only the cross-section axes for a tunnel,
+    /// which must stay aligned with the faces it passes through).
+    pub(crate) fn random(axes: &[usize], rng: &mut ChaCha8Rng) -> Rotation {
+        let mut rotation = Rotation::identity();
+        for (k, &i) in axes.iter().enumerate() {
+            for &j in &axes[k + 1..] {
+                let angle = uniform(rng, 0.0, 2.0 * std::f64::consts::PI);
+                rotation.then_plane(i, j, angle);
+            }
+        }
+        rotation
+    }
+
+    /// The axis permutation sending local axis k to image axis `perm[k]`.
+    pub(crate) fn permutation(perm: &[usize]) -> Rotation {
+        let mut m = [[0.0; 4]; 4];
+        let mut used = [false; 4];
+        for (local, &world) in perm.iter().enumerate() {
+            m[world][local] = 1.0;
+            used[world] = true;
+        }
+        // Axes beyond the image's dimension stay fixed.
+        for (k, row) in m.iter_mut().enumerate().skip(perm.len()) {
+            row[k] = 1.0;
+        }
+        debug_assert!(used.iter().take(perm.len()).all(|&u| u));
+        Rotation {
+            m,
+            permutation: Some(perm.to_vec()),
+            angles: Vec::new(),
+        }
+    }
+
+    /// Follows the rotation with random plane rotations among the given image axes.
+    pub(crate) fn randomise(&mut self, axes: &[usize], rng: &mut ChaCha8Rng) {
+        for (k, &i) in axes.iter().enumerate() {
+            for &j in &axes[k + 1..] {
+                let angle = uniform(rng, 0.0, 2.0 * std::f64::consts::PI);
+                self.then_plane(i, j, angle);
+            }
+        }
+    }
+
+    fn then_plane(&mut self, i: usize, j: usize, angle: f64) {
+        let c = libm::cos(angle);
+        let s = libm::sin(angle);
+        // Left-multiply by the Givens rotation G(i, j, angle).
+        for col in 0..4 {
+            let a = self.m[i][col];
+            let b = self.m[j][col];
+            self.m[i][col] = c * a - s * b;
+            self.m[j][col] = s * a + c * b;
+        }
+        self.angles.push((i, j, angle));
+    }
+
+    /// Local coordinates of a world offset (the transpose is the inverse).
+    pub(crate) fn to_local(&self, world: P) -> P {
+        let mut out = ORIGIN;
+        for (k, slot) in out.iter_mut().enumerate() {
+            *slot = self.m[0][k] * world[0]
+                + self.m[1][k] * world[1]
+                + self.m[2][k] * world[2]
+                + self.m[3][k] * world[3];
+        }
+        out
+    }
+
+    pub(crate) fn describe(&self) -> Value {
+        let planes: Vec<Value> = self
+            .angles
+            .iter()
+            .map(|&(i, j, a)| json!({"plane": [i, j], "angle": round6(a)}))
+            .collect();
+        match &self.permutation {
+            Some(perm) => json!({"axis_permutation": perm, "planes": planes}),
+            None => json!({"planes": planes}),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn rotation_is_orthogonal() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let rotation = Rotation::random(&[0, 1, 2, 3], &mut rng);
+        for i in 0..4 {
+            let li = rotation.to_local(axis(i));
+            assert!((norm(li) - 1.0).abs() < 1e-12);
+            for j in 0..i {
+                assert!(dot(li, rotation.to_local(axis(j))).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn distances_of_simple_pieces() {
+        let circle = Piece::Circle {
+            centre: ORIGIN,
+            radius: 5.0,
+            u: axis(0),
+            v: axis(1),
+        };
+        assert!((circle.distance([0.0, 0.0, 0.0, 0.0]) - 5.0).abs() < 1e-12);
+        assert!((circle.distance([5.0, 0.0, 3.0, 0.0]) - 3.0).abs() < 1e-12);
+        let torus = Piece::Torus {
+            major: 6.0,
+            minor: 2.0,
+        };
+        assert!(torus.distance([8.0, 0.0, 0.0, 0.0]).abs() < 1e-12);
+        assert!((torus.distance([6.0, 0.0, 0.0, 1.0]) - 5.0f64.sqrt()).abs() < 1e-12);
+        let klein = Piece::Klein {
+            major: 6.0,
+            minor: 2.0,
+        };
+        // u = 0, v = pi/2 lies on the surface: (6, 0, 2, 0).
+        assert!(klein.distance([6.0, 0.0, 2.0, 0.0]).abs() < 1e-12);
+        // u = pi, v = pi/2: (-6, 0, 0, 2).
+        assert!(klein.distance([-6.0, 1e-12, 0.0, 2.0]).abs() < 1e-9);
+        let spun = Piece::Spun {
+            centre: ORIGIN,
+            inner: vec![Piece::Point([4.0, 1.0, 0.0, 0.0])],
+        };
+        assert!(spun.distance([0.0, 4.0, 1.0, 0.0]).abs() < 1e-12);
+    }
+}
