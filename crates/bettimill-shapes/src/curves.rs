@@ -1,11 +1,22 @@
 //! Closed and open curves: knots, links, tentacles and free curves, as polylines.
 //!
-//! (being written)
+//! A knot or link is a set of closed polylines sampled from a parametric curve (libm
+//! sin/cos) at unit scale. A tube of radius r around it has the curve's homotopy type when
+//! (1) the curve bends with radius at least r + INNER_GAP/2 and (2) any two points that are
+//! far apart along the curve (arc length at least pi/2 times the needed gap) are at least
+//! 2r + INNER_GAP apart in space, and different components are that far apart everywhere.
+//! Both conditions scale linearly with the curve, so the smallest admissible scale is
+//! `sigma * (2r + INNER_GAP)` for a constant `sigma` per curve, computed once by a sweep
+//! over "forbidden scale intervals" of all point pairs and cached.
 
 use crate::families::INNER_GAP;
-use crate::geometry::{Piece, Solid, P};
+use crate::families::TUBE_MIN;
+use crate::geometry::{add, dot, norm, scale, sub, uniform, Piece, Solid, P};
 use crate::{KnotKind, LinkKind};
 use rand_chacha::ChaCha8Rng;
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+use std::sync::{Mutex, OnceLock};
 
 /// A smooth open curve: the graph of gentle sine waves over the x0-axis, thickened. A
 /// graph never meets itself, and bounding its curvature by 1 / (tube + INNER_GAP / 2)
@@ -47,33 +58,564 @@ pub(crate) fn open_curve(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> So
         tube,
     )])
 }
-pub(crate) fn knot_solid(_k: KnotKind, _dim: usize, _tube: f64, _grow: f64) -> Option<Solid> {
+
+/// Samples per closed component at unit scale.
+const SAMPLES: usize = 360;
+
+/// Closed curves at unit scale, centred on their bounding box.
+#[derive(Clone, Debug)]
+struct CurveSet {
+    components: Vec<Vec<P>>,
+}
+
+fn closed_curve(f: impl Fn(f64) -> P) -> Vec<P> {
+    (0..SAMPLES)
+        .map(|k| f(2.0 * PI * k as f64 / SAMPLES as f64))
+        .collect()
+}
+
+fn centred(components: Vec<Vec<P>>) -> CurveSet {
+    let mut lo = [f64::INFINITY; 4];
+    let mut hi = [f64::NEG_INFINITY; 4];
+    for p in components.iter().flatten() {
+        for k in 0..4 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let mid = scale(add(lo, hi), 0.5);
+    CurveSet {
+        components: components
+            .into_iter()
+            .map(|c| c.into_iter().map(|p| sub(p, mid)).collect())
+            .collect(),
+    }
+}
+
+/// Torus knot or link T(p, q) on the torus with radii 2 and 1: the components of
+/// {q theta - p psi in 2 pi Z}, one per residue m < gcd(p, q), shifted by 2 pi m / q.
+fn torus_components(p: u32, q: u32) -> Vec<Vec<P>> {
+    let c = crate::families::gcd(p, q);
+    let (pp, qq) = ((p / c) as f64, (q / c) as f64);
+    (0..c)
+        .map(|m| {
+            let shift = 2.0 * PI * m as f64 / q as f64;
+            closed_curve(|t| {
+                let theta = pp * t + shift;
+                let psi = qq * t;
+                let radial = 2.0 + libm::cos(psi);
+                [
+                    radial * libm::cos(theta),
+                    radial * libm::sin(theta),
+                    libm::sin(psi),
+                    0.0,
+                ]
+            })
+        })
+        .collect()
+}
+
+fn knot_components(knot: KnotKind) -> Vec<Vec<P>> {
+    match knot {
+        KnotKind::Unknot => vec![closed_curve(|t| [libm::cos(t), libm::sin(t), 0.0, 0.0])],
+        KnotKind::Trefoil => vec![closed_curve(|t| {
+            [
+                libm::sin(t) + 2.0 * libm::sin(2.0 * t),
+                libm::cos(t) - 2.0 * libm::cos(2.0 * t),
+                -libm::sin(3.0 * t),
+                0.0,
+            ]
+        })],
+        KnotKind::FigureEight => vec![closed_curve(|t| {
+            let radial = 2.0 + libm::cos(2.0 * t);
+            [
+                radial * libm::cos(3.0 * t),
+                radial * libm::sin(3.0 * t),
+                libm::sin(4.0 * t),
+                0.0,
+            ]
+        })],
+        KnotKind::Cinquefoil => torus_components(2, 5),
+    }
+}
+
+fn link_components(link: LinkKind) -> Vec<Vec<P>> {
+    match link {
+        LinkKind::Hopf => torus_components(2, 2),
+        LinkKind::Solomon => torus_components(4, 2),
+        // Three mutually perpendicular ellipses: each passes twice through the next one's
+        // disk (linking number 0) and none through the previous one's.
+        LinkKind::Borromean => {
+            let (a, b) = (1.0, 0.55);
+            vec![
+                closed_curve(|t| [a * libm::cos(t), b * libm::sin(t), 0.0, 0.0]),
+                closed_curve(|t| [0.0, a * libm::cos(t), b * libm::sin(t), 0.0]),
+                closed_curve(|t| [b * libm::sin(t), 0.0, a * libm::cos(t), 0.0]),
+            ]
+        }
+        // A figure-eight curve (lemniscate of Gerono, its crossing resolved by height) and
+        // a second component whose shadow is a circle around the crossing and whose
+        // height H sin(2s) makes all five crossings alternate: the alternating
+        // 5-crossing diagram of the Whitehead link (L5a1).
+        LinkKind::Whitehead => vec![
+            closed_curve(|t| {
+                [
+                    1.6 * libm::cos(t),
+                    1.6 * libm::sin(t) * libm::cos(t),
+                    0.35 * libm::sin(t),
+                    0.0,
+                ]
+            }),
+            closed_curve(|s| {
+                [
+                    0.8 * libm::cos(s),
+                    0.8 * libm::sin(s),
+                    0.75 * libm::sin(2.0 * s),
+                    0.0,
+                ]
+            }),
+        ],
+    }
+}
+
+/// Cumulative arc length along a closed polyline, and its total.
+fn arc_lengths(points: &[P]) -> (Vec<f64>, f64) {
+    let mut out = Vec::with_capacity(points.len());
+    let mut total = 0.0;
+    for k in 0..points.len() {
+        out.push(total);
+        total += norm(sub(points[(k + 1) % points.len()], points[k]));
+    }
+    (out, total)
+}
+
+/// Radius of the circle through three points (infinite when collinear).
+fn circumradius(a: P, b: P, c: P) -> f64 {
+    let u = sub(a, b);
+    let v = sub(c, b);
+    let w = sub(c, a);
+    let cross2 = dot(u, u) * dot(v, v) - dot(u, v) * dot(u, v);
+    if cross2 <= 1e-18 {
+        return f64::INFINITY;
+    }
+    norm(u) * norm(v) * norm(w) / (2.0 * cross2.sqrt())
+}
+
+/// The smallest scale at which the unit curves are clear for a needed gap of 1 (see the
+/// module docs).
+fn sigma_of(set: &CurveSet) -> f64 {
+    let mut start: f64 = 0.0;
+    let mut forbidden: Vec<(f64, f64)> = Vec::new();
+    for (ci, comp) in set.components.iter().enumerate() {
+        let n = comp.len();
+        for k in 0..n {
+            let r = circumradius(comp[(k + n - 1) % n], comp[k], comp[(k + 1) % n]);
+            start = start.max(0.5 / r);
+        }
+        let (arc, total) = arc_lengths(comp);
+        for i in 0..n {
+            for j in i + 1..n {
+                let along = (arc[j] - arc[i]).min(total - (arc[j] - arc[i]));
+                let apart = norm(sub(comp[i], comp[j]));
+                let from = PI / (2.0 * along);
+                let to = 1.0 / apart.max(1e-12);
+                if to > from {
+                    forbidden.push((from, to));
+                }
+            }
+        }
+        for other in &set.components[ci + 1..] {
+            for &p in comp {
+                for &q in other {
+                    start = start.max(1.0 / norm(sub(p, q)).max(1e-12));
+                }
+            }
+        }
+    }
+    forbidden.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let mut s = start;
+    for (from, to) in forbidden {
+        if from > s {
+            break;
+        }
+        if to > s {
+            s = to;
+        }
+    }
+    s
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum CurveKey {
+    Knot(KnotKind),
+    Torus(u32, u32),
+    Link(LinkKind),
+}
+
+fn curve_set(key: CurveKey) -> CurveSet {
+    centred(match key {
+        CurveKey::Knot(k) => knot_components(k),
+        CurveKey::Torus(p, q) => torus_components(p, q),
+        CurveKey::Link(l) => link_components(l),
+    })
+}
+
+/// The curves and their sigma; sigma is cached because recipes are evaluated many times
+/// while a size is fitted. The cache holds pure functions of the key, so it cannot make
+/// results depend on call order.
+fn curves_with_sigma(key: CurveKey) -> (CurveSet, f64) {
+    static CACHE: OnceLock<Mutex<BTreeMap<CurveKey, f64>>> = OnceLock::new();
+    let set = curve_set(key);
+    let cache = CACHE.get_or_init(|| Mutex::new(BTreeMap::new()));
+    let cached = cache.lock().ok().and_then(|m| m.get(&key).copied());
+    let sigma = match cached {
+        Some(s) => s,
+        None => {
+            let s = sigma_of(&set);
+            if let Ok(mut m) = cache.lock() {
+                m.insert(key, s);
+            }
+            s
+        }
+    };
+    (set, sigma)
+}
+
+fn need(tube: f64) -> f64 {
+    2.0 * tube + INNER_GAP
+}
+
+/// The curves scaled to the smallest admissible size plus `grow` voxels of extent.
+fn scaled(key: CurveKey, tube: f64, grow: f64) -> Vec<Vec<P>> {
+    let (set, sigma) = curves_with_sigma(key);
+    let reach = set
+        .components
+        .iter()
+        .flatten()
+        .map(|&p| norm(p))
+        .fold(0.0, f64::max);
+    let factor = sigma * need(tube) + grow / reach;
+    set.components
+        .into_iter()
+        .map(|c| c.into_iter().map(|p| scale(p, factor)).collect())
+        .collect()
+}
+
+fn tube_of(components: Vec<Vec<P>>, tube: f64) -> Solid {
+    Solid::Tube(
+        components
+            .into_iter()
+            .map(|points| {
+                (
+                    Piece::Polyline {
+                        points,
+                        closed: true,
+                    },
+                    tube,
+                )
+            })
+            .collect(),
+    )
+}
+
+/// A knotted solid torus (3D) or the knot thickened in 4D, which is homeomorphic to
+/// knot x B2 x I.
+pub(crate) fn knot_solid(knot: KnotKind, _dim: usize, tube: f64, grow: f64) -> Option<Solid> {
+    Some(tube_of(scaled(CurveKey::Knot(knot), tube, grow), tube))
+}
+
+pub(crate) fn torus_knot_solid(p: u32, q: u32, _dim: usize, tube: f64, grow: f64) -> Option<Solid> {
+    Some(tube_of(scaled(CurveKey::Torus(p, q), tube, grow), tube))
+}
+
+pub(crate) fn link_solid(link: LinkKind, _dim: usize, tube: f64, grow: f64) -> Option<Solid> {
+    Some(tube_of(scaled(CurveKey::Link(link), tube, grow), tube))
+}
+
+/// Moves curves into the meridian half-space x0 >= tube + INNER_GAP / 2 (so the spun
+/// copies stay apart across the axis) and spins them: each component becomes a torus.
+pub(crate) fn spun_link_solid(link: LinkKind, tube: f64, grow: f64) -> Option<Solid> {
+    let components = scaled(CurveKey::Link(link), tube, grow);
+    let low = components
+        .iter()
+        .flatten()
+        .map(|p| p[0])
+        .fold(f64::INFINITY, f64::min);
+    let shift = tube + INNER_GAP / 2.0 - low;
+    let inner: Vec<Piece> = components
+        .into_iter()
+        .map(|c| Piece::Polyline {
+            points: c
+                .into_iter()
+                .map(|p| add(p, [shift, 0.0, 0.0, 0.0]))
+                .collect(),
+            closed: true,
+        })
+        .collect();
+    Some(Solid::Tube(vec![(
+        Piece::Spun {
+            centre: [0.0; 4],
+            inner,
+        },
+        tube,
+    )]))
+}
+
+/// Artin's spun knot: cut the knot open at its leftmost point, run both ends straight
+/// to the plane x0 = 0, and spin the resulting knotted arc: a knotted 2-sphere. The cut
+/// widens until the two straight ends are a full gap apart and clear of the rest of the
+/// arc; if no cut works at the smallest scale, the scale grows.
+pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64) -> Option<Solid> {
+    let gap = need(tube);
+    for attempt in 0..24 {
+        let extra = grow + attempt as f64 * 0.5 * tube;
+        let comp = scaled(CurveKey::Knot(knot), tube, extra).remove(0);
+        let n = comp.len();
+        let leftmost = (0..n)
+            .min_by(|&a, &b| comp[a][0].total_cmp(&comp[b][0]))
+            .unwrap_or(0);
+        for window in 1..n / 4 {
+            let first = (leftmost + n - window) % n;
+            let last = (leftmost + window) % n;
+            // The kept arc runs from `last` forward to `first`.
+            let kept: Vec<P> = (0..=(n - 2 * window))
+                .map(|k| comp[(last + k) % n])
+                .collect();
+            let ends = [comp[last], comp[first]];
+            let lateral = |a: P, b: P| {
+                let d = sub(a, b);
+                (d[1] * d[1] + d[2] * d[2] + d[3] * d[3]).sqrt()
+            };
+            if lateral(ends[0], ends[1]) < gap {
+                continue;
+            }
+            let low = kept.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min);
+            let shift = tube + INNER_GAP / 2.0 - low;
+            let kept: Vec<P> = kept
+                .into_iter()
+                .map(|p| add(p, [shift, 0.0, 0.0, 0.0]))
+                .collect();
+            let feet: Vec<P> = kept
+                .iter()
+                .take(1)
+                .chain(kept.last())
+                .map(|&p| [0.0, p[1], p[2], p[3]])
+                .collect();
+            // Each straight end must keep the gap to every arc point that is far from
+            // its own foot along the arc.
+            let clear = [(0usize, 0usize), (1, kept.len() - 1)]
+                .iter()
+                .all(|&(e, root)| {
+                    let seg_a = feet[e];
+                    let seg_b = kept[root];
+                    kept.iter().enumerate().all(|(k, &p)| {
+                        let along = arc_index_distance(k, root, &kept);
+                        along < PI * gap / 2.0
+                            || crate::geometry::segment_distance(p, seg_a, seg_b) >= gap
+                    })
+                });
+            if !clear {
+                continue;
+            }
+            let mut points = vec![feet[0]];
+            points.extend(kept.iter().copied());
+            points.push(feet[1]);
+            return Some(Solid::Tube(vec![(
+                Piece::Spun {
+                    centre: [0.0; 4],
+                    inner: vec![Piece::Polyline {
+                        points,
+                        closed: false,
+                    }],
+                },
+                tube,
+            )]));
+        }
+    }
     None
 }
-pub(crate) fn torus_knot_solid(
-    _p: u32,
-    _q: u32,
-    _dim: usize,
-    _tube: f64,
-    _grow: f64,
-) -> Option<Solid> {
-    None
+
+/// Arc length along an open polyline between vertices `a` and `b`.
+fn arc_index_distance(a: usize, b: usize, points: &[P]) -> f64 {
+    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+    (lo..hi).map(|k| norm(sub(points[k + 1], points[k]))).sum()
 }
-pub(crate) fn link_solid(_k: LinkKind, _dim: usize, _tube: f64, _grow: f64) -> Option<Solid> {
-    None
-}
-pub(crate) fn spun_knot_solid(_k: KnotKind, _tube: f64, _grow: f64) -> Option<Solid> {
-    None
-}
-pub(crate) fn spun_link_solid(_k: LinkKind, _tube: f64, _grow: f64) -> Option<Solid> {
-    None
-}
+
+/// Attaches up to `count` tentacles (thickened random curves) to a tube-like solid,
+/// staying within `target` of the origin. A tentacle starts at the skeleton point s that
+/// is extreme in a random direction u and only moves with a positive component along
+/// u, so every later point q satisfies |q - x| >= (q - s).u for every skeleton point x:
+/// once it is a gap beyond the host's tubes it can never come back to the host, and it
+/// cannot meet itself. Other hosts' parts and earlier tentacles are checked explicitly.
+/// Returns the solid and how many tentacles were placed; the topology is unchanged
+/// because each tentacle is attached along one contractible blob.
 pub(crate) fn add_tentacles(
     solid: Solid,
-    _dim: usize,
-    _n: u32,
-    _target: f64,
-    _rng: &mut ChaCha8Rng,
+    dim: usize,
+    count: u32,
+    target: f64,
+    rng: &mut ChaCha8Rng,
 ) -> (Solid, u32) {
-    (solid, 0)
+    let Solid::Tube(mut parts) = solid else {
+        return (solid, 0);
+    };
+    let samples: Vec<(P, f64)> = parts
+        .iter()
+        .flat_map(|(piece, r)| piece.sample_points().into_iter().map(move |p| (p, *r)))
+        .collect();
+    if samples.is_empty() {
+        return (Solid::Tube(parts), 0);
+    }
+    let host_radius = parts.iter().map(|(_, r)| *r).fold(0.0, f64::max);
+    let mut tentacles: Vec<(Vec<P>, P)> = Vec::new();
+    let mut placed = 0;
+    for _ in 0..count {
+        for _attempt in 0..24 {
+            let radius = uniform(rng, TUBE_MIN, TUBE_MIN + 0.5);
+            let direction = random_unit(dim, rng);
+            let (root, _) = samples
+                .iter()
+                .copied()
+                .max_by(|a, b| dot(a.0, direction).total_cmp(&dot(b.0, direction)))
+                .unwrap_or(samples[0]);
+            let clearance = host_radius + radius + INNER_GAP + 0.5;
+            let length = uniform(rng, clearance + 3.0, clearance + 16.0);
+            let mut points = vec![root];
+            let mut heading = direction;
+            let mut here = root;
+            let mut travelled = 0.0;
+            while travelled < length {
+                if travelled >= clearance {
+                    // Wander, but keep moving outward along the tentacle's direction.
+                    let kick = random_unit(dim, rng);
+                    let mut next = add(heading, scale(kick, 0.35));
+                    let along = dot(next, direction);
+                    if along < 0.5 {
+                        next = add(next, scale(direction, 0.5 - along));
+                    }
+                    heading = scale(next, 1.0 / norm(next));
+                }
+                let step = add(here, heading);
+                if norm(step) + radius > target {
+                    break;
+                }
+                here = step;
+                travelled += 1.0;
+                points.push(here);
+            }
+            if travelled < clearance + 2.0 {
+                continue;
+            }
+            // Near its root a tentacle is inside the host; past it, keep the gap to every
+            // host sample that is not near the root, and to earlier tentacles.
+            let far_from_root = |q: P, s: P| norm(sub(q, s)) >= clearance;
+            let host_ok = points.iter().all(|&q| {
+                samples.iter().all(|&(x, r)| {
+                    !far_from_root(x, root) || norm(sub(q, x)) >= r + radius + INNER_GAP
+                })
+            });
+            let others_ok = tentacles.iter().all(|(other, other_root)| {
+                points.iter().all(|&q| {
+                    other.iter().all(|&x| {
+                        (!far_from_root(q, root) && !far_from_root(x, *other_root))
+                            || norm(sub(q, x)) >= 2.0 * (TUBE_MIN + 0.5) + INNER_GAP
+                    })
+                })
+            });
+            if !host_ok || !others_ok {
+                continue;
+            }
+            parts.push((
+                Piece::Polyline {
+                    points: points.clone(),
+                    closed: false,
+                },
+                radius,
+            ));
+            tentacles.push((points, root));
+            placed += 1;
+            break;
+        }
+    }
+    (Solid::Tube(parts), placed)
+}
+
+fn random_unit(dim: usize, rng: &mut ChaCha8Rng) -> P {
+    loop {
+        let mut v = [0.0; 4];
+        for slot in v.iter_mut().take(dim) {
+            *slot = uniform(rng, -1.0, 1.0);
+        }
+        let n = norm(v);
+        if n > 0.1 && n <= 1.0 {
+            return scale(v, 1.0 / n);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Linking number of two closed polylines by the discrete Gauss integral.
+    fn linking_number(a: &[P], b: &[P]) -> f64 {
+        let mut total = 0.0;
+        for i in 0..a.len() {
+            let da = sub(a[(i + 1) % a.len()], a[i]);
+            let ma = scale(add(a[(i + 1) % a.len()], a[i]), 0.5);
+            for j in 0..b.len() {
+                let db = sub(b[(j + 1) % b.len()], b[j]);
+                let mb = scale(add(b[(j + 1) % b.len()], b[j]), 0.5);
+                let r = sub(ma, mb);
+                let cross = [
+                    da[1] * db[2] - da[2] * db[1],
+                    da[2] * db[0] - da[0] * db[2],
+                    da[0] * db[1] - da[1] * db[0],
+                    0.0,
+                ];
+                total += dot(r, cross) / norm(r).powi(3);
+            }
+        }
+        total / (4.0 * PI)
+    }
+
+    #[test]
+    fn links_have_the_expected_linking_numbers() {
+        let lk = |link| {
+            let c = link_components(link);
+            linking_number(&c[0], &c[1]).abs()
+        };
+        assert!((lk(LinkKind::Hopf) - 1.0).abs() < 0.05);
+        assert!((lk(LinkKind::Solomon) - 2.0).abs() < 0.05);
+        assert!(lk(LinkKind::Whitehead) < 0.05);
+        let b = link_components(LinkKind::Borromean);
+        for (i, j) in [(0, 1), (1, 2), (0, 2)] {
+            assert!(linking_number(&b[i], &b[j]).abs() < 0.05);
+        }
+    }
+
+    #[test]
+    fn scaled_curves_keep_their_strands_apart() {
+        for key in [
+            CurveKey::Knot(KnotKind::Trefoil),
+            CurveKey::Knot(KnotKind::FigureEight),
+            CurveKey::Link(LinkKind::Borromean),
+            CurveKey::Link(LinkKind::Whitehead),
+        ] {
+            let (set, sigma) = curves_with_sigma(key);
+            assert!(sigma.is_finite() && sigma > 0.0, "{key:?}");
+            // At the admissible scale different components keep the full gap.
+            let comps = scaled(key, 2.0, 0.0);
+            for (i, a) in comps.iter().enumerate() {
+                for b in &comps[i + 1..] {
+                    for &p in a {
+                        for &q in b {
+                            assert!(norm(sub(p, q)) >= need(2.0) - 1e-9);
+                        }
+                    }
+                }
+            }
+            assert_eq!(set.components.len(), comps.len());
+        }
+    }
 }

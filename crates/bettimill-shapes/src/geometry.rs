@@ -219,7 +219,6 @@ impl Piece {
 
     /// Points on the piece, for attaching tentacles. Empty for pieces where that is not
     /// offered.
-    #[allow(dead_code)] // Used by tentacles, which are being written.
     pub(crate) fn sample_points(&self) -> Vec<P> {
         match self {
             Piece::Point(c) => vec![*c],

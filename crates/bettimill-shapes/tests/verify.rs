@@ -1,0 +1,184 @@
+//! Cross-check of every family against the homology crate: generate random instances in
+//! 2D, 3D and 4D, in both modes, and compare the analytic label with the computed Betti
+//! numbers. A mismatch is a digitisation defect the pipeline would catch and regenerate;
+//! the tests bound the rate, and the ignored `mismatch_rates` test prints it per family.
+
+use bettimill_shapes::{generate, Dim, Family, KnotKind, LinkKind, Mode};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::time::Instant;
+
+/// Generates `count` instances (seeds `first..first+count`) and returns how many
+/// disagree with the homology crate; `None` if the family does not fit.
+fn mismatches(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    first: u64,
+    count: u64,
+) -> Option<u64> {
+    if family.check_fits(dim, side, mode).is_err() {
+        return None;
+    }
+    let mut bad = 0;
+    for seed in first..first + count {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let g = generate(family, dim, side, mode, &mut rng)
+            .unwrap_or_else(|e| panic!("{family} {dim}D side {side} {mode} seed {seed}: {e}"));
+        let t = bettimill_homology::topology(&g.image);
+        if t.betti != g.betti {
+            eprintln!(
+                "MISMATCH {family} {dim}D side {side} {mode} seed {seed}: computed {:?}, label {:?}",
+                t.betti, g.betti
+            );
+            bad += 1;
+        }
+    }
+    Some(bad)
+}
+
+/// Every family with the side it is tested at in each dimension (0 = not available).
+fn cases() -> Vec<(Family, [usize; 3])> {
+    use Family::*;
+    vec![
+        (Ball, [32, 32, 16]),
+        (Handle, [32, 32, 20]),
+        (Shell, [32, 32, 20]),
+        (TorusShell, [32, 40, 0]),
+        (Handlebody { genus: 2 }, [32, 40, 28]),
+        (Handlebody { genus: 3 }, [40, 48, 0]),
+        (S2xB2, [0, 0, 20]),
+        (T2xB2, [0, 0, 32]),
+        (S1xHandlebody { j: 1 }, [0, 40, 32]),
+        (
+            ConnectedSum {
+                g: 1,
+                h: 1,
+                i: 0,
+                j: 0,
+            },
+            [0, 40, 32],
+        ),
+        (
+            ConnectedSum {
+                g: 1,
+                h: 0,
+                i: 1,
+                j: 1,
+            },
+            [0, 48, 0],
+        ),
+        (
+            Tunnel {
+                intervals: 1,
+                circle: false,
+            },
+            [32, 32, 16],
+        ),
+        (
+            Tunnel {
+                intervals: 2,
+                circle: false,
+            },
+            [0, 32, 16],
+        ),
+        (
+            Tunnel {
+                intervals: 1,
+                circle: true,
+            },
+            [0, 32, 20],
+        ),
+        (
+            Tunnel {
+                intervals: 2,
+                circle: true,
+            },
+            [0, 0, 20],
+        ),
+        (Curve, [32, 32, 16]),
+        (
+            Knot {
+                knot: KnotKind::Trefoil,
+            },
+            [0, 48, 0],
+        ),
+        (
+            Knot {
+                knot: KnotKind::FigureEight,
+            },
+            [0, 48, 0],
+        ),
+        (TorusKnot { p: 2, q: 3 }, [0, 48, 0]),
+        (
+            Link {
+                link: LinkKind::Hopf,
+            },
+            [0, 40, 0],
+        ),
+        (
+            Link {
+                link: LinkKind::Whitehead,
+            },
+            [0, 48, 0],
+        ),
+        (
+            Link {
+                link: LinkKind::Borromean,
+            },
+            [0, 48, 0],
+        ),
+        (
+            Link {
+                link: LinkKind::Solomon,
+            },
+            [0, 48, 0],
+        ),
+        (KleinBottle, [0, 0, 32]),
+        (
+            Tentacled {
+                object: Box::new(Handle),
+                tentacles: 2,
+            },
+            [40, 40, 0],
+        ),
+        (
+            Scene {
+                objects: vec![Ball, Handle, Handlebody { genus: 2 }],
+            },
+            [48, 48, 0],
+        ),
+    ]
+}
+
+#[test]
+#[ignore = "slow: prints the mismatch rate per family; run with --ignored --nocapture"]
+fn mismatch_rates() {
+    let count: u64 = std::env::var("SHAPES_RATE_COUNT")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    for (family, sides) in cases() {
+        for (dim, &side) in Dim::ALL.iter().zip(&sides) {
+            if side == 0 {
+                continue;
+            }
+            for mode in [Mode::Embed, Mode::Carve] {
+                let start = Instant::now();
+                if let Some(bad) = mismatches(&family, *dim, side, mode, 1000, count) {
+                    println!(
+                        "RATE {:<40} {}D side {:>3} {:<5} {:>3}/{} mismatched  {:.1}s",
+                        family.label(),
+                        dim,
+                        side,
+                        mode,
+                        bad,
+                        count,
+                        start.elapsed().as_secs_f64()
+                    );
+                }
+            }
+        }
+    }
+}
