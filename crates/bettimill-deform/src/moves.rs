@@ -13,6 +13,12 @@
 //! with a foreground face-neighbour. Every move strictly
 //! raises the sum of the noise over the foreground, so the process cannot cycle; when no
 //! move is possible any more it stops early and the report says how many were applied.
+//!
+//! A source that fails (not simple, or no target) is marked stuck and leaves the draw
+//! until a voxel within Chebyshev distance `max_distance + 1` of it changes: its own test
+//! and those of all its possible targets only read voxels that close. Without this, a
+//! tournament keeps picking the low-noise voxels on the downhill side of an object, whose
+//! background neighbours all have lower noise, and most attempts are wasted.
 
 use crate::field::NoiseCache;
 use crate::DeformReport;
@@ -127,6 +133,31 @@ pub(crate) fn run(
         ball.push((off, flat));
     }
 
+    // Voxels whose state can change whether a source succeeds: the Chebyshev ball of
+    // radius m + 1 around a flipped voxel, centre included, scanned as rows along the last
+    // axis (offsets of the leading axes here; the row spans -(m+1) ..= m+1 on the last).
+    let reach = m + 1;
+    let reach_side = 2 * reach + 1;
+    let mut refresh_rows: Vec<([i64; 4], isize)> = Vec::new();
+    for k in 0..reach_side.pow(d as u32 - 1) {
+        let mut off = [0i64; 4];
+        let mut rest = k;
+        for axis in (0..d - 1).rev() {
+            off[axis] = rest % reach_side - reach;
+            rest /= reach_side;
+        }
+        let flat = (0..d - 1)
+            .map(|a| off[a] as isize * strides[a] as isize)
+            .sum();
+        refresh_rows.push((off, flat));
+    }
+    let mut stuck = vec![false; image.len()];
+    let mut n_stuck = 0usize;
+    // Stuck voxels per row along the last axis: a small array that is cheap to consult,
+    // where reading `stuck` itself over a 4D ball costs a cache miss per row.
+    let row_len = shape[d - 1];
+    let mut stuck_in_row = vec![0u32; image.len() / row_len];
+
     let mut boundary = BoundarySet {
         list: Vec::new(),
         slot: vec![0; image.len()],
@@ -154,6 +185,10 @@ pub(crate) fn run(
         }
         if !tester.is_simple(image, source) {
             rejected += 1;
+            stuck[source] = true;
+            n_stuck += 1;
+            stuck_in_row[source / row_len] += 1;
+            boundary.remove(source);
             continue;
         }
         image.data_mut()[source] = 0;
@@ -195,12 +230,50 @@ pub(crate) fn run(
                 image.data_mut()[z] = 1;
                 applied += 1;
                 for centre in [source, z] {
+                    // Un-stick the stuck voxels this move may have freed.
+                    let cc = image.coords(centre);
+                    let last = d - 1;
+                    let lo = (cc[last] as i64 - reach).max(0) as usize;
+                    let hi = (cc[last] as i64 + reach).min(shape[last] as i64 - 1) as usize;
+                    let row_base = centre - cc[last];
+                    for (off, flat) in &refresh_rows {
+                        if n_stuck == 0 {
+                            break;
+                        }
+                        let inside = (0..last).all(|a| {
+                            let x = cc[a] as i64 + off[a];
+                            x >= 0 && x < shape[a] as i64
+                        });
+                        if !inside {
+                            continue;
+                        }
+                        let row = (row_base as isize + flat) as usize;
+                        if stuck_in_row[row / row_len] == 0 {
+                            continue;
+                        }
+                        for (v, is_stuck) in stuck
+                            .iter_mut()
+                            .enumerate()
+                            .take(row + hi + 1)
+                            .skip(row + lo)
+                        {
+                            if *is_stuck {
+                                *is_stuck = false;
+                                n_stuck -= 1;
+                                stuck_in_row[row / row_len] -= 1;
+                                if geometry.is_boundary(image, v) {
+                                    boundary.insert(v);
+                                }
+                            }
+                        }
+                    }
+                    // Being on the boundary only changes at the flipped voxel and its
+                    // face-neighbours (which are inside the image: the centre is interior).
                     for v in std::iter::once(centre).chain(
                         geometry
                             .faces
                             .iter()
-                            .map(|&f| (centre as isize + f) as usize)
-                            .filter(|&v| v < image.len()),
+                            .map(|&f| (centre as isize + f) as usize),
                     ) {
                         if geometry.is_boundary(image, v) {
                             boundary.insert(v);
@@ -213,6 +286,10 @@ pub(crate) fn run(
             None => {
                 image.data_mut()[source] = 1;
                 rejected += 1;
+                stuck[source] = true;
+                n_stuck += 1;
+                stuck_in_row[source / row_len] += 1;
+                boundary.remove(source);
             }
         }
     }
