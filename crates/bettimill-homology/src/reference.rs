@@ -14,7 +14,7 @@ use bettimill_grid::BinaryImage;
 pub fn topology(image: &BinaryImage) -> Topology {
     let d = image.dim().get();
     let complex = CellComplex::of_image(&image.padded(1));
-    let mut betti = complex.betti();
+    let mut betti = complex.betti_by_boundaries();
     assert_eq!(
         betti[d], 0,
         "a subcomplex of a box has no top-dimensional homology"
@@ -56,7 +56,7 @@ pub fn topology_by_duality(image: &BinaryImage) -> Topology {
             }
         }
     }
-    let background = CellComplex::from_cells(layout, cells).betti();
+    let background = CellComplex::from_cells(layout, cells).betti_by_boundaries();
     let mut betti = vec![background[d - 1]];
     betti.extend((1..d - 1).map(|k| background[d - 1 - k]));
     betti.push(background[0] - 1);

@@ -14,6 +14,7 @@ use std::collections::VecDeque;
 
 /// Deletes simple foreground voxels of `image` (which must have a background border) until
 /// none is simple. Returns the number of voxels deleted.
+#[inline(never)]
 pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> u64 {
     let steps = flat_offsets(image, tester.offsets());
     let face_steps: Vec<isize> = steps
