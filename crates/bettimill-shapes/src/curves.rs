@@ -50,13 +50,7 @@ pub(crate) fn open_curve(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> So
             p
         })
         .collect();
-    Solid::Tube(vec![(
-        Piece::Polyline {
-            points,
-            closed: false,
-        },
-        tube,
-    )])
+    Solid::Tube(vec![(Piece::polyline(points, false), tube)])
 }
 
 /// Samples per closed component at unit scale.
@@ -156,21 +150,22 @@ fn link_components(link: LinkKind) -> Vec<Vec<P>> {
         // A figure-eight curve (lemniscate of Gerono, its crossing resolved by height) and
         // a second component whose shadow is a circle around the crossing and whose
         // height H sin(2s) makes all five crossings alternate: the alternating
-        // 5-crossing diagram of the Whitehead link (L5a1).
+        // 5-crossing diagram of the Whitehead link (L5a1). The proportions were chosen by
+        // a small grid search for the smallest admissible size.
         LinkKind::Whitehead => vec![
             closed_curve(|t| {
                 [
                     1.6 * libm::cos(t),
                     1.6 * libm::sin(t) * libm::cos(t),
-                    0.35 * libm::sin(t),
+                    0.3 * libm::sin(t),
                     0.0,
                 ]
             }),
             closed_curve(|s| {
                 [
-                    0.8 * libm::cos(s),
-                    0.8 * libm::sin(s),
-                    0.75 * libm::sin(2.0 * s),
+                    1.1 * libm::cos(s),
+                    1.1 * libm::sin(s),
+                    0.9 * libm::sin(2.0 * s),
                     0.0,
                 ]
             }),
@@ -305,15 +300,7 @@ fn tube_of(components: Vec<Vec<P>>, tube: f64) -> Solid {
     Solid::Tube(
         components
             .into_iter()
-            .map(|points| {
-                (
-                    Piece::Polyline {
-                        points,
-                        closed: true,
-                    },
-                    tube,
-                )
-            })
+            .map(|points| (Piece::polyline(points, true), tube))
             .collect(),
     )
 }
@@ -344,12 +331,13 @@ pub(crate) fn spun_link_solid(link: LinkKind, tube: f64, grow: f64) -> Option<So
     let shift = tube + INNER_GAP / 2.0 - low;
     let inner: Vec<Piece> = components
         .into_iter()
-        .map(|c| Piece::Polyline {
-            points: c
-                .into_iter()
-                .map(|p| add(p, [shift, 0.0, 0.0, 0.0]))
-                .collect(),
-            closed: true,
+        .map(|c| {
+            Piece::polyline(
+                c.into_iter()
+                    .map(|p| add(p, [shift, 0.0, 0.0, 0.0]))
+                    .collect(),
+                true,
+            )
         })
         .collect();
     Some(Solid::Tube(vec![(
@@ -423,10 +411,7 @@ pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64) -> Option<So
             return Some(Solid::Tube(vec![(
                 Piece::Spun {
                     centre: [0.0; 4],
-                    inner: vec![Piece::Polyline {
-                        points,
-                        closed: false,
-                    }],
+                    inner: vec![Piece::polyline(points, false)],
                 },
                 tube,
             )]));
@@ -525,13 +510,7 @@ pub(crate) fn add_tentacles(
             if !host_ok || !others_ok {
                 continue;
             }
-            parts.push((
-                Piece::Polyline {
-                    points: points.clone(),
-                    closed: false,
-                },
-                radius,
-            ));
+            parts.push((Piece::polyline(points.clone(), false), radius));
             tentacles.push((points, root));
             placed += 1;
             break;

@@ -383,10 +383,9 @@ fn translate(piece: Piece, by: P) -> Piece {
             radius,
             axes,
         },
-        Piece::Polyline { points, closed } => Piece::Polyline {
-            points: points.into_iter().map(|p| add(p, by)).collect(),
-            closed,
-        },
+        Piece::Polyline { points, closed, .. } => {
+            Piece::polyline(points.into_iter().map(|p| add(p, by)).collect(), closed)
+        }
         Piece::Spun { centre, inner } => Piece::Spun {
             centre: add(centre, by),
             inner,
@@ -726,21 +725,84 @@ pub(crate) fn check_fits(
         return Ok(());
     }
     let objects = objects_of(family);
-    let per_axis = cells_per_axis(objects.len(), d);
+    let minima = object_minima(&objects, d, &does_not_fit)?;
+    if let Some((label, need)) = objects
+        .iter()
+        .zip(&minima)
+        .find(|(_, &need)| need > region.budget())
+        .map(|(o, &need)| (o.label(), need))
+    {
+        return Err(does_not_fit(format!(
+            "{label} needs a bounding radius of {need:.2} voxels, the image offers {:.2}",
+            region.budget()
+        )));
+    }
+    if grid_fits(&minima, d, region)
+        || canonical_layout(&objects, &minima, d, side, region).is_some()
+    {
+        return Ok(());
+    }
+    Err(does_not_fit(format!(
+        "{} objects with bounding radii {:?} could not be packed with {} background voxels between them",
+        objects.len(),
+        minima.iter().map(|&m| round6(m)).collect::<Vec<_>>(),
+        crate::place::GAP
+    )))
+}
+
+fn object_minima(
+    objects: &[Family],
+    dim: usize,
+    does_not_fit: &dyn Fn(String) -> ShapeError,
+) -> Result<Vec<f64>, ShapeError> {
+    objects
+        .iter()
+        .map(|o| {
+            min_extent(o, dim)
+                .ok_or_else(|| does_not_fit(format!("{} has no valid instance", o.label())))
+        })
+        .collect()
+}
+
+/// Whether one object per grid cell fits, every object at its minimum size.
+fn grid_fits(minima: &[f64], dim: usize, region: Region) -> bool {
+    let per_axis = cells_per_axis(minima.len(), dim);
     let width = cell_width(region, per_axis);
     let budget = (width - 1) as f64 / 2.0;
-    for object in &objects {
-        let need = min_extent(object, d)
-            .ok_or_else(|| does_not_fit(format!("{} has no valid instance", object.label())))?;
-        if need > budget {
-            return Err(does_not_fit(format!(
-                "{} needs a bounding radius of {need:.2} voxels, {} object(s) leave {budget:.2} each",
-                object.label(),
-                objects.len()
-            )));
-        }
-    }
-    Ok(())
+    width > 0 && minima.iter().all(|&m| m <= budget)
+}
+
+/// Seeds of the canonical layout search (fixed, so feasibility is a pure function of the
+/// request).
+const CANONICAL_SEEDS: u64 = 6;
+
+/// A layout found with fixed seeds, every object at its minimum size, largest first.
+/// Plan-time feasibility for scenes that the grid cannot hold, and the generation-time
+/// fallback for them: a request that passed `check_fits` always produces a sample.
+fn canonical_layout(
+    objects: &[Family],
+    minima: &[f64],
+    dim: usize,
+    side: usize,
+    region: Region,
+) -> Option<Vec<PlacedObject>> {
+    use rand::SeedableRng;
+    let mut order: Vec<usize> = (0..objects.len()).collect();
+    order.sort_by(|&a, &b| minima[b].total_cmp(&minima[a]).then(a.cmp(&b)));
+    let sorted_objects: Vec<Family> = order.iter().map(|&k| objects[k].clone()).collect();
+    let sorted_minima: Vec<f64> = order.iter().map(|&k| minima[k]).collect();
+    (0..CANONICAL_SEEDS).find_map(|seed| {
+        let mut rng = ChaCha8Rng::seed_from_u64(0xB377_1000 + seed);
+        place_random(
+            &sorted_objects,
+            &sorted_minima,
+            dim,
+            side,
+            region,
+            &mut rng,
+            true,
+        )
+    })
 }
 
 fn knot_type_of(family: &Family, dim: usize) -> Option<String> {
@@ -931,6 +993,75 @@ fn place_tunnel(
     Ok((family.clone(), placed, params, voxels))
 }
 
+/// Objects placed one by one at random sizes, rotations and positions, each rejected
+/// while it meets the gap-dilation of those already placed. `at_minimum` draws every
+/// object at its minimum size (the canonical layout). `None` if some object found no
+/// place within `PLACEMENT_ATTEMPTS` tries.
+fn place_random(
+    objects: &[Family],
+    minima: &[f64],
+    dim: usize,
+    side: usize,
+    region: Region,
+    rng: &mut ChaCha8Rng,
+    at_minimum: bool,
+) -> Option<Vec<PlacedObject>> {
+    let count = objects.len();
+    let budget = region.budget();
+    // Each object may use a share of the room that shrinks with the number of objects,
+    // so several of them are likely to fit.
+    let share = if count == 1 {
+        budget
+    } else {
+        (budget / (count as f64).powf(1.0 / dim as f64) * 1.2).min(budget)
+    };
+    let mut occupancy = Occupancy::new(dim, side);
+    let mut out = Vec::new();
+    for (object, &minimum) in objects.iter().zip(minima) {
+        if minimum > budget {
+            return None;
+        }
+        let mut done = false;
+        for attempt in 0..PLACEMENT_ATTEMPTS {
+            // Later attempts draw smaller objects, which fit into smaller gaps.
+            let shrink = 1.0 - attempt as f64 / PLACEMENT_ATTEMPTS as f64;
+            let upper = minimum + (share.max(minimum) - minimum) * shrink;
+            let target = if at_minimum {
+                minimum
+            } else {
+                uniform(rng, minimum, upper)
+            };
+            let Some((solid, params)) = build(object, dim, target, rng) else {
+                continue;
+            };
+            let rotation = Rotation::random(&free_axes(object, dim), rng);
+            let Some(centre) = random_centre(dim, region.lo, region.hi, solid.extent(), rng) else {
+                continue;
+            };
+            let placed = Placed {
+                solid,
+                rotation,
+                centre,
+                through_axes: Vec::new(),
+            };
+            let voxels = rasterise(&placed, dim, side, region.lo, region.hi);
+            if voxels.is_empty() || !occupancy.is_free(&voxels) {
+                continue;
+            }
+            if count > 1 {
+                occupancy.add(&voxels);
+            }
+            out.push((object.clone(), placed, params, voxels));
+            done = true;
+            break;
+        }
+        if !done {
+            return None;
+        }
+    }
+    Some(out)
+}
+
 fn place_objects(
     family: &Family,
     objects: &[Family],
@@ -940,62 +1071,24 @@ fn place_objects(
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<PlacedObject>, ShapeError> {
     let count = objects.len();
-    let budget = region.budget();
     let minima: Vec<f64> = objects
         .iter()
         .map(|o| min_extent(o, dim).unwrap_or(f64::INFINITY))
         .collect();
-    // Random placement first: each object may use a share of the room that shrinks with
-    // the number of objects, so several of them are likely to fit.
-    if count > 1 || minima[0] <= budget {
-        let share = if count == 1 {
-            budget
-        } else {
-            (budget / (count as f64).powf(1.0 / dim as f64) * 1.2).min(budget)
-        };
-        let mut occupancy = Occupancy::new(dim, side);
-        let mut out = Vec::new();
-        for (object, &minimum) in objects.iter().zip(&minima) {
-            let mut done = false;
-            for attempt in 0..PLACEMENT_ATTEMPTS {
-                if minimum > budget {
-                    break;
-                }
-                // Later attempts draw smaller objects, which fit into smaller gaps.
-                let shrink = 1.0 - attempt as f64 / PLACEMENT_ATTEMPTS as f64;
-                let upper = minimum + (share.max(minimum) - minimum) * shrink;
-                let target = uniform(rng, minimum, upper);
-                let Some((solid, params)) = build(object, dim, target, rng) else {
-                    continue;
-                };
-                let rotation = Rotation::random(&free_axes(object, dim), rng);
-                let Some(centre) = random_centre(dim, region.lo, region.hi, solid.extent(), rng)
-                else {
-                    continue;
-                };
-                let placed = Placed {
-                    solid,
-                    rotation,
-                    centre,
-                    through_axes: Vec::new(),
-                };
-                let voxels = rasterise(&placed, dim, side, region.lo, region.hi);
-                if voxels.is_empty() || !occupancy.is_free(&voxels) {
-                    continue;
-                }
-                occupancy.add(&voxels);
-                out.push((object.clone(), placed, params, voxels));
-                done = true;
-                break;
+    if let Some(out) = place_random(objects, &minima, dim, side, region, rng, false) {
+        return Ok(out);
+    }
+    let fits_grid = grid_fits(&minima, dim, region);
+    if !fits_grid {
+        return canonical_layout(objects, &minima, dim, side, region).ok_or_else(|| {
+            ShapeError::DoesNotFit {
+                family: family.label(),
+                dim,
+                side,
+                mode: Mode::Embed,
+                reason: "no layout found".into(),
             }
-            if !done {
-                out.clear();
-                break;
-            }
-        }
-        if out.len() == count {
-            return Ok(out);
-        }
+        });
     }
     // Fallback: one object per grid cell, cells separated by the gap. check_fits
     // guarantees every object's minimum fits a cell, so this always succeeds.

@@ -86,8 +86,14 @@ pub(crate) enum Piece {
     /// `axes` coordinate axes (axes = 3 in 4D is a 2-sphere; axes = d is the full
     /// (d-1)-sphere).
     Sphere { centre: P, radius: f64, axes: usize },
-    /// A polyline through `points`, closed when `closed`.
-    Polyline { points: Vec<P>, closed: bool },
+    /// A polyline through `points`, closed when `closed`. Build it with
+    /// [`Piece::polyline`], which also fills `chunks`: bounding balls of runs of
+    /// `CHUNK` segments, so that most segments are skipped when testing a point.
+    Polyline {
+        points: Vec<P>,
+        closed: bool,
+        chunks: Vec<(P, f64)>,
+    },
     /// The torus of revolution in the first three axes: the circle of radius `minor`
     /// around the circle of radius `major` in the (x0, x1)-plane.
     Torus { major: f64, minor: f64 },
@@ -108,7 +114,77 @@ pub(crate) enum Piece {
     Prism { inner: Box<Piece>, keep: usize },
 }
 
+/// Segments per bounding ball of a polyline.
+const CHUNK: usize = 12;
+
 impl Piece {
+    /// A polyline piece with its chunk bounding balls.
+    pub(crate) fn polyline(points: Vec<P>, closed: bool) -> Piece {
+        let n = points.len();
+        let segments = if closed { n } else { n.saturating_sub(1) };
+        let mut chunks = Vec::new();
+        let mut start = 0;
+        while start < segments.max(1) {
+            let end = (start + CHUNK).min(segments.max(1));
+            // Vertices start..=end (wrapping) bound the segments start..end.
+            let vertices: Vec<P> = (start..=end).map(|k| points[k % n]).collect();
+            let mut centre = ORIGIN;
+            for &v in &vertices {
+                centre = add(centre, v);
+            }
+            centre = scale(centre, 1.0 / vertices.len() as f64);
+            let radius = vertices
+                .iter()
+                .map(|&v| norm(sub(v, centre)))
+                .fold(0.0, f64::max);
+            chunks.push((centre, radius));
+            start = end;
+        }
+        Piece::Polyline {
+            points,
+            closed,
+            chunks,
+        }
+    }
+
+    /// Whether `p` is within `r` of the piece: [`Piece::distance`] `<= r`, with early
+    /// exits for polylines.
+    pub(crate) fn within(&self, p: P, r: f64) -> bool {
+        match self {
+            Piece::Polyline {
+                points,
+                closed,
+                chunks,
+            } => {
+                let n = points.len();
+                if n == 1 {
+                    return norm(sub(p, points[0])) <= r;
+                }
+                let segments = if *closed { n } else { n - 1 };
+                for (index, &(centre, radius)) in chunks.iter().enumerate() {
+                    if norm(sub(p, centre)) - radius > r {
+                        continue;
+                    }
+                    let start = index * CHUNK;
+                    let end = (start + CHUNK).min(segments);
+                    for k in start..end {
+                        if segment_distance(p, points[k], points[(k + 1) % n]) <= r {
+                            return true;
+                        }
+                    }
+                }
+                false
+            }
+            Piece::Spun { centre, inner } => {
+                let q = sub(p, *centre);
+                let rho = (q[0] * q[0] + q[1] * q[1]).sqrt();
+                let meridian = [rho, q[2], q[3], 0.0];
+                inner.iter().any(|piece| piece.within(meridian, r))
+            }
+            other => other.distance(p) <= r,
+        }
+    }
+
     /// Distance from `p` to the piece (see [`Piece::Klein`] for the one exception).
     pub(crate) fn distance(&self, p: P) -> f64 {
         match self {
@@ -146,7 +222,7 @@ impl Piece {
                 let radial = inside.sqrt() - radius;
                 (radial * radial + outside).sqrt()
             }
-            Piece::Polyline { points, closed } => {
+            Piece::Polyline { points, closed, .. } => {
                 let n = points.len();
                 let segments = if *closed { n } else { n.saturating_sub(1) };
                 let mut best = f64::INFINITY;
@@ -271,7 +347,7 @@ impl Piece {
                 "piece": "sphere", "centre": point_json(*centre, dim),
                 "radius": round6(*radius), "axes": axes
             }),
-            Piece::Polyline { points, closed } => json!({
+            Piece::Polyline { points, closed, .. } => json!({
                 "piece": "polyline", "closed": closed, "vertices": points.len(),
                 "extent": round6(self.extent())
             }),
@@ -321,7 +397,7 @@ pub(crate) enum Solid {
 impl Solid {
     pub(crate) fn contains(&self, p: P) -> bool {
         match self {
-            Solid::Tube(parts) => parts.iter().any(|(piece, r)| piece.distance(p) <= *r),
+            Solid::Tube(parts) => parts.iter().any(|(piece, r)| piece.within(p, *r)),
             Solid::Shell {
                 piece,
                 offset,

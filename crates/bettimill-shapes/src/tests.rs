@@ -171,3 +171,196 @@ fn carve_labels_follow_the_duality() {
         vec![2, 1]
     );
 }
+
+#[test]
+fn labels_of_the_paper_tables() {
+    let b = |family: Family, dim: Dim, mode: Mode| family.expected_betti(dim, mode).unwrap();
+    // Table I: the cube minus the boundary sum has (1, h + ij, g + i(j+1), 1).
+    for (g, h, i, j) in [(1, 0, 0, 0), (0, 1, 0, 0), (2, 1, 1, 2), (0, 0, 2, 3)] {
+        let family = Family::ConnectedSum { g, h, i, j };
+        let (g, h, i, j) = (g as u64, h as u64, i as u64, j as u64);
+        assert_eq!(
+            b(family.clone(), Dim::Four, Mode::Carve),
+            vec![1, h + i * j, g + i * (j + 1), 1]
+        );
+        assert_eq!(
+            b(family, Dim::Four, Mode::Embed),
+            vec![1, g + i * (j + 1), h + i * j, 0]
+        );
+    }
+    assert_eq!(
+        b(Family::S1xHandlebody { j: 3 }, Dim::Four, Mode::Embed),
+        vec![1, 4, 3, 0]
+    );
+    assert_eq!(b(Family::T2xB2, Dim::Four, Mode::Carve), vec![1, 1, 2, 1]);
+    assert_eq!(
+        b(Family::TorusShell, Dim::Four, Mode::Carve),
+        vec![2, 3, 3, 1]
+    );
+    assert_eq!(
+        b(Family::TorusShell, Dim::Three, Mode::Embed),
+        vec![1, 2, 1]
+    );
+    assert_eq!(b(Family::Shell, Dim::Four, Mode::Carve), vec![2, 0, 0, 1]);
+    let hopf = LinkKind::Hopf;
+    assert_eq!(
+        b(Family::SpunLink { link: hopf }, Dim::Four, Mode::Embed),
+        vec![2, 4, 2, 0]
+    );
+    assert_eq!(
+        b(Family::SpunLink { link: hopf }, Dim::Four, Mode::Carve),
+        vec![1, 2, 4, 2]
+    );
+    assert_eq!(
+        b(
+            Family::Link {
+                link: LinkKind::Borromean
+            },
+            Dim::Three,
+            Mode::Carve
+        ),
+        vec![1, 3, 3]
+    );
+    assert_eq!(
+        b(
+            Family::SpunKnot {
+                knot: KnotKind::Trefoil
+            },
+            Dim::Four,
+            Mode::Carve
+        ),
+        vec![1, 1, 0, 1]
+    );
+    assert_eq!(
+        b(Family::TorusKnot { p: 4, q: 6 }, Dim::Three, Mode::Embed),
+        vec![2, 2, 0]
+    );
+    // Tunnels: the square cut in two, a solid torus, R^4 minus a line (~S2) or a plane (~S1).
+    let tunnel = |intervals, circle| Family::Tunnel { intervals, circle };
+    assert_eq!(b(tunnel(1, false), Dim::Two, Mode::Carve), vec![2, 0]);
+    assert_eq!(b(tunnel(1, false), Dim::Three, Mode::Carve), vec![1, 1, 0]);
+    assert_eq!(b(tunnel(2, false), Dim::Three, Mode::Carve), vec![2, 0, 0]);
+    assert_eq!(b(tunnel(1, true), Dim::Three, Mode::Carve), vec![2, 1, 0]);
+    assert_eq!(
+        b(tunnel(1, false), Dim::Four, Mode::Carve),
+        vec![1, 0, 1, 0]
+    );
+    assert_eq!(
+        b(tunnel(2, false), Dim::Four, Mode::Carve),
+        vec![1, 1, 0, 0]
+    );
+    assert_eq!(b(tunnel(1, true), Dim::Four, Mode::Carve), vec![1, 1, 1, 0]);
+    // The Klein bottle: Z/2 and Q differ, in both modes.
+    assert_eq!(
+        b(Family::KleinBottle, Dim::Four, Mode::Embed),
+        vec![1, 2, 1, 0]
+    );
+    assert_eq!(
+        Family::KleinBottle
+            .expected_betti_rational(Dim::Four, Mode::Embed)
+            .unwrap(),
+        vec![1, 1, 0, 0]
+    );
+    assert_eq!(
+        Family::KleinBottle
+            .expected_betti_rational(Dim::Four, Mode::Carve)
+            .unwrap(),
+        vec![1, 0, 1, 1]
+    );
+    // The paper's 3D scene: b0 = 5, b1 = 5.
+    assert_eq!(
+        b(paper_scene_family(), Dim::Three, Mode::Embed),
+        vec![5, 5, 0]
+    );
+}
+
+#[test]
+fn records_describe_the_sample() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let family = Family::Scene {
+        objects: vec![
+            Family::Link {
+                link: LinkKind::Hopf,
+            },
+            Family::Ball,
+        ],
+    };
+    let g = generate(&family, Dim::Three, 48, Mode::Embed, &mut rng).unwrap();
+    assert_eq!(g.components, 3);
+    assert_eq!(g.knot_type, "hopf");
+    assert_eq!(g.betti_rational, None);
+    let objects = g.construction["objects"].as_array().unwrap();
+    assert_eq!(objects.len(), 2);
+    // Keys are sorted at every level we build.
+    let keys: Vec<&String> = g.construction.as_object().unwrap().keys().collect();
+    let mut sorted_keys = keys.clone();
+    sorted_keys.sort();
+    assert_eq!(keys, sorted_keys);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let klein = generate(&Family::KleinBottle, Dim::Four, 30, Mode::Embed, &mut rng).unwrap();
+    assert_eq!(klein.betti_rational, Some(vec![1, 1, 0, 0]));
+    assert_eq!(klein.knot_type, "none");
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let knot = Family::Knot {
+        knot: KnotKind::Trefoil,
+    };
+    let four = generate(&knot, Dim::Four, 46, Mode::Embed, &mut rng).unwrap();
+    assert_eq!(four.knot_type, "trefoil_x_interval");
+}
+
+#[test]
+fn tentacles_are_placed_and_keep_the_label() {
+    let family = Family::Tentacled {
+        object: Box::new(Family::Handlebody { genus: 2 }),
+        tentacles: 3,
+    };
+    let mut placed_total = 0;
+    for seed in 0..6 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let g = generate(&family, Dim::Three, 48, Mode::Embed, &mut rng).unwrap();
+        placed_total += g.construction["objects"][0]["params"]["tentacles_placed"]
+            .as_u64()
+            .unwrap();
+        assert_eq!(summary(&g.image), summary_of(&g.betti));
+    }
+    assert!(
+        placed_total >= 6,
+        "only {placed_total} tentacles placed in 6 samples"
+    );
+}
+
+#[test]
+fn a_feasible_request_always_generates() {
+    // check_fits is a promise: at the smallest accepted side every seed must succeed.
+    for family in [
+        Family::Handlebody { genus: 3 },
+        Family::Link {
+            link: LinkKind::Hopf,
+        },
+        Family::Scene {
+            objects: vec![Family::Handle; 5],
+        },
+        Family::Tunnel {
+            intervals: 1,
+            circle: true,
+        },
+    ] {
+        for mode in [Mode::Embed, Mode::Carve] {
+            let dim = Dim::Three;
+            let Ok(side) = family.min_side(dim, mode) else {
+                continue;
+            };
+            assert!(family.check_fits(dim, side - 1, mode).is_err() || side <= 8);
+            for seed in 0..4 {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                let g = generate(&family, dim, side, mode, &mut rng)
+                    .unwrap_or_else(|e| panic!("{family} side {side} {mode}: {e}"));
+                assert_eq!(
+                    summary(&g.image),
+                    summary_of(&g.betti),
+                    "{family} {mode} {seed}"
+                );
+            }
+        }
+    }
+}

@@ -182,3 +182,102 @@ fn mismatch_rates() {
         }
     }
 }
+
+/// Every family the library offers, for tables.
+fn all_families() -> Vec<Family> {
+    use Family::*;
+    let mut out = vec![
+        Ball,
+        Handle,
+        Shell,
+        TorusShell,
+        Handlebody { genus: 1 },
+        Handlebody { genus: 2 },
+        S2xB2,
+        T2xB2,
+        S1xHandlebody { j: 1 },
+        S1xHandlebody { j: 2 },
+        ConnectedSum {
+            g: 2,
+            h: 0,
+            i: 0,
+            j: 0,
+        },
+        ConnectedSum {
+            g: 1,
+            h: 1,
+            i: 0,
+            j: 0,
+        },
+        ConnectedSum {
+            g: 0,
+            h: 0,
+            i: 1,
+            j: 1,
+        },
+        ConnectedSum {
+            g: 1,
+            h: 1,
+            i: 1,
+            j: 1,
+        },
+        Tunnel {
+            intervals: 1,
+            circle: false,
+        },
+        Tunnel {
+            intervals: 2,
+            circle: false,
+        },
+        Tunnel {
+            intervals: 1,
+            circle: true,
+        },
+        Tunnel {
+            intervals: 2,
+            circle: true,
+        },
+        Curve,
+        TorusKnot { p: 2, q: 5 },
+        TorusKnot { p: 3, q: 3 },
+        KleinBottle,
+        bettimill_shapes::paper_scene_family(),
+    ];
+    for knot in [
+        KnotKind::Unknot,
+        KnotKind::Trefoil,
+        KnotKind::FigureEight,
+        KnotKind::Cinquefoil,
+    ] {
+        out.push(Knot { knot });
+        out.push(SpunKnot { knot });
+    }
+    for link in [
+        LinkKind::Hopf,
+        LinkKind::Whitehead,
+        LinkKind::Borromean,
+        LinkKind::Solomon,
+    ] {
+        out.push(Link { link });
+        out.push(SpunLink { link });
+    }
+    out
+}
+
+#[test]
+#[ignore = "prints the smallest side per family, dimension and mode"]
+fn min_sides() {
+    for family in all_families() {
+        let mut line = format!("{:<45}", family.label());
+        for dim in Dim::ALL {
+            for mode in [Mode::Embed, Mode::Carve] {
+                let cell = match family.min_side(dim, mode) {
+                    Ok(side) => format!("{side}"),
+                    Err(_) => "-".into(),
+                };
+                line.push_str(&format!(" {dim}D/{mode}:{cell:>4}"));
+            }
+        }
+        println!("SIDE {line}");
+    }
+}
