@@ -38,9 +38,13 @@ fn mismatches(
     Some(bad)
 }
 
-/// Every family with the side it is tested at in each dimension (0 = not available).
+/// Every family with the side it is tested at in each dimension (0 = not tested there).
+/// Sides are modest: 2D 32-48, 3D 32-64, 4D 16-32 (larger 4D constructions are listed in
+/// `large_4d`).
 fn cases() -> Vec<(Family, [usize; 3])> {
     use Family::*;
+    let knot = |knot| Knot { knot };
+    let link = |link| Link { link };
     vec![
         (Ball, [32, 32, 16]),
         (Handle, [32, 32, 20]),
@@ -51,6 +55,7 @@ fn cases() -> Vec<(Family, [usize; 3])> {
         (S2xB2, [0, 0, 20]),
         (T2xB2, [0, 0, 32]),
         (S1xHandlebody { j: 1 }, [0, 40, 32]),
+        (S1xHandlebody { j: 2 }, [0, 48, 0]),
         (
             ConnectedSum {
                 g: 1,
@@ -68,6 +73,15 @@ fn cases() -> Vec<(Family, [usize; 3])> {
                 j: 1,
             },
             [0, 48, 0],
+        ),
+        (
+            ConnectedSum {
+                g: 1,
+                h: 1,
+                i: 1,
+                j: 1,
+            },
+            [0, 56, 0],
         ),
         (
             Tunnel {
@@ -98,42 +112,21 @@ fn cases() -> Vec<(Family, [usize; 3])> {
             [0, 0, 20],
         ),
         (Curve, [32, 32, 16]),
-        (
-            Knot {
-                knot: KnotKind::Trefoil,
-            },
-            [0, 48, 0],
-        ),
-        (
-            Knot {
-                knot: KnotKind::FigureEight,
-            },
-            [0, 48, 0],
-        ),
+        (knot(KnotKind::Unknot), [0, 32, 20]),
+        (knot(KnotKind::Trefoil), [0, 48, 0]),
+        (knot(KnotKind::FigureEight), [0, 48, 0]),
+        (knot(KnotKind::Cinquefoil), [0, 48, 0]),
         (TorusKnot { p: 2, q: 3 }, [0, 48, 0]),
+        (TorusKnot { p: 3, q: 3 }, [0, 40, 0]),
+        (link(LinkKind::Hopf), [0, 40, 0]),
+        (link(LinkKind::Whitehead), [0, 56, 0]),
+        (link(LinkKind::Borromean), [0, 48, 0]),
+        (link(LinkKind::Solomon), [0, 48, 0]),
         (
-            Link {
-                link: LinkKind::Hopf,
+            SpunKnot {
+                knot: KnotKind::Unknot,
             },
-            [0, 40, 0],
-        ),
-        (
-            Link {
-                link: LinkKind::Whitehead,
-            },
-            [0, 48, 0],
-        ),
-        (
-            Link {
-                link: LinkKind::Borromean,
-            },
-            [0, 48, 0],
-        ),
-        (
-            Link {
-                link: LinkKind::Solomon,
-            },
-            [0, 48, 0],
+            [0, 0, 32],
         ),
         (KleinBottle, [0, 0, 32]),
         (
@@ -144,12 +137,99 @@ fn cases() -> Vec<(Family, [usize; 3])> {
             [40, 40, 0],
         ),
         (
+            Tentacled {
+                object: Box::new(knot(KnotKind::Trefoil)),
+                tentacles: 2,
+            },
+            [0, 56, 0],
+        ),
+        (
             Scene {
                 objects: vec![Ball, Handle, Handlebody { genus: 2 }],
             },
             [48, 48, 0],
         ),
+        (bettimill_shapes::paper_scene_family(), [0, 64, 0]),
     ]
+}
+
+/// 4D constructions that need sides above 32; one instance each when asked for.
+fn large_4d() -> Vec<(Family, usize)> {
+    use Family::*;
+    vec![
+        (TorusShell, 48),
+        (
+            Knot {
+                knot: KnotKind::Trefoil,
+            },
+            46,
+        ),
+        (
+            Link {
+                link: LinkKind::Hopf,
+            },
+            30,
+        ),
+        (
+            SpunLink {
+                link: LinkKind::Hopf,
+            },
+            56,
+        ),
+        (
+            SpunKnot {
+                knot: KnotKind::Trefoil,
+            },
+            77,
+        ),
+    ]
+}
+
+#[test]
+#[ignore = "very slow: large 4D constructions, one instance each"]
+fn large_4d_instances() {
+    for (family, side) in large_4d() {
+        for mode in [Mode::Embed, Mode::Carve] {
+            let start = Instant::now();
+            if let Some(bad) = mismatches(&family, Dim::Four, side, mode, 1000, 1) {
+                println!(
+                    "RATE {:<40} 4D side {side:>3} {mode:<5} {bad}/1 mismatched  {:.1}s",
+                    family.label(),
+                    start.elapsed().as_secs_f64()
+                );
+            } else {
+                println!("SKIP {} does not fit at {side}", family.label());
+            }
+        }
+    }
+}
+
+/// The bounded version that runs with every `cargo test`: every case once per mode,
+/// 4D only where the side is at most 20 (4D homology of larger images takes seconds).
+#[test]
+fn every_family_matches_the_homology_crate() {
+    let mut failures = Vec::new();
+    for (family, sides) in cases() {
+        for (dim, &side) in Dim::ALL.iter().zip(&sides) {
+            if side == 0 || (*dim == Dim::Four && side > 20) {
+                continue;
+            }
+            for mode in [Mode::Embed, Mode::Carve] {
+                match mismatches(&family, *dim, side, mode, 0, 1) {
+                    Some(0) => {}
+                    Some(_) => failures.push(format!("{family} {dim}D {mode}")),
+                    None => {
+                        // Tunnels exist only in carve mode; everything else must fit.
+                        if !matches!(family, Family::Tunnel { .. }) || mode == Mode::Carve {
+                            failures
+                                .push(format!("{family} {dim}D side {side} {mode}: does not fit"));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 #[test]
