@@ -1,1 +1,21 @@
-fn main() {}
+//! The `bettimill` binary: parse arguments, dispatch, map errors to exit codes.
+//!
+//! Exit codes (documented in README.md): 0 success; 1 a check found differences (verify);
+//! 2 bad input, usage error or failure. Everything else lives in library crates; this crate
+//! is the only one that prints.
+
+mod commands;
+
+use clap::Parser;
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let cli = commands::Cli::parse();
+    match commands::run(cli) {
+        Ok(status) => status.into(),
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            commands::Status::Failure.into()
+        }
+    }
+}

@@ -243,9 +243,9 @@ impl BinaryImage {
     #[inline]
     pub fn coords(&self, mut index: usize) -> [usize; 4] {
         let mut out = [0usize; 4];
-        for axis in 0..self.dim.get() {
-            out[axis] = index / self.strides[axis];
-            index %= self.strides[axis];
+        for (coordinate, &stride) in out.iter_mut().zip(self.strides()) {
+            *coordinate = index / stride;
+            index %= stride;
         }
         out
     }

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# The project's test command (README: "Run the tests"). CI's .ci/run calls exactly this.
+# It checks formatting and lints, runs every Rust test, then the tests that need real
+# outside parts: Python clients reading our shards (venv made by ci/python-env.sh) and a
+# real single-node Slurm (ci/slurm-up.sh). In CI (CI=true) those parts are installed and
+# must work; locally they are installed too, so a green run here means the same as in CI.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+echo "== cargo fmt --check"
+cargo fmt --all --check
+
+echo "== cargo clippy (warnings are errors)"
+cargo clippy --workspace --all-targets --locked -- -D warnings
+
+echo "== cargo test"
+cargo test --workspace --locked
+
+if [ -x ci/python-clients.sh ]; then
+  echo "== Python clients"
+  ci/python-clients.sh
+fi
+
+if [ -x ci/slurm-test.sh ]; then
+  echo "== Slurm"
+  ci/slurm-test.sh
+fi
+echo "== all tests passed"

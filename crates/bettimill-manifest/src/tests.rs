@@ -1,0 +1,125 @@
+use super::*;
+
+fn parse(text: &str) -> Result<Manifest, ManifestError> {
+    Manifest::parse(text, Path::new("test.toml"))
+}
+
+const GOOD: &str = r#"schema_version = 1
+name = "t"
+dimension = 3
+side = 24
+mode = "embed"
+samples = 10
+shard_size = 4
+seed = 1
+
+[[classes]]
+family = "ball"
+"#;
+
+/// Asserts that `text` is refused with an error naming `field` on `line`.
+fn check_refused(text: &str, field: &str, line: usize) {
+    match parse(text) {
+        Err(ManifestError::Invalid {
+            line: l,
+            field: f,
+            reason,
+            ..
+        }) => {
+            assert_eq!((f.as_str(), l), (field, line), "reason: {reason}");
+        }
+        other => panic!("expected a refusal naming {field}, got {other:?}"),
+    }
+}
+
+#[test]
+fn the_demo_manifest_parses() {
+    let m = Manifest::parse(DEMO_MANIFEST, Path::new("demo")).unwrap();
+    assert!(m.samples >= 100);
+}
+
+#[test]
+fn a_good_manifest_parses() {
+    let m = parse(GOOD).unwrap();
+    assert_eq!(m.dimension, Dim::Three);
+    assert_eq!(m.mode.to_vec(), vec![Mode::Embed]);
+    assert_eq!(m.compression, Compression::None);
+}
+
+#[test]
+fn unknown_field_is_named() {
+    check_refused(
+        &GOOD.replace("seed = 1", "seed = 1\ncolour = 3"),
+        "colour",
+        9,
+    );
+}
+
+#[test]
+fn wrong_type_is_named() {
+    check_refused(&GOOD.replace("side = 24", "side = \"big\""), "side", 4);
+}
+
+#[test]
+fn dimension_five_is_refused() {
+    check_refused(
+        &GOOD.replace("dimension = 3", "dimension = 5"),
+        "dimension",
+        3,
+    );
+}
+
+#[test]
+fn negative_count_is_refused() {
+    check_refused(&GOOD.replace("samples = 10", "samples = -10"), "samples", 6);
+}
+
+#[test]
+fn zero_shard_size_is_refused() {
+    check_refused(
+        &GOOD.replace("shard_size = 4", "shard_size = 0"),
+        "shard_size",
+        7,
+    );
+}
+
+#[test]
+fn bad_name_is_refused() {
+    check_refused(&GOOD.replace("name = \"t\"", "name = \"a.b\""), "name", 2);
+}
+
+#[test]
+fn missing_field_is_reported() {
+    let err = parse(&GOOD.replace("seed = 1\n", "")).unwrap_err();
+    assert!(err.to_string().contains("seed"), "{err}");
+}
+
+#[test]
+fn hash_ignores_comments_and_key_order() {
+    let a = parse(GOOD).unwrap();
+    let reordered = GOOD.replace("seed = 1\n", "").replace(
+        "schema_version = 1\n",
+        "schema_version = 1\nseed = 1 # the seed\n",
+    );
+    let b = parse(&reordered).unwrap();
+    assert_eq!(a.canonical_hash(), b.canonical_hash());
+    let c = parse(&GOOD.replace("seed = 1", "seed = 2")).unwrap();
+    assert_ne!(a.canonical_hash(), c.canonical_hash());
+}
+
+proptest::proptest! {
+    #[test]
+    fn mutated_manifests_never_panic(pos in 0usize..400, byte in 0u8..128) {
+        let mut bytes = GOOD.as_bytes().to_vec();
+        let p = pos % bytes.len();
+        bytes[p] = byte;
+        if let Ok(text) = std::str::from_utf8(&bytes) {
+            let _ = parse(text);
+        }
+    }
+
+    #[test]
+    fn random_text_never_panics(text in "\\PC{0,200}") {
+        let _ = parse(&text);
+    }
+}

@@ -1,0 +1,315 @@
+//! End-to-end tests: the real `bettimill` binary in fresh temporary directories.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bettimill(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_bettimill"))
+        .args(args)
+        .output()
+        .expect("the bettimill binary runs")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Every file under `dir`, by relative path, with its bytes.
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path.strip_prefix(dir).unwrap().to_path_buf();
+                out.insert(rel, std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// A small manifest (fast to build) in `dir`.
+fn small_manifest(dir: &Path, dimension: u32, side: u32, samples: u32) -> PathBuf {
+    let path = dir.join(format!("small-{dimension}d.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            r#"schema_version = 1
+name = "small{dimension}d"
+dimension = {dimension}
+side = {side}
+mode = ["embed", "carve"]
+samples = {samples}
+shard_size = 6
+seed = 3
+
+[[classes]]
+family = "ball"
+
+[[classes]]
+family = "handle"
+"#
+        ),
+    )
+    .unwrap();
+    path
+}
+
+fn build(manifest: Option<&Path>, out: &Path) -> Output {
+    let mut args = vec!["build", "--quiet", "--out", out.to_str().unwrap()];
+    if let Some(m) = manifest {
+        args.insert(1, m.to_str().unwrap());
+    }
+    bettimill(&args)
+}
+
+#[test]
+fn two_builds_of_the_demo_are_byte_identical() {
+    let tmp = tempfile::tempdir().unwrap();
+    let a = tmp.path().join("a");
+    let b = tmp.path().join("b");
+    let out = build(None, &a);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = build(None, &b);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (sa, sb) = (snapshot(&a), snapshot(&b));
+    assert!(sa.keys().any(|k| k.starts_with("shards")));
+    assert!(sa.contains_key(Path::new("index.json")));
+    assert_eq!(sa.keys().collect::<Vec<_>>(), sb.keys().collect::<Vec<_>>());
+    for (name, bytes) in &sa {
+        assert!(
+            bytes == &sb[name],
+            "{} differs between two builds",
+            name.display()
+        );
+    }
+    // The demo verifies.
+    let out = bettimill(&["verify", a.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", stdout(&out));
+}
+
+#[test]
+fn every_stored_label_matches_the_stored_voxels() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (dimension, side) in [(2, 20), (3, 18), (4, 18)] {
+        let manifest = small_manifest(tmp.path(), dimension, side, 12);
+        let out_dir = tmp.path().join(format!("out{dimension}"));
+        let out = build(Some(&manifest), &out_dir);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let mut checked = 0;
+        for entry in std::fs::read_dir(out_dir.join("shards")).unwrap() {
+            let bytes = std::fs::read(entry.unwrap().path()).unwrap();
+            let members = bettimill_shard::read_tar(&bytes).unwrap();
+            let mut labels = BTreeMap::new();
+            let mut images = BTreeMap::new();
+            for m in members {
+                let (key, field) = m.name.split_once('.').unwrap();
+                match field {
+                    "json" => {
+                        let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+                        labels.insert(key.to_string(), v);
+                    }
+                    "npy" => {
+                        let img = bettimill_grid::npy::read_bytes(&m.data, true).unwrap();
+                        images.insert(key.to_string(), img.image);
+                    }
+                    _ => {}
+                }
+            }
+            assert_eq!(labels.len(), images.len());
+            for (key, label) in labels {
+                let image = &images[&key];
+                let topology = bettimill_homology::topology(image);
+                let stored: Vec<u64> = serde_json::from_value(label["betti"].clone()).unwrap();
+                assert_eq!(stored, topology.betti, "{key}");
+                assert_eq!(label["euler"].as_i64().unwrap(), topology.euler, "{key}");
+                assert_eq!(
+                    label["hypervolume"].as_u64().unwrap(),
+                    image.count_foreground()
+                );
+                assert_eq!(image.dim().get(), dimension as usize);
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 12);
+    }
+}
+
+fn only_shard(dir: &Path, n: usize) -> PathBuf {
+    let mut shards: Vec<PathBuf> = std::fs::read_dir(dir.join("shards"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    shards.sort();
+    shards[n].clone()
+}
+
+#[test]
+fn verify_detects_flips_truncation_and_missing_shards() {
+    let tmp = tempfile::tempdir().unwrap();
+    let manifest = small_manifest(tmp.path(), 2, 20, 18);
+    let clean = tmp.path().join("clean");
+    assert!(build(Some(&manifest), &clean).status.success());
+    let copy = |name: &str| {
+        let dst = tmp.path().join(name);
+        std::fs::create_dir_all(dst.join("shards")).unwrap();
+        for (rel, bytes) in snapshot(&clean) {
+            std::fs::create_dir_all(dst.join(&rel).parent().unwrap()).unwrap();
+            std::fs::write(dst.join(rel), bytes).unwrap();
+        }
+        dst
+    };
+
+    let flipped = copy("flipped");
+    let shard = only_shard(&flipped, 1);
+    let mut bytes = std::fs::read(&shard).unwrap();
+    bytes[1500] ^= 0x20;
+    std::fs::write(&shard, bytes).unwrap();
+    let out = bettimill(&["verify", flipped.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
+    assert!(stdout(&out).contains("small2d-000001"), "{}", stdout(&out));
+
+    let truncated = copy("truncated");
+    let shard = only_shard(&truncated, 2);
+    let bytes = std::fs::read(&shard).unwrap();
+    std::fs::write(&shard, &bytes[..bytes.len() - 1024]).unwrap();
+    let out = bettimill(&["verify", truncated.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
+    assert!(stdout(&out).contains("small2d-000002"), "{}", stdout(&out));
+
+    let missing = copy("missing");
+    std::fs::remove_file(only_shard(&missing, 0)).unwrap();
+    let out = bettimill(&["verify", missing.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
+    assert!(stdout(&out).contains("small2d-000000"), "{}", stdout(&out));
+}
+
+#[test]
+fn rebuilding_into_the_same_directory_changes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let manifest = small_manifest(tmp.path(), 3, 18, 12);
+    let out_dir = tmp.path().join("out");
+    assert!(build(Some(&manifest), &out_dir).status.success());
+    let before = snapshot(&out_dir);
+    // Remove one shard and its record: the rebuild regenerates exactly that one.
+    let shard = only_shard(&out_dir, 1);
+    std::fs::remove_file(&shard).unwrap();
+    let out = build(Some(&manifest), &out_dir);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(snapshot(&out_dir), before);
+    // A different manifest into the same directory is refused and writes nothing.
+    let other = tmp.path().join("other.toml");
+    std::fs::write(
+        &other,
+        std::fs::read_to_string(&manifest)
+            .unwrap()
+            .replace("seed = 3", "seed = 4"),
+    )
+    .unwrap();
+    let out = build(Some(&other), &out_dir);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("different manifest"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(snapshot(&out_dir), before);
+}
+
+#[test]
+fn a_foreign_directory_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(tmp.path().join("thesis.txt"), "precious").unwrap();
+    let out = build(None, tmp.path());
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("not empty"), "{}", stderr(&out));
+    assert_eq!(snapshot(tmp.path()).len(), 1);
+}
+
+/// Each bad manifest must be refused with exit 2, a message naming the field and the line,
+/// and nothing written.
+#[test]
+fn bad_manifests_are_refused_with_field_and_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(small_manifest(tmp.path(), 3, 18, 12)).unwrap();
+    let cases = [
+        (
+            "unknown",
+            good.replace("seed = 3", "seed = 3\nsides = 4"),
+            "sides",
+            9,
+        ),
+        (
+            "wrong-type",
+            good.replace("side = 18", "side = \"18\""),
+            "side",
+            4,
+        ),
+        (
+            "dimension",
+            good.replace("dimension = 3", "dimension = 5"),
+            "dimension",
+            3,
+        ),
+        (
+            "negative",
+            good.replace("samples = 12", "samples = -12"),
+            "samples",
+            6,
+        ),
+    ];
+    for (name, text, field, line) in cases {
+        let path = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let out_dir = tmp.path().join(format!("out-{name}"));
+        let out = build(Some(&path), &out_dir);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+        let expected = format!("{}:{line}: field `{field}`", path.display());
+        assert!(
+            err.contains(&expected),
+            "{name}: wanted {expected:?} in {err}"
+        );
+        assert!(!out_dir.exists(), "{name}: output directory was created");
+    }
+}
+
+#[test]
+fn betti_reads_user_images() {
+    let tmp = tempfile::tempdir().unwrap();
+    // An annulus in 2D: one component, one hole.
+    let mut image = bettimill_grid::BinaryImage::zeros(&[7, 7]).unwrap();
+    for i in 1..6 {
+        for j in 1..6 {
+            if !(i == 3 && j == 3) {
+                image.set(&[i, j], true);
+            }
+        }
+    }
+    let path = tmp.path().join("annulus.npy");
+    std::fs::write(
+        &path,
+        bettimill_grid::npy::write_bytes(&image, bettimill_grid::npy::Dtype::U8),
+    )
+    .unwrap();
+    let out = bettimill(&["betti", path.to_str().unwrap()]);
+    assert_eq!(stdout(&out).trim(), "betti: [1, 1]  euler: 0");
+    let out = bettimill(&["betti", path.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
+    assert_eq!(v["betti"], serde_json::json!([1, 1]));
+
+    let bad = tmp.path().join("bad.npy");
+    std::fs::write(&bad, b"not an npy file").unwrap();
+    let out = bettimill(&["betti", bad.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("bad.npy"), "{}", stderr(&out));
+}
