@@ -1,0 +1,208 @@
+//! Deterministic per-member compression.
+//!
+//! A compressed member keeps its field and gains a suffix: `KEY.npy` becomes
+//! `KEY.npy.gz` ([`Compression::Gzip`]) or `KEY.npy.zst` ([`Compression::Zstd`]). The
+//! compressed bytes depend only on the input (and the pinned codec versions in
+//! `Cargo.lock`), never on the machine, the time or the file name:
+//!
+//! - gzip: RFC 1952 header with mtime 0, no file name, no comment, OS byte 255
+//!   ("unknown"), then DEFLATE at level [`GZIP_LEVEL`] from the pure-Rust `miniz_oxide`
+//!   backend of `flate2`, then CRC-32 and length.
+//! - zstd: one frame at level [`ZSTD_LEVEL`], compressed in one call on the calling thread
+//!   (no worker threads, so no dependence on the core count), with the content size in the
+//!   frame header and no checksum.
+//!
+//! Decompression takes a limit on the output size so that a corrupt or hostile member
+//! cannot make a reader allocate without bound.
+
+use crate::ShardError;
+use serde::{Deserialize, Serialize};
+use std::io::{Read, Write};
+
+/// DEFLATE level used for gzip members.
+pub const GZIP_LEVEL: u32 = 6;
+/// zstd level used for zstd members.
+pub const ZSTD_LEVEL: i32 = 9;
+
+/// How each member of a shard is compressed.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Compression {
+    /// Stored as is.
+    #[default]
+    None,
+    /// gzip, member name suffix `.gz`.
+    Gzip,
+    /// zstd, member name suffix `.zst`.
+    Zstd,
+}
+
+impl Compression {
+    /// The suffix appended to a compressed member's name: `""`, `".gz"` or `".zst"`.
+    pub fn suffix(self) -> &'static str {
+        match self {
+            Compression::None => "",
+            Compression::Gzip => ".gz",
+            Compression::Zstd => ".zst",
+        }
+    }
+
+    /// The lowercase name used in JSON and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Compression::None => "none",
+            Compression::Gzip => "gzip",
+            Compression::Zstd => "zstd",
+        }
+    }
+
+    /// Parses `none`, `gzip` or `zstd`.
+    pub fn from_name(name: &str) -> Option<Compression> {
+        match name {
+            "none" => Some(Compression::None),
+            "gzip" => Some(Compression::Gzip),
+            "zstd" => Some(Compression::Zstd),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Display for Compression {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Compresses one member's bytes deterministically (see the module documentation).
+pub fn compress(data: &[u8], compression: Compression) -> Result<Vec<u8>, ShardError> {
+    match compression {
+        Compression::None => Ok(data.to_vec()),
+        Compression::Gzip => {
+            let codec_error = |source| ShardError::Codec {
+                codec: "gzip",
+                action: "compression",
+                source,
+            };
+            let mut encoder = flate2::GzBuilder::new()
+                .mtime(0)
+                .operating_system(255)
+                .write(Vec::new(), flate2::Compression::new(GZIP_LEVEL));
+            encoder.write_all(data).map_err(codec_error)?;
+            encoder.finish().map_err(codec_error)
+        }
+        Compression::Zstd => {
+            let codec_error = |source| ShardError::Codec {
+                codec: "zstd",
+                action: "compression",
+                source,
+            };
+            let mut compressor = zstd::bulk::Compressor::new(ZSTD_LEVEL).map_err(codec_error)?;
+            compressor.include_checksum(false).map_err(codec_error)?;
+            compressor.include_contentsize(true).map_err(codec_error)?;
+            compressor.compress(data).map_err(codec_error)
+        }
+    }
+}
+
+/// Decompresses one member's bytes, refusing output larger than `limit` bytes.
+pub fn decompress(
+    data: &[u8],
+    compression: Compression,
+    limit: u64,
+) -> Result<Vec<u8>, ShardError> {
+    let (codec, reader): (&'static str, Box<dyn Read + '_>) = match compression {
+        Compression::None => {
+            if data.len() as u64 > limit {
+                return Err(ShardError::DecompressedTooLarge {
+                    codec: "none",
+                    limit,
+                });
+            }
+            return Ok(data.to_vec());
+        }
+        Compression::Gzip => ("gzip", Box::new(flate2::read::GzDecoder::new(data))),
+        Compression::Zstd => (
+            "zstd",
+            Box::new(
+                zstd::stream::read::Decoder::with_buffer(data).map_err(|source| {
+                    ShardError::Codec {
+                        codec: "zstd",
+                        action: "decompression",
+                        source,
+                    }
+                })?,
+            ),
+        ),
+    };
+    let mut out = Vec::new();
+    // Reading one byte past the limit tells "exactly at the limit" from "beyond it".
+    reader
+        .take(limit.saturating_add(1))
+        .read_to_end(&mut out)
+        .map_err(|source| ShardError::Codec {
+            codec,
+            action: "decompression",
+            source,
+        })?;
+    if out.len() as u64 > limit {
+        return Err(ShardError::DecompressedTooLarge { codec, limit });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data() -> Vec<u8> {
+        (0..5000u32).map(|i| ((i * 7919) % 3 == 0) as u8).collect()
+    }
+
+    #[test]
+    fn round_trips_and_is_repeatable() {
+        for c in [Compression::None, Compression::Gzip, Compression::Zstd] {
+            let a = compress(&data(), c).unwrap();
+            let b = compress(&data(), c).unwrap();
+            assert_eq!(a, b, "{c}");
+            assert_eq!(decompress(&a, c, 5000).unwrap(), data(), "{c}");
+            assert!(matches!(
+                decompress(&a, c, 4999),
+                Err(ShardError::DecompressedTooLarge { limit: 4999, .. })
+            ));
+            assert_eq!(Compression::from_name(c.name()), Some(c));
+        }
+    }
+
+    #[test]
+    fn gzip_header_has_no_time_and_no_name() {
+        let gz = compress(b"abc", Compression::Gzip).unwrap();
+        assert_eq!(&gz[..3], &[0x1f, 0x8b, 8]);
+        assert_eq!(gz[3], 0, "no FNAME/FCOMMENT/FEXTRA flags");
+        assert_eq!(&gz[4..8], &[0, 0, 0, 0], "mtime 0");
+        assert_eq!(gz[9], 255, "OS unknown");
+    }
+
+    #[test]
+    fn zstd_frame_has_no_checksum() {
+        let z = compress(&data(), Compression::Zstd).unwrap();
+        assert_eq!(&z[..4], &[0x28, 0xb5, 0x2f, 0xfd]);
+        assert_eq!(z[4] & 0b100, 0, "content checksum flag clear");
+    }
+
+    #[test]
+    fn garbage_is_an_error_not_a_panic() {
+        for c in [Compression::Gzip, Compression::Zstd] {
+            assert!(decompress(b"definitely not compressed", c, 1 << 20).is_err());
+        }
+    }
+
+    #[test]
+    fn serde_names_are_lowercase() {
+        assert_eq!(
+            serde_json::to_string(&Compression::Zstd).unwrap(),
+            "\"zstd\""
+        );
+    }
+}

@@ -1,0 +1,473 @@
+//! Checking a dataset directory against its `index.json`.
+//!
+//! Because [`crate::tar_bytes`] is deterministic, the index determines every byte of every
+//! shard except member data: each header can be regenerated from the member's name and
+//! size, padding and the end-of-archive marker are zeros, and member data has a BLAKE3 in
+//! the index. [`verify`] uses that to localise damage instead of only saying "hash
+//! mismatch": a corrupted header is named by its member and the offset of the first wrong
+//! byte, corrupted data by its member and data offset, a cut file by the member (and part
+//! of it) where the cut falls. It also reports missing shards, files under `shards/` that
+//! the index does not list (such as temporary files a crash left behind), and sample counts
+//! that disagree with the members.
+//!
+//! Every shard is checked and every problem reported; only an unreadable or invalid
+//! `index.json` is an error. Each shard is read whole into memory, one at a time.
+
+use crate::index::{blake3_hex, count_samples, Index, ShardRecord};
+use crate::ustar::{self, BLOCK};
+use crate::ShardError;
+use serde::Serialize;
+use std::collections::BTreeSet;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Which part of a shard's layout a cut or corruption falls in.
+#[derive(Serialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Region {
+    /// A member's 512-byte header block (a cut exactly at a member boundary falls at the
+    /// start of the next header).
+    Header,
+    /// A member's data.
+    Data,
+    /// The zero padding after a member's data.
+    Padding,
+    /// The two zero blocks that end the archive.
+    EndMarker,
+}
+
+impl fmt::Display for Region {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Region::Header => "header",
+            Region::Data => "data",
+            Region::Padding => "padding",
+            Region::EndMarker => "end-of-archive marker",
+        })
+    }
+}
+
+/// One thing wrong with a dataset directory.
+#[derive(Serialize, Clone, Debug, PartialEq, Eq)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Problem {
+    /// A shard listed in the index does not exist.
+    MissingShard {
+        /// The shard's name in the index.
+        shard: String,
+    },
+    /// A shard or directory exists but could not be read.
+    Unreadable {
+        /// The file or directory.
+        path: String,
+        /// The operating system's reason.
+        error: String,
+    },
+    /// A shard is shorter than the index says.
+    Truncated {
+        /// The shard.
+        shard: String,
+        /// Size in the index.
+        expected_bytes: u64,
+        /// Size on disk.
+        found_bytes: u64,
+        /// The member the cut falls in (`None` for the end-of-archive marker).
+        member: Option<String>,
+        /// The part of the layout the cut falls in.
+        region: Region,
+    },
+    /// A shard is longer than the index says.
+    TrailingBytes {
+        /// The shard.
+        shard: String,
+        /// Size in the index.
+        expected_bytes: u64,
+        /// Size on disk.
+        found_bytes: u64,
+    },
+    /// A member's header block differs from the one its name and size determine.
+    HeaderCorrupt {
+        /// The shard.
+        shard: String,
+        /// The member whose header it is.
+        member: String,
+        /// Offset of the header block in the shard.
+        header_offset: u64,
+        /// Offset of the first byte that differs.
+        offset: u64,
+    },
+    /// A member's data does not have the recorded hash.
+    DataCorrupt {
+        /// The shard.
+        shard: String,
+        /// The member.
+        member: String,
+        /// Offset of the member's first data byte in the shard.
+        offset: u64,
+        /// Length of the data.
+        bytes: u64,
+        /// BLAKE3 in the index.
+        expected_blake3: String,
+        /// BLAKE3 of the bytes on disk.
+        found_blake3: String,
+    },
+    /// A padding or end-marker byte that must be zero is not.
+    NonZeroPadding {
+        /// The shard.
+        shard: String,
+        /// The member the padding follows (`None` for the end-of-archive marker).
+        member: Option<String>,
+        /// Offset of the first non-zero byte.
+        offset: u64,
+    },
+    /// The whole shard's hash differs although no part could be blamed (the index's
+    /// shard hash itself is probably wrong).
+    HashMismatch {
+        /// The shard.
+        shard: String,
+        /// BLAKE3 in the index.
+        expected_blake3: String,
+        /// BLAKE3 of the file.
+        found_blake3: String,
+    },
+    /// The recorded sample count disagrees with the keys of the recorded members.
+    SampleCount {
+        /// The shard.
+        shard: String,
+        /// Count in the index.
+        expected: u64,
+        /// Count of samples among the members.
+        found: u64,
+    },
+    /// A shard record contradicts itself in another way (a member record whose name
+    /// cannot be written, first or last key not those of the members).
+    RecordInconsistent {
+        /// The shard.
+        shard: String,
+        /// What disagrees.
+        reason: String,
+    },
+    /// A file under `shards/` that the index does not list.
+    ExtraFile {
+        /// Path relative to the dataset directory.
+        path: String,
+    },
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Problem::MissingShard { shard } => write!(f, "{shard}: missing"),
+            Problem::Unreadable { path, error } => write!(f, "{path}: cannot read: {error}"),
+            Problem::Truncated {
+                shard,
+                expected_bytes,
+                found_bytes,
+                member,
+                region,
+            } => {
+                write!(
+                    f,
+                    "{shard}: truncated to {found_bytes} of {expected_bytes} bytes; the cut falls in the {region}"
+                )?;
+                match member {
+                    Some(member) => write!(f, " of member {member}"),
+                    None => Ok(()),
+                }
+            }
+            Problem::TrailingBytes {
+                shard,
+                expected_bytes,
+                found_bytes,
+            } => write!(
+                f,
+                "{shard}: {found_bytes} bytes, the index says {expected_bytes}; {} unexpected bytes at the end",
+                found_bytes - expected_bytes
+            ),
+            Problem::HeaderCorrupt {
+                shard,
+                member,
+                header_offset,
+                offset,
+            } => write!(
+                f,
+                "{shard}: header of member {member} (at byte {header_offset}) is corrupt from byte {offset}"
+            ),
+            Problem::DataCorrupt {
+                shard,
+                member,
+                offset,
+                bytes,
+                expected_blake3,
+                found_blake3,
+            } => write!(
+                f,
+                "{shard}: data of member {member} (bytes {offset}..{}) has blake3 {found_blake3}, expected {expected_blake3}",
+                offset + bytes
+            ),
+            Problem::NonZeroPadding {
+                shard,
+                member,
+                offset,
+            } => match member {
+                Some(member) => write!(
+                    f,
+                    "{shard}: non-zero padding byte at {offset} after member {member}"
+                ),
+                None => write!(
+                    f,
+                    "{shard}: non-zero byte at {offset} in the end-of-archive marker"
+                ),
+            },
+            Problem::HashMismatch {
+                shard,
+                expected_blake3,
+                found_blake3,
+            } => write!(
+                f,
+                "{shard}: blake3 {found_blake3}, expected {expected_blake3} (every member checks out: the index's shard hash is wrong)"
+            ),
+            Problem::SampleCount {
+                shard,
+                expected,
+                found,
+            } => write!(
+                f,
+                "{shard}: the index says {expected} samples, its members form {found}"
+            ),
+            Problem::RecordInconsistent { shard, reason } => write!(f, "{shard}: {reason}"),
+            Problem::ExtraFile { path } => write!(f, "{path}: not listed in index.json"),
+        }
+    }
+}
+
+/// What [`verify`] found.
+#[derive(Serialize, Clone, Debug, Default, PartialEq, Eq)]
+pub struct VerifyReport {
+    /// Shards listed in the index.
+    pub shards_checked: u64,
+    /// Samples listed in the index.
+    pub samples_checked: u64,
+    /// Bytes of shard files read.
+    pub bytes_checked: u64,
+    /// Every problem, in index order, then extra files in path order.
+    pub problems: Vec<Problem>,
+}
+
+impl VerifyReport {
+    /// True when no problem was found.
+    pub fn is_ok(&self) -> bool {
+        self.problems.is_empty()
+    }
+}
+
+/// Checks every shard of `dir` against `dir/index.json` (see the module documentation).
+/// Returns `Err` only when the index itself cannot be read or is invalid.
+pub fn verify(dir: &Path) -> Result<VerifyReport, ShardError> {
+    let index = Index::read(&dir.join("index.json"))?;
+    let mut report = VerifyReport::default();
+    for record in &index.shards {
+        report.shards_checked += 1;
+        report.samples_checked += record.samples;
+        check_record(record, &mut report.problems);
+        let path = dir.join(&record.name);
+        match std::fs::read(&path) {
+            Ok(bytes) => {
+                report.bytes_checked += bytes.len() as u64;
+                check_shard_bytes(record, &bytes, &mut report.problems);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                report.problems.push(Problem::MissingShard {
+                    shard: record.name.clone(),
+                })
+            }
+            Err(e) => report.problems.push(Problem::Unreadable {
+                path: path.display().to_string(),
+                error: e.to_string(),
+            }),
+        }
+    }
+    let listed: BTreeSet<&str> = index.shards.iter().map(|s| s.name.as_str()).collect();
+    let mut found = Vec::new();
+    list_files(dir, Path::new("shards"), &mut found, &mut report.problems);
+    found.sort();
+    for relative in found {
+        if !listed.contains(relative.as_str()) {
+            report.problems.push(Problem::ExtraFile { path: relative });
+        }
+    }
+    Ok(report)
+}
+
+/// Problems a record has on its own, without looking at the file.
+fn check_record(record: &ShardRecord, problems: &mut Vec<Problem>) {
+    let names = record.members.iter().map(|m| m.name.as_str());
+    let found = count_samples(names);
+    if found != record.samples {
+        problems.push(Problem::SampleCount {
+            shard: record.name.clone(),
+            expected: record.samples,
+            found,
+        });
+    }
+    let key = |name: &str| ustar::split_key(name).map_or(name.to_string(), |(k, _)| k.to_string());
+    let first = record.members.first().map(|m| key(&m.name));
+    let last = record.members.last().map(|m| key(&m.name));
+    if first.as_deref().unwrap_or("") != record.first_key
+        || last.as_deref().unwrap_or("") != record.last_key
+    {
+        problems.push(Problem::RecordInconsistent {
+            shard: record.name.clone(),
+            reason: format!(
+                "first/last key {:?}/{:?} are not those of its members ({:?}/{:?})",
+                record.first_key, record.last_key, first, last
+            ),
+        });
+    }
+}
+
+/// Compares a shard's bytes with the layout its record determines.
+fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Problem>) {
+    let shard = &record.name;
+    let len = bytes.len() as u64;
+    let problems_before = problems.len();
+    let truncated = |member: Option<&str>, region| Problem::Truncated {
+        shard: shard.clone(),
+        expected_bytes: record.bytes,
+        found_bytes: len,
+        member: member.map(str::to_string),
+        region,
+    };
+    let first_non_zero = |start: u64, end: u64| {
+        bytes[start as usize..end as usize]
+            .iter()
+            .position(|&b| b != 0)
+            .map(|i| start + i as u64)
+    };
+    let mut cut = false;
+    for member in &record.members {
+        let header_offset = member.offset - BLOCK;
+        if header_offset + BLOCK > len {
+            problems.push(truncated(Some(&member.name), Region::Header));
+            cut = true;
+            break;
+        }
+        match ustar::header_block(&member.name, member.bytes) {
+            Ok(expected) => {
+                let found = &bytes[header_offset as usize..(header_offset + BLOCK) as usize];
+                if let Some(i) = expected.iter().zip(found).position(|(a, b)| a != b) {
+                    problems.push(Problem::HeaderCorrupt {
+                        shard: shard.clone(),
+                        member: member.name.clone(),
+                        header_offset,
+                        offset: header_offset + i as u64,
+                    });
+                }
+            }
+            Err(e) => problems.push(Problem::RecordInconsistent {
+                shard: shard.clone(),
+                reason: e.to_string(),
+            }),
+        }
+        let data_end = member.offset + member.bytes;
+        if data_end > len {
+            problems.push(truncated(Some(&member.name), Region::Data));
+            cut = true;
+            break;
+        }
+        let found_blake3 = blake3_hex(&bytes[member.offset as usize..data_end as usize]);
+        if found_blake3 != member.blake3 {
+            problems.push(Problem::DataCorrupt {
+                shard: shard.clone(),
+                member: member.name.clone(),
+                offset: member.offset,
+                bytes: member.bytes,
+                expected_blake3: member.blake3.clone(),
+                found_blake3,
+            });
+        }
+        let padded_end = data_end.div_ceil(BLOCK) * BLOCK;
+        if padded_end > len {
+            problems.push(truncated(Some(&member.name), Region::Padding));
+            cut = true;
+            break;
+        }
+        if let Some(offset) = first_non_zero(data_end, padded_end) {
+            problems.push(Problem::NonZeroPadding {
+                shard: shard.clone(),
+                member: Some(member.name.clone()),
+                offset,
+            });
+        }
+    }
+    if !cut {
+        let marker_start = record.bytes - 2 * BLOCK;
+        if len < record.bytes {
+            problems.push(truncated(None, Region::EndMarker));
+        }
+        if let Some(offset) = first_non_zero(marker_start.min(len), record.bytes.min(len)) {
+            problems.push(Problem::NonZeroPadding {
+                shard: shard.clone(),
+                member: None,
+                offset,
+            });
+        }
+        if len > record.bytes {
+            problems.push(Problem::TrailingBytes {
+                shard: shard.clone(),
+                expected_bytes: record.bytes,
+                found_bytes: len,
+            });
+        }
+    }
+    if problems.len() == problems_before {
+        let found_blake3 = blake3_hex(bytes);
+        if found_blake3 != record.blake3 {
+            problems.push(Problem::HashMismatch {
+                shard: shard.clone(),
+                expected_blake3: record.blake3.clone(),
+                found_blake3,
+            });
+        }
+    }
+}
+
+/// Collects the files under `dir/relative`, as `/`-separated paths relative to `dir`.
+fn list_files(dir: &Path, relative: &Path, found: &mut Vec<String>, problems: &mut Vec<Problem>) {
+    let full: PathBuf = dir.join(relative);
+    let entries = match std::fs::read_dir(&full) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return,
+        Err(e) => {
+            problems.push(Problem::Unreadable {
+                path: full.display().to_string(),
+                error: e.to_string(),
+            });
+            return;
+        }
+    };
+    let mut children = Vec::new();
+    for entry in entries {
+        match entry {
+            Ok(entry) => children.push(entry),
+            Err(e) => problems.push(Problem::Unreadable {
+                path: full.display().to_string(),
+                error: e.to_string(),
+            }),
+        }
+    }
+    children.sort_by_key(|e| e.file_name());
+    for entry in children {
+        let child = relative.join(entry.file_name());
+        let is_dir = entry.file_type().map(|t| t.is_dir()).unwrap_or(false);
+        if is_dir {
+            list_files(dir, &child, found, problems);
+        } else {
+            let text: Vec<String> = child
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect();
+            found.push(text.join("/"));
+        }
+    }
+}
