@@ -701,6 +701,20 @@ pub(crate) fn check_fits(
     side: usize,
     mode: Mode,
 ) -> Result<(), ShapeError> {
+    check_sizes(family, dim, side, mode, true)
+}
+
+/// Every object must fit the image on its own; with `packing`, all of them together
+/// must fit too (by the grid, or by the canonical layout). `generate` skips the packing
+/// search: its own placement ends in the same canonical layout when everything else
+/// fails, so the answer is the same and the search is not run twice.
+fn check_sizes(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    packing: bool,
+) -> Result<(), ShapeError> {
     expected(family, dim, mode)?;
     let d = dim.get();
     let does_not_fit = |reason: String| ShapeError::DoesNotFit {
@@ -737,7 +751,8 @@ pub(crate) fn check_fits(
             region.budget()
         )));
     }
-    if grid_fits(&minima, d, region)
+    if !packing
+        || grid_fits(&minima, d, region)
         || canonical_layout(&objects, &minima, d, side, region).is_some()
     {
         return Ok(());
@@ -843,7 +858,7 @@ pub(crate) fn generate(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    check_fits(family, dim, side, mode)?;
+    check_sizes(family, dim, side, mode, false)?;
     let (betti, betti_rational) = expected(family, dim, mode)?;
     let d = dim.get();
     let region = Region::for_mode(side, mode);
@@ -851,19 +866,26 @@ pub(crate) fn generate(
     let placed = if let Family::Tunnel { .. } = family {
         vec![place_tunnel(family, d, side, region, rng)?]
     } else {
-        place_objects(family, &objects, d, side, region, rng)?
+        let canvas = Canvas {
+            dim: d,
+            side,
+            mode,
+            region,
+        };
+        place_objects(family, &objects, canvas, rng)?
     };
     let mut image = BinaryImage::cube(dim, side).expect("check_fits rejects sides below 8");
-    let (value, lo, hi) = match mode {
-        Mode::Embed => (1u8, 0, side as i64 - 1),
+    // Carve mode clears object voxels from the cube; a tunnel's voxels beyond the cube
+    // are background already.
+    let value = match mode {
+        Mode::Embed => 1u8,
         Mode::Carve => {
             fill_cube(&mut image, d, side);
-            (0u8, CUBE_MARGIN, side as i64 - 1 - CUBE_MARGIN)
+            0u8
         }
     };
     let mut records = Vec::new();
     for (object, placement, params, voxels) in &placed {
-        let _ = (lo, hi);
         for &v in voxels {
             image.data_mut()[v] = value;
         }
@@ -906,10 +928,29 @@ pub(crate) fn generate(
         image,
         betti,
         betti_rational,
-        construction,
+        construction: sort_keys(construction),
         knot_type,
         components,
     })
+}
+
+/// Rebuilds every object of a JSON value with its keys inserted in sorted order: the
+/// record is then the same bytes whether or not some crate in the build switches on
+/// serde_json's `preserve_order` (which makes `json!` keep the written order).
+fn sort_keys(value: Value) -> Value {
+    match value {
+        Value::Object(map) => {
+            let mut entries: Vec<(String, Value)> = map.into_iter().collect();
+            entries.sort_by(|a, b| a.0.cmp(&b.0));
+            let mut out = Map::new();
+            for (k, v) in entries {
+                out.insert(k, sort_keys(v));
+            }
+            Value::Object(out)
+        }
+        Value::Array(items) => Value::Array(items.into_iter().map(sort_keys).collect()),
+        other => other,
+    }
 }
 
 /// A JSON object with keys inserted in sorted order, so the record is the same whether or
@@ -1013,7 +1054,7 @@ fn place_random(
     let share = if count == 1 {
         budget
     } else {
-        (budget / (count as f64).powf(1.0 / dim as f64) * 1.2).min(budget)
+        (budget / libm::pow(count as f64, 1.0 / dim as f64) * 1.2).min(budget)
     };
     let mut occupancy = Occupancy::new(dim, side);
     let mut out = Vec::new();
@@ -1062,14 +1103,27 @@ fn place_random(
     Some(out)
 }
 
+/// The image being filled.
+#[derive(Clone, Copy)]
+struct Canvas {
+    dim: usize,
+    side: usize,
+    mode: Mode,
+    region: Region,
+}
+
 fn place_objects(
     family: &Family,
     objects: &[Family],
-    dim: usize,
-    side: usize,
-    region: Region,
+    canvas: Canvas,
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<PlacedObject>, ShapeError> {
+    let Canvas {
+        dim,
+        side,
+        mode,
+        region,
+    } = canvas;
     let count = objects.len();
     let minima: Vec<f64> = objects
         .iter()
@@ -1085,8 +1139,8 @@ fn place_objects(
                 family: family.label(),
                 dim,
                 side,
-                mode: Mode::Embed,
-                reason: "no layout found".into(),
+                mode,
+                reason: "the objects could not be packed with the required gaps".into(),
             }
         });
     }
@@ -1117,7 +1171,7 @@ fn place_objects(
                 family: family.label(),
                 dim,
                 side,
-                mode: Mode::Embed,
+                mode,
                 reason: format!("{} has no instance of radius {target:.2}", object.label()),
             })?;
         let rotation = Rotation::random(&free_axes(object, dim), rng);
