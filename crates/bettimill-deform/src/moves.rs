@@ -146,10 +146,11 @@ pub(crate) fn run(
             off[axis] = rest % reach_side - reach;
             rest /= reach_side;
         }
-        let flat = (0..d - 1)
-            .map(|a| off[a] as isize * strides[a] as isize)
+        // In units of rows: every leading stride is a multiple of the row length.
+        let rows = (0..d - 1)
+            .map(|a| off[a] as isize * (strides[a] / shape[d - 1]) as isize)
             .sum();
-        refresh_rows.push((off, flat));
+        refresh_rows.push((off, rows));
     }
     let mut stuck = vec![false; image.len()];
     let mut n_stuck = 0usize;
@@ -194,12 +195,15 @@ pub(crate) fn run(
         image.data_mut()[source] = 0;
 
         let c = image.coords(source);
+        // Far enough from every face, the whole ball is inside the editable region.
+        let deep = (0..d).all(|a| c[a] as i64 > m && ((c[a] + 1) as i64 + m) < shape[a] as i64);
         candidates.clear();
         for (off, flat) in &ball {
-            let inside = (0..d).all(|a| {
-                let x = c[a] as i64 + off[a];
-                x >= 1 && x + 1 < shape[a] as i64
-            });
+            let inside = deep
+                || (0..d).all(|a| {
+                    let x = c[a] as i64 + off[a];
+                    x >= 1 && x + 1 < shape[a] as i64
+                });
             if !inside {
                 continue;
             }
@@ -235,8 +239,8 @@ pub(crate) fn run(
                     let last = d - 1;
                     let lo = (cc[last] as i64 - reach).max(0) as usize;
                     let hi = (cc[last] as i64 + reach).min(shape[last] as i64 - 1) as usize;
-                    let row_base = centre - cc[last];
-                    for (off, flat) in &refresh_rows {
+                    let centre_row = centre / row_len;
+                    for (off, rows) in &refresh_rows {
                         if n_stuck == 0 {
                             break;
                         }
@@ -247,10 +251,11 @@ pub(crate) fn run(
                         if !inside {
                             continue;
                         }
-                        let row = (row_base as isize + flat) as usize;
-                        if stuck_in_row[row / row_len] == 0 {
+                        let row_id = (centre_row as isize + rows) as usize;
+                        if stuck_in_row[row_id] == 0 {
                             continue;
                         }
+                        let row = row_id * row_len;
                         for (v, is_stuck) in stuck
                             .iter_mut()
                             .enumerate()
@@ -260,7 +265,7 @@ pub(crate) fn run(
                             if *is_stuck {
                                 *is_stuck = false;
                                 n_stuck -= 1;
-                                stuck_in_row[row / row_len] -= 1;
+                                stuck_in_row[row_id] -= 1;
                                 if geometry.is_boundary(image, v) {
                                     boundary.insert(v);
                                 }
