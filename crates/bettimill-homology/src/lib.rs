@@ -82,14 +82,12 @@ fn topology_from_counts(padded: &BinaryImage) -> Topology {
 fn topology_by_thinning(mut padded: BinaryImage) -> Topology {
     let d = padded.dim().get();
     let tester = simple::SimpleTester::new(padded.dim());
-    thin::thin(&mut padded, &tester);
+    let remaining = thin::thin(&mut padded, &tester);
     let layout = KeyLayout::new(padded.shape());
     let mut cells = Vec::new();
-    for (index, &v) in padded.data().iter().enumerate() {
-        if v != 0 {
-            let c = padded.coords(index);
-            layout.for_each_face_of_voxel(layout.voxel(&c[..d]), |cell| cells.push(cell));
-        }
+    for index in remaining {
+        let c = padded.coords(index);
+        layout.for_each_face_of_voxel(layout.voxel(&c[..d]), |cell| cells.push(cell));
     }
     let mut complex = CellComplex::from_cells(layout, cells);
     complex.collapse();

@@ -308,26 +308,52 @@ impl SimpleTester {
              simple-point test needs all 3^d-1 neighbours inside the image",
             image.shape()
         );
-        let d = tables.dim.get();
+        self.configuration_unchecked(image, index)
+    }
+
+    /// [`SimpleTester::configuration`] without the border check (a caller that keeps a
+    /// padding layer knows it holds); a voxel on the border reads wrong neighbours or
+    /// panics on an out-of-range index.
+    #[inline]
+    pub(crate) fn configuration_unchecked(&self, image: &BinaryImage, index: usize) -> u128 {
         let strides = image.strides();
         let data = image.data();
         let start = index - strides.iter().sum::<usize>();
+        let row = |p: usize| -> u128 {
+            data[p] as u128 | (data[p + 1] as u128) << 1 | (data[p + 2] as u128) << 2
+        };
         // Walk the 3^d block in lexicographic order, one contiguous row of three bytes
-        // along the last axis at a time.
+        // along the last axis at a time; explicit loops per dimension keep divisions out.
         let mut block = 0u128;
-        let rows = 3usize.pow(d as u32 - 1);
-        for row in 0..rows {
-            let mut offset = 0;
-            let mut rest = row;
-            for axis in (0..d - 1).rev() {
-                offset += (rest % 3) * strides[axis];
-                rest /= 3;
+        let mut shift = 0;
+        match self.tables.dim {
+            Dim::Two => {
+                for a in 0..3 {
+                    block |= row(start + a * strides[0]) << shift;
+                    shift += 3;
+                }
             }
-            let p = start + offset;
-            let bits = data[p] as u128 | (data[p + 1] as u128) << 1 | (data[p + 2] as u128) << 2;
-            block |= bits << (3 * row);
+            Dim::Three => {
+                for a in 0..3 {
+                    for b in 0..3 {
+                        block |= row(start + a * strides[0] + b * strides[1]) << shift;
+                        shift += 3;
+                    }
+                }
+            }
+            Dim::Four => {
+                for a in 0..3 {
+                    for b in 0..3 {
+                        let base = start + a * strides[0] + b * strides[1];
+                        for c in 0..3 {
+                            block |= row(base + c * strides[2]) << shift;
+                            shift += 3;
+                        }
+                    }
+                }
+            }
         }
-        let centre = tables.centre;
+        let centre = self.tables.centre;
         (block & ((1u128 << centre) - 1)) | ((block >> (centre + 1)) << centre)
     }
 
