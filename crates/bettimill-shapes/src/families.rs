@@ -232,6 +232,14 @@ fn dual(object: &[u64]) -> Vec<u64> {
     out
 }
 
+/// Cycles of a tunnel's cross-section.
+fn tunnel_cycles(family: &Family) -> u32 {
+    match family {
+        Family::Tunnel { circle, genus, .. } => (*genus).max(*circle as u32),
+        _ => 0,
+    }
+}
+
 /// The cube minus a tunnel I^a x K whose interval factors run face to face. The
 /// complement of cube-minus-tunnel in S^d is a ball with I^a x K attached along
 /// (boundary of I^a) x K, homotopy equivalent to S^a smash K_+, so Alexander duality gives
@@ -240,9 +248,15 @@ fn tunnel_betti(
     family: &Family,
     dim: Dim,
     intervals: u32,
-    circle: bool,
+    cycles: u32,
 ) -> Result<Vec<u64>, ShapeError> {
     let d = dim.get() as i64;
+    if cycles > 4 {
+        return Err(invalid(
+            family,
+            "a tunnel cross-section has at most 4 cycles",
+        ));
+    }
     let a = intervals as i64;
     if !(1..=2).contains(&a) || d - a < 1 {
         return Err(invalid(
@@ -250,7 +264,7 @@ fn tunnel_betti(
             "intervals must be 1 or 2 and below the dimension",
         ));
     }
-    if circle && d - a < 2 {
+    if cycles > 0 && d - a < 2 {
         return Err(unsupported(
             family,
             dim,
@@ -258,11 +272,11 @@ fn tunnel_betti(
             "a circle cross-section needs at least two cross-section axes",
         ));
     }
-    // Cohomology of the cross-section: a ball, or a circle times a ball.
+    // Cohomology of the cross-section: a ball, or a thickened graph with `cycles` cycles.
     let h = |k: i64| -> u64 {
         match k {
             0 => 1,
-            1 if circle => 1,
+            1 => cycles as u64,
             _ => 0,
         }
     };
@@ -275,9 +289,12 @@ fn tunnel_betti(
 }
 
 pub(crate) fn expected(family: &Family, dim: Dim, mode: Mode) -> Result<Betti, ShapeError> {
-    if let Family::Tunnel { intervals, circle } = family {
+    if let Family::Tunnel { intervals, .. } = family {
         return match mode {
-            Mode::Carve => Ok((tunnel_betti(family, dim, *intervals, *circle)?, None)),
+            Mode::Carve => Ok((
+                tunnel_betti(family, dim, *intervals, tunnel_cycles(family))?,
+                None,
+            )),
             Mode::Embed => embed_betti(family, dim),
         };
     }
@@ -469,7 +486,7 @@ fn tube_range(family: &Family) -> (f64, f64) {
     match family {
         Family::Ball => (TUBE_MIN, TUBE_MIN),
         Family::Shell | Family::TorusShell => (SHELL_MIN, 3.0),
-        Family::Tunnel { circle: false, .. } => (TUBE_MIN, TUBE_MIN),
+        Family::Tunnel { .. } if tunnel_cycles(family) == 0 => (TUBE_MIN, TUBE_MIN),
         Family::Knot { .. }
         | Family::TorusKnot { .. }
         | Family::Link { .. }
@@ -486,6 +503,7 @@ fn share_count(family: &Family) -> usize {
         Family::TorusShell | Family::T2xB2 | Family::KleinBottle => 3,
         Family::Handlebody { .. } | Family::S1xHandlebody { .. } => 3,
         Family::ConnectedSum { .. } => 3,
+        Family::Tunnel { .. } => 2,
         Family::Curve => 8,
         _ => 1,
     }
@@ -581,26 +599,33 @@ fn make(family: &Family, dim: usize, tube: f64, grow: f64, shares: &Shares) -> O
         Family::ConnectedSum { g, h, i, j } => {
             Solid::Tube(connected_sum((*g, *h, *i, *j), dim, tube, grow, shares))
         }
-        Family::Tunnel { intervals, circle } => {
+        Family::Tunnel { intervals, .. } => {
             let keep = dim - *intervals as usize;
-            let inner = if *circle {
-                Piece::Circle {
-                    centre: ORIGIN,
-                    radius: hole + grow,
-                    u: axis(0),
-                    v: axis(1),
-                }
+            let cycles = tunnel_cycles(family);
+            let cross_section = if cycles > 0 {
+                circle_row(
+                    cycles,
+                    hole + shares.get(0) * grow / cycles as f64,
+                    1.0 + (1.0 - shares.get(0)) * grow / cycles as f64,
+                    tube,
+                )
             } else {
-                Piece::Point(ORIGIN)
+                vec![(Piece::Point(ORIGIN), tube + grow)]
             };
-            let radius = if *circle { tube } else { tube + grow };
-            Solid::Tube(vec![(
-                Piece::Prism {
-                    inner: Box::new(inner),
-                    keep,
-                },
-                radius,
-            )])
+            Solid::Tube(
+                cross_section
+                    .into_iter()
+                    .map(|(inner, radius)| {
+                        (
+                            Piece::Prism {
+                                inner: Box::new(inner),
+                                keep,
+                            },
+                            radius,
+                        )
+                    })
+                    .collect(),
+            )
         }
         Family::Curve => curves::open_curve(dim, tube, grow, &shares.0),
         Family::Knot { knot } => curves::knot_solid(*knot, dim, tube, grow)?,

@@ -158,14 +158,20 @@ pub enum Family {
         j: u32,
     },
     /// Carve mode only: a tunnel through the cube, I^intervals x K, where the cross-section
-    /// K is a ball, or (with `circle`) a thickened circle S1xB. The I factors run from
-    /// face to face.
+    /// K is a ball, or (with `circle`) a thickened circle S1xB, or (with `genus` = g) a
+    /// boundary sum of g thickened circles, so that I x K is the paper's
+    /// I x (boundary sum of g S1xB2). The I factors run from face to face.
     Tunnel {
         /// Interval factors (1 or 2).
         intervals: u32,
-        /// Whether the cross-section is a thickened circle instead of a ball.
+        /// Whether the cross-section is a thickened circle instead of a ball (the same as
+        /// `genus = 1`).
         #[serde(default)]
         circle: bool,
+        /// Independent cycles of the cross-section (a row of circles joined by bars);
+        /// 0 means a ball unless `circle` is set.
+        #[serde(default)]
+        genus: u32,
     },
     /// A thickened smooth open curve (contractible).
     Curve,
@@ -319,8 +325,16 @@ impl Family {
             Family::ConnectedSum { g, h, i, j } => {
                 format!("connected_sum(g={g},h={h},i={i},j={j})")
             }
-            Family::Tunnel { intervals, circle } => {
-                format!("tunnel(intervals={intervals},circle={circle})")
+            Family::Tunnel {
+                intervals,
+                circle,
+                genus,
+            } => {
+                if *genus > 0 {
+                    format!("tunnel(intervals={intervals},genus={genus})")
+                } else {
+                    format!("tunnel(intervals={intervals},circle={circle})")
+                }
             }
             Family::Curve => "curve".into(),
             Family::Knot { knot } => format!("knot({})", knot.name()),

@@ -236,7 +236,11 @@ fn labels_of_the_paper_tables() {
         vec![2, 2, 0]
     );
     // Tunnels: the square cut in two, a solid torus, R^4 minus a line (~S2) or a plane (~S1).
-    let tunnel = |intervals, circle| Family::Tunnel { intervals, circle };
+    let tunnel = |intervals, circle| Family::Tunnel {
+        intervals,
+        circle,
+        genus: 0,
+    };
     assert_eq!(b(tunnel(1, false), Dim::Two, Mode::Carve), vec![2, 0]);
     assert_eq!(b(tunnel(1, false), Dim::Three, Mode::Carve), vec![1, 1, 0]);
     assert_eq!(b(tunnel(2, false), Dim::Three, Mode::Carve), vec![2, 0, 0]);
@@ -250,6 +254,14 @@ fn labels_of_the_paper_tables() {
         vec![1, 1, 0, 0]
     );
     assert_eq!(b(tunnel(1, true), Dim::Four, Mode::Carve), vec![1, 1, 1, 0]);
+    // I x (boundary sum of g S1xB2) through a 4-cube: (1, g, 1, 0).
+    let genus = |g| Family::Tunnel {
+        intervals: 1,
+        circle: false,
+        genus: g,
+    };
+    assert_eq!(b(genus(3), Dim::Four, Mode::Carve), vec![1, 3, 1, 0]);
+    assert_eq!(b(genus(2), Dim::Three, Mode::Carve), vec![3, 1, 0]);
     // The Klein bottle: Z/2 and Q differ, in both modes.
     assert_eq!(
         b(Family::KleinBottle, Dim::Four, Mode::Embed),
@@ -343,6 +355,7 @@ fn a_feasible_request_always_generates() {
         Family::Tunnel {
             intervals: 1,
             circle: true,
+            genus: 0,
         },
     ] {
         for mode in [Mode::Embed, Mode::Carve] {
