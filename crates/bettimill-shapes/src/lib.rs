@@ -23,6 +23,7 @@ mod curves;
 mod families;
 mod geometry;
 mod place;
+pub mod placement;
 
 pub use bettimill_grid::{BinaryImage, Dim};
 pub use families::{paper_scene_3d, paper_scene_family};
