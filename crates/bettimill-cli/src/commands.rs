@@ -1,6 +1,6 @@
 //! Subcommands. Each returns a [`Status`] or an error that `main` reports with exit code 2.
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use bettimill_executor::Dataset;
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
 use clap::{Parser, Subcommand};
@@ -96,11 +96,15 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
             json,
             strict,
         } => betti(&image, json, strict),
-        Command::Plan { manifest, json } => plan(manifest.as_deref(), json),
+        Command::Plan { manifest, json } => {
+            let (_, manifest) = load_manifest(manifest.as_deref())?;
+            crate::plan::show(&manifest, json)?;
+            Ok(Status::Success)
+        }
     }
 }
 
-fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Manifest)> {
+pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Manifest)> {
     match path {
         Some(path) => {
             let text = std::fs::read_to_string(path)
@@ -177,54 +181,6 @@ fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<Status> {
     } else {
         let betti: Vec<String> = topology.betti.iter().map(|b| b.to_string()).collect();
         println!("betti: [{}]  euler: {}", betti.join(", "), topology.euler);
-    }
-    Ok(Status::Success)
-}
-
-fn plan(manifest: Option<&Path>, json: bool) -> anyhow::Result<Status> {
-    let (_, manifest) = load_manifest(manifest)?;
-    let plan = bettimill_plan::Plan::new(&manifest);
-    if json {
-        let value = serde_json::json!({
-            "manifest_hash": plan.manifest_hash,
-            "plan_hash": plan.hash(),
-            "samples": plan.samples,
-            "shards": plan.shards.len(),
-            "strata": plan.strata,
-        });
-        println!("{}", serde_json::to_string_pretty(&value)?);
-        return Ok(Status::Success);
-    }
-    println!(
-        "dataset {}  ({}D, side {})",
-        manifest.name, plan.dimension, plan.side
-    );
-    println!("manifest hash {}", plan.manifest_hash);
-    println!("plan hash     {}", plan.hash());
-    println!(
-        "{} samples in {} shards of up to {}",
-        plan.samples,
-        plan.shards.len(),
-        manifest.shard_size
-    );
-    println!("{:>4}  {:<28} {:<14} samples", "cls", "stratum", "betti");
-    let n = plan.strata.len() as u64;
-    for (position, stratum) in plan.strata.iter().enumerate() {
-        let dealt = plan
-            .deal_order
-            .iter()
-            .position(|&s| s == position)
-            .unwrap_or(0) as u64;
-        let count = plan.samples / n + u64::from(dealt < plan.samples % n);
-        println!(
-            "{:>4}  {:<28} {:<14} {count}",
-            stratum.index,
-            stratum.label,
-            format!("{:?}", stratum.betti)
-        );
-    }
-    if plan.strata.is_empty() {
-        bail!("the plan has no strata");
     }
     Ok(Status::Success)
 }

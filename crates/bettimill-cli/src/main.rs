@@ -5,6 +5,7 @@
 //! is the only one that prints.
 
 mod commands;
+mod plan;
 
 use clap::Parser;
 use std::process::ExitCode;

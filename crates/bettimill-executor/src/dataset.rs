@@ -38,6 +38,9 @@ pub enum BuildError {
         /// What went wrong.
         source: SampleError,
     },
+    /// The manifest has no buildable plan.
+    #[error(transparent)]
+    Plan(#[from] bettimill_plan::PlanError),
     /// Storage failed.
     #[error(transparent)]
     Shard(#[from] ShardError),
@@ -130,7 +133,7 @@ impl Dataset {
         manifest_text: &str,
         manifest: Manifest,
     ) -> Result<Dataset, BuildError> {
-        let plan = Plan::new(&manifest);
+        let plan = Plan::new(&manifest)?;
         let info = BuildInfo {
             tool_version: TOOL_VERSION.to_string(),
             manifest_hash: plan.manifest_hash.clone(),
@@ -223,38 +226,29 @@ impl Dataset {
         let mut regenerations = std::collections::BTreeMap::<String, u64>::new();
         for sample in &samples {
             let key = &sample.label.key;
-            let (npy_name, npy) = match compression {
-                shard::Compression::None => (format!("{key}.npy"), sample.npy_bytes()),
-                shard::Compression::Gzip => (
-                    format!("{key}.npy.gz"),
-                    shard::compress(&sample.npy_bytes(), compression)?,
-                ),
-                shard::Compression::Zstd => (
-                    format!("{key}.npy.zst"),
-                    shard::compress(&sample.npy_bytes(), compression)?,
-                ),
-            };
-            // Fields in sorted order: cls < json < npy.
-            members.push(vec![
-                Member {
-                    name: format!("{key}.cls"),
-                    data: sample.cls_bytes(),
-                },
-                Member {
-                    name: format!("{key}.json"),
-                    data: sample.json_bytes(),
-                },
-                Member {
-                    name: npy_name,
-                    data: npy,
-                },
-            ]);
+            let mut fields = Vec::new();
+            for (field, bytes) in sample.fields() {
+                // Arrays are compressed per member; labels and classes stay readable.
+                if field.ends_with("npy") && compression != shard::Compression::None {
+                    let compressed = shard::compress(&bytes, compression)?;
+                    fields.push(Member {
+                        name: format!("{key}.{field}{}", compression.suffix()),
+                        data: compressed,
+                    });
+                } else {
+                    fields.push(Member {
+                        name: format!("{key}.{field}"),
+                        data: bytes,
+                    });
+                }
+            }
+            members.push(fields);
             *regenerations
                 .entry(sample.label.class_label.clone())
                 .or_default() += sample.label.attempt as u64;
         }
         let relative = format!("shards/{}.tar", shard.name);
-        let (bytes, record) = shard::build_shard(&relative, "train", &members)?;
+        let (bytes, record) = shard::build_shard(&relative, &shard.split, &members)?;
         shard::write_atomic(&self.tar_path(shard), &bytes)?;
         let completion = CompletionRecord {
             shard: record,

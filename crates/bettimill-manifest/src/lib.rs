@@ -53,18 +53,122 @@ pub struct Manifest {
     pub mode: Modes,
     /// Total number of samples.
     pub samples: u64,
-    /// Samples per shard.
-    pub shard_size: u64,
+    /// Samples per shard. Exactly one of `shard_size` and `shard_bytes` is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard_size: Option<u64>,
+    /// Target shard size in bytes; the plan turns it into a fixed number of samples per
+    /// shard from the uncompressed size of one sample, so shards never exceed it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard_bytes: Option<u64>,
     /// The dataset seed; with the rest of the manifest it determines every byte.
     pub seed: u64,
     /// Per-member compression inside the tar shards.
     #[serde(default)]
     pub compression: Compression,
+    /// Named splits and their sizes; they must add up to `samples`. Default: all `train`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub splits: Option<std::collections::BTreeMap<String, u64>>,
+    /// Strata axis: how many copies of the class object a sample holds (its b0 in embed
+    /// mode). Default: one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub components: Option<Vec<u32>>,
+    /// Strata axis: foreground voxel count bins, reached by topology-preserving growth or
+    /// shrinking of every sample.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hypervolume: Option<HypervolumeBins>,
+    /// Side lengths of downscaled copies stored with every sample, each with its own
+    /// computed Betti numbers (max pooling; each must divide `side`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resolutions: Vec<u32>,
     /// Optional topology-preserving deformation applied to every sample.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub deform: Option<DeformSpec>,
-    /// The label classes; samples are balanced over classes x modes.
+    /// The label classes, expanded: an integer parameter written `[lo, hi]` or a list of
+    /// strings becomes one class per value.
+    #[serde(deserialize_with = "classes::expand")]
     pub classes: Vec<Family>,
+}
+
+/// Hypervolume bins, as written in the `[hypervolume]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HypervolumeBins {
+    /// `fraction` (of side^d voxels) or `voxels`.
+    #[serde(default)]
+    pub unit: HypervolumeUnit,
+    /// Half-open bins `[lo, hi)` in that unit.
+    pub bins: Vec<[f64; 2]>,
+}
+
+/// The unit of hypervolume bins.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HypervolumeUnit {
+    /// A fraction of all voxels of the image.
+    #[default]
+    Fraction,
+    /// A number of voxels.
+    Voxels,
+}
+
+impl Manifest {
+    /// Samples per shard, from `shard_size` or derived from `shard_bytes`.
+    pub fn samples_per_shard(&self) -> u64 {
+        match (self.shard_size, self.shard_bytes) {
+            (Some(n), _) => n,
+            (None, Some(bytes)) => (bytes / self.sample_bytes_estimate()).max(1),
+            (None, None) => unreachable!("validation requires shard_size or shard_bytes"),
+        }
+    }
+
+    /// Upper bound of one sample's bytes in a shard, uncompressed: tar headers and
+    /// padding of every member, the arrays (with downscaled copies) and a generous label.
+    pub fn sample_bytes_estimate(&self) -> u64 {
+        let pad = |n: u64| 512 + n.div_ceil(512) * 512;
+        let voxels = |side: u32| (side as u64).pow(self.dimension.get() as u32);
+        let arrays: u64 = std::iter::once(self.side)
+            .chain(self.resolutions.iter().copied())
+            .map(|side| pad(128 + voxels(side)))
+            .sum();
+        arrays + pad(8192) + pad(16)
+    }
+
+    /// The voxel bounds `[lo, hi]` (inclusive) of each hypervolume bin.
+    pub fn hypervolume_voxel_bins(&self) -> Vec<(u64, u64)> {
+        let total = (self.side as u64).pow(self.dimension.get() as u32) as f64;
+        self.hypervolume
+            .as_ref()
+            .map(|h| {
+                h.bins
+                    .iter()
+                    .map(|&[lo, hi]| {
+                        let (lo, hi) = match h.unit {
+                            HypervolumeUnit::Fraction => (lo * total, hi * total),
+                            HypervolumeUnit::Voxels => (lo, hi),
+                        };
+                        // Half-open [lo, hi) in voxels: the integers lo.ceil() ..= hi.ceil()-1.
+                        (lo.ceil() as u64, (hi.ceil() as u64).saturating_sub(1))
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// The splits in a fixed order (`train`, `val`, `test`, then others alphabetically).
+    pub fn split_sizes(&self) -> Vec<(String, u64)> {
+        let Some(splits) = &self.splits else {
+            return vec![("train".to_string(), self.samples)];
+        };
+        let rank = |name: &str| match name {
+            "train" => 0,
+            "val" | "validation" => 1,
+            "test" => 2,
+            _ => 3,
+        };
+        let mut out: Vec<(String, u64)> = splits.iter().map(|(k, &v)| (k.clone(), v)).collect();
+        out.sort_by(|a, b| rank(&a.0).cmp(&rank(&b.0)).then(a.0.cmp(&b.0)));
+        out
+    }
 }
 
 /// One mode or a list of them.
@@ -316,12 +420,129 @@ impl Manifest {
                 "must be at least 1",
             ));
         }
-        if self.shard_size == 0 {
-            return Err(ManifestError::invalid(
-                source,
-                "shard_size",
-                "must be at least 1",
-            ));
+        match (self.shard_size, self.shard_bytes) {
+            (Some(0), _) => {
+                return Err(ManifestError::invalid(
+                    source,
+                    "shard_size",
+                    "must be at least 1",
+                ))
+            }
+            (Some(_), Some(_)) => {
+                return Err(ManifestError::invalid(
+                    source,
+                    "shard_bytes",
+                    "give either shard_size (samples) or shard_bytes, not both",
+                ))
+            }
+            (None, None) => {
+                return Err(ManifestError::invalid(
+                    source,
+                    "shard_size",
+                    "missing: give shard_size (samples per shard) or shard_bytes",
+                ))
+            }
+            (None, Some(bytes)) if bytes < self.sample_bytes_estimate() => {
+                return Err(ManifestError::invalid(
+                    source,
+                    "shard_bytes",
+                    format!(
+                        "{bytes} bytes cannot hold one sample (about {} bytes each)",
+                        self.sample_bytes_estimate()
+                    ),
+                ))
+            }
+            _ => {}
+        }
+        if let Some(splits) = &self.splits {
+            let mut total: u64 = 0;
+            for (name, &size) in splits {
+                if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+                    return Err(ManifestError::invalid(
+                        source,
+                        name,
+                        "split names are letters, digits and '_'",
+                    ));
+                }
+                if size == 0 {
+                    return Err(ManifestError::invalid(
+                        source,
+                        name,
+                        "a split needs at least 1 sample",
+                    ));
+                }
+                total = total.saturating_add(size);
+            }
+            if splits.is_empty() || total != self.samples {
+                return Err(ManifestError::invalid(
+                    source,
+                    "splits",
+                    format!(
+                        "split sizes add up to {total}, but samples = {}",
+                        self.samples
+                    ),
+                ));
+            }
+        }
+        if let Some(components) = &self.components {
+            if components.is_empty() || components.iter().any(|&c| c == 0 || c > 16) {
+                return Err(ManifestError::invalid(
+                    source,
+                    "components",
+                    "list 1 to 16 copies per sample, e.g. components = [1, 2, 3]",
+                ));
+            }
+        }
+        if let Some(h) = &self.hypervolume {
+            let total = (self.side as u64).pow(self.dimension.get() as u32);
+            if h.bins.is_empty() {
+                return Err(ManifestError::invalid(source, "bins", "lists no bin"));
+            }
+            // The outer layer of the image is never foreground.
+            let inner = (self.side as u64 - 2).pow(self.dimension.get() as u32);
+            let limit = match h.unit {
+                HypervolumeUnit::Fraction => 1.0,
+                HypervolumeUnit::Voxels => total as f64,
+            };
+            for (&[lo, hi], &(vlo, vhi)) in h.bins.iter().zip(&self.hypervolume_voxel_bins()) {
+                let reason = if !(lo.is_finite()
+                    && hi.is_finite()
+                    && 0.0 <= lo
+                    && lo < hi
+                    && hi <= limit)
+                {
+                    Some(format!(
+                        "bin [{lo}, {hi}) must satisfy 0 <= lo < hi <= {limit}"
+                    ))
+                } else if vlo > vhi || vhi == 0 {
+                    Some(format!(
+                        "bin [{lo}, {hi}) holds no whole voxel count at side {} (it spans [{vlo}, {vhi}])",
+                        self.side
+                    ))
+                } else if vlo > inner {
+                    Some(format!(
+                        "bin [{lo}, {hi}) needs at least {vlo} foreground voxels, but only {inner} fit inside the border at side {}",
+                        self.side
+                    ))
+                } else {
+                    None
+                };
+                if let Some(reason) = reason {
+                    return Err(ManifestError::invalid(source, "bins", reason));
+                }
+            }
+        }
+        for &r in &self.resolutions {
+            if r < 4 || r >= self.side || self.side % r != 0 {
+                return Err(ManifestError::invalid(
+                    source,
+                    "resolutions",
+                    format!(
+                        "{r} must be at least 4, smaller than side {} and divide it",
+                        self.side
+                    ),
+                ));
+            }
         }
         if self.samples > 1_000_000_000 {
             return Err(ManifestError::invalid(
@@ -331,6 +552,16 @@ impl Manifest {
             ));
         }
         let modes = self.mode.to_vec();
+        if self.classes.len() > 10_000 {
+            return Err(ManifestError::invalid(
+                source,
+                "classes",
+                format!(
+                    "expands to {} classes; at most 10000 are supported",
+                    self.classes.len()
+                ),
+            ));
+        }
         if modes.is_empty() {
             return Err(ManifestError::invalid(source, "mode", "lists no mode"));
         }
@@ -420,5 +651,6 @@ fn unknown_field_name(message: &str) -> Option<String> {
     Some(rest.split('`').next()?.to_string())
 }
 
+mod classes;
 #[cfg(test)]
 mod tests;

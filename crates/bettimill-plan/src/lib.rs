@@ -6,7 +6,7 @@
 //!
 //! Balance: samples are assigned to strata cyclically in global order (sample j gets
 //! stratum `order[j mod S]`), so stratum counts differ by at most one over the whole dataset
-//! and over every contiguous shard. Within each shard the positions are then shuffled with a
+//! and over every contiguous range of samples: every split and every shard. Within each shard the positions are then shuffled with a
 //! permutation drawn from the shard's own seed, which keeps both balances exact while making
 //! neighbouring samples unpredictable.
 //!
@@ -29,21 +29,51 @@ pub struct Stratum {
     pub index: usize,
     /// Index of the class in the manifest's `[[classes]]` list.
     pub class_index: usize,
-    /// The construction family.
+    /// The construction family (a scene of copies when `components` > 1).
     pub family: Family,
     /// Object in empty space or cavity in a cube.
     pub mode: Mode,
+    /// Copies of the class object in the sample.
+    pub components: u32,
+    /// Inclusive foreground voxel bounds the sample is brought into, if binned.
+    pub hypervolume: Option<(u64, u64)>,
     /// Analytic Betti numbers over Z/2.
     pub betti: Vec<u64>,
     /// A short human-readable name.
     pub label: String,
 }
 
+/// A combination of the strata axes that cannot be built, and why.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Infeasible {
+    /// The combination, named like a stratum label.
+    pub label: String,
+    /// Why it cannot be built.
+    pub reason: String,
+}
+
+/// Why a manifest has no usable plan.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// A class cannot be built in any combination of the other axes.
+    #[error("class {class} ({label}) cannot be built in any combination: {reason}")]
+    ClassNeverFeasible {
+        /// 1-based class number in the manifest.
+        class: usize,
+        /// The class label.
+        label: String,
+        /// The reason given for its last combination.
+        reason: String,
+    },
+}
+
 /// A contiguous range of samples written as one tar file.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ShardPlan {
-    /// Shard number, from 0.
+    /// Shard number, from 0, over the whole dataset.
     pub index: u64,
+    /// The split the shard belongs to.
+    pub split: String,
     /// File stem, e.g. `demo-3d-000000`.
     pub name: String,
     /// Index of the shard's first sample.
@@ -76,8 +106,14 @@ pub struct Plan {
     pub side: u32,
     /// Total samples.
     pub samples: u64,
-    /// The strata, in manifest order (classes outer, modes inner).
+    /// The strata, in manifest order (classes, then modes, components, hypervolume bins).
     pub strata: Vec<Stratum>,
+    /// Combinations left out, with reasons.
+    pub infeasible: Vec<Infeasible>,
+    /// Samples per split, in split order.
+    pub splits: Vec<(String, u64)>,
+    /// Samples per shard.
+    pub shard_size: u64,
     /// The shards, in order.
     pub shards: Vec<ShardPlan>,
     /// The order in which strata are dealt out cyclically.
@@ -108,57 +144,83 @@ pub fn attempt_rng(sample_seed: &[u8; 32], attempt: u32) -> ChaCha8Rng {
 
 impl Plan {
     /// Expands a validated manifest.
-    pub fn new(manifest: &Manifest) -> Plan {
+    pub fn new(manifest: &Manifest) -> Result<Plan, PlanError> {
         let manifest_hash = manifest.canonical_hash();
-        let mut strata = Vec::new();
-        for (class_index, family) in manifest.classes.iter().enumerate() {
-            for mode in manifest.mode.to_vec() {
-                let betti = family
-                    .expected_betti(manifest.dimension, mode)
-                    .expect("a validated manifest has only existing families");
-                strata.push(Stratum {
-                    index: strata.len(),
-                    class_index,
-                    label: format!("{}/{}", family.label(), mode_name(mode)),
-                    family: family.clone(),
-                    mode,
-                    betti,
-                });
-            }
-        }
+        let (strata, infeasible) = strata(manifest)?;
         let mut deal_order: Vec<usize> = (0..strata.len()).collect();
         let mut rng = ChaCha8Rng::from_seed(derive_seed(
             "bettimill deal order v1",
             &[manifest_hash.as_bytes()],
         ));
         deal_order.shuffle(&mut rng);
-        let shard_count = manifest.samples.div_ceil(manifest.shard_size);
-        let shards = (0..shard_count)
-            .map(|index| {
-                let first_sample = index * manifest.shard_size;
-                ShardPlan {
-                    index,
-                    name: format!("{}-{index:06}", manifest.name),
+        let shard_size = manifest.samples_per_shard();
+        let splits = manifest.split_sizes();
+        let named_splits = manifest.splits.is_some();
+        let mut shards = Vec::new();
+        let mut split_start = 0;
+        for (split, size) in &splits {
+            for k in 0..size.div_ceil(shard_size) {
+                let first_sample = split_start + k * shard_size;
+                let name = if named_splits {
+                    format!("{}-{split}-{k:06}", manifest.name)
+                } else {
+                    format!("{}-{k:06}", manifest.name)
+                };
+                shards.push(ShardPlan {
+                    index: shards.len() as u64,
+                    split: split.clone(),
+                    name,
                     first_sample,
-                    samples: manifest.shard_size.min(manifest.samples - first_sample),
-                }
-            })
-            .collect();
-        Plan {
+                    samples: shard_size.min(split_start + size - first_sample),
+                });
+            }
+            split_start += size;
+        }
+        Ok(Plan {
             manifest_hash,
             dimension: manifest.dimension,
             side: manifest.side,
             samples: manifest.samples,
             strata,
+            infeasible,
+            splits,
+            shard_size,
             shards,
             deal_order,
-        }
+        })
     }
 
     /// blake3 of the plan's canonical JSON (64 hex digits).
     pub fn hash(&self) -> String {
         let json = serde_json::to_string(self).expect("a plan always serialises");
         blake3::hash(json.as_bytes()).to_hex().to_string()
+    }
+
+    /// How many samples of each stratum a shard holds (indexed like [`Plan::strata`]),
+    /// computed from the dealing rule without drawing any seed.
+    pub fn shard_counts(&self, shard: &ShardPlan) -> Vec<u64> {
+        let n_strata = self.strata.len() as i64;
+        let first = shard.first_sample as i64;
+        let end = first + shard.samples as i64;
+        let mut counts = vec![0u64; self.strata.len()];
+        for (position, &stratum) in self.deal_order.iter().enumerate() {
+            // Dealt positions p in [first, end) with p mod S == position.
+            let q = position as i64;
+            let upto = |x: i64| (x - q).div_euclid(n_strata);
+            counts[stratum] = (upto(end - 1) - upto(first - 1)) as u64;
+        }
+        counts
+    }
+
+    /// Samples of each stratum over the whole dataset.
+    pub fn total_counts(&self) -> Vec<u64> {
+        let mut totals = vec![0u64; self.strata.len()];
+        for shard in &self.shards {
+            for (t, c) in totals.iter_mut().zip(self.shard_counts(shard)) {
+                *t += c;
+            }
+        }
+        totals
     }
 
     /// The tasks of one shard, in the order they are written.
@@ -191,6 +253,89 @@ impl Plan {
     }
 }
 
+/// Expands the strata axes, dropping (and listing) combinations that cannot be built.
+fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanError> {
+    let components = manifest.components.clone().unwrap_or_else(|| vec![1]);
+    let bins: Vec<Option<(u64, u64)>> = {
+        let bins = manifest.hypervolume_voxel_bins();
+        if bins.is_empty() {
+            vec![None]
+        } else {
+            bins.into_iter().map(Some).collect()
+        }
+    };
+    let side = manifest.side as usize;
+    let mut strata = Vec::new();
+    let mut infeasible = Vec::new();
+    for (class_index, class) in manifest.classes.iter().enumerate() {
+        let before = strata.len();
+        let mut last_reason = String::new();
+        for mode in manifest.mode.to_vec() {
+            for &copies in &components {
+                let family = with_copies(class, copies);
+                for &bin in &bins {
+                    let mut label = format!("{}/{}", class.label(), mode_name(mode));
+                    if manifest.components.is_some() {
+                        label.push_str(&format!("/x{copies}"));
+                    }
+                    if let Some((lo, hi)) = bin {
+                        label.push_str(&format!("/hv{lo}-{hi}"));
+                    }
+                    let checked =
+                        family
+                            .expected_betti(manifest.dimension, mode)
+                            .and_then(|betti| {
+                                family
+                                    .check_fits(manifest.dimension, side, mode)
+                                    .map(|_| betti)
+                            });
+                    match checked {
+                        Ok(betti) => strata.push(Stratum {
+                            index: strata.len(),
+                            class_index,
+                            label,
+                            family: family.clone(),
+                            mode,
+                            components: copies,
+                            hypervolume: bin,
+                            betti,
+                        }),
+                        Err(err) => {
+                            last_reason = err.to_string();
+                            infeasible.push(Infeasible {
+                                label,
+                                reason: last_reason.clone(),
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        if strata.len() == before {
+            return Err(PlanError::ClassNeverFeasible {
+                class: class_index + 1,
+                label: class.label(),
+                reason: last_reason,
+            });
+        }
+    }
+    Ok((strata, infeasible))
+}
+
+/// The class object repeated `copies` times (a scene; a scene's objects are repeated).
+fn with_copies(class: &Family, copies: u32) -> Family {
+    if copies == 1 {
+        return class.clone();
+    }
+    let one: Vec<Family> = match class {
+        Family::Scene { objects } => objects.clone(),
+        other => vec![other.clone()],
+    };
+    Family::Scene {
+        objects: (0..copies).flat_map(|_| one.iter().cloned()).collect(),
+    }
+}
+
 /// The manifest spelling of a mode.
 pub fn mode_name(mode: Mode) -> &'static str {
     match mode {
@@ -213,16 +358,16 @@ mod tests {
 
     #[test]
     fn plans_are_reproducible() {
-        let a = Plan::new(&manifest(100, 7));
-        let b = Plan::new(&manifest(100, 7));
+        let a = Plan::new(&manifest(100, 7)).unwrap();
+        let b = Plan::new(&manifest(100, 7)).unwrap();
         assert_eq!(a.hash(), b.hash());
         assert_eq!(a.shard_tasks(&a.shards[3]), b.shard_tasks(&b.shards[3]));
-        assert_ne!(a.hash(), Plan::new(&manifest(101, 7)).hash());
+        assert_ne!(a.hash(), Plan::new(&manifest(101, 7)).unwrap().hash());
     }
 
     #[test]
     fn shards_cover_every_sample_once() {
-        let plan = Plan::new(&manifest(103, 10));
+        let plan = Plan::new(&manifest(103, 10)).unwrap();
         assert_eq!(plan.shards.len(), 11);
         let mut all: Vec<u64> = plan
             .shards
@@ -243,10 +388,71 @@ mod tests {
         c
     }
 
+    #[test]
+    fn counting_agrees_with_the_tasks() {
+        let plan = Plan::new(&manifest(97, 11)).unwrap();
+        for shard in &plan.shards {
+            assert_eq!(
+                plan.shard_counts(shard),
+                counts(&plan, &plan.shard_tasks(shard))
+            );
+        }
+        assert_eq!(plan.total_counts().iter().sum::<u64>(), 97);
+    }
+
+    fn random_manifest(
+        samples: u64,
+        shard_size: u64,
+        classes: usize,
+        copies: u32,
+        val: u64,
+    ) -> Manifest {
+        let families = ["ball", "handle", "shell", "curve"];
+        let mut text = format!(
+            "schema_version = 1\nname = \"r\"\ndimension = 3\nside = 64\nmode = [\"embed\", \"carve\"]\n\
+             samples = {samples}\nshard_size = {shard_size}\nseed = 9\ncomponents = {:?}\n",
+            (1..=copies).collect::<Vec<_>>()
+        );
+        if val > 0 && val < samples {
+            text.push_str(&format!(
+                "[splits]\ntrain = {}\nval = {val}\n",
+                samples - val
+            ));
+        }
+        for family in families.iter().take(classes) {
+            text.push_str(&format!("[[classes]]\nfamily = \"{family}\"\n"));
+        }
+        Manifest::parse(&text, Path::new("random")).unwrap()
+    }
+
+    fn spread(c: &[u64]) -> u64 {
+        c.iter().max().unwrap() - c.iter().min().unwrap()
+    }
+
     proptest::proptest! {
         #[test]
+        fn balance_holds_for_random_manifests(
+            samples in 1u64..300, shard_size in 1u64..40, classes in 1usize..=4,
+            copies in 1u32..=3, val in 0u64..50,
+        ) {
+            let plan = Plan::new(&random_manifest(samples, shard_size, classes, copies, val)).unwrap();
+            let mut all = Vec::new();
+            for split in &plan.splits {
+                let tasks: Vec<SampleTask> = plan.shards.iter().filter(|s| s.split == split.0)
+                    .flat_map(|s| plan.shard_tasks(s)).collect();
+                proptest::prop_assert!(spread(&counts(&plan, &tasks)) <= 1);
+                all.extend(tasks);
+            }
+            for shard in &plan.shards {
+                proptest::prop_assert!(spread(&plan.shard_counts(shard)) <= 1);
+            }
+            proptest::prop_assert!(spread(&counts(&plan, &all)) <= 1);
+            proptest::prop_assert_eq!(all.len() as u64, samples);
+        }
+
+        #[test]
         fn balance_is_exact_per_dataset_and_per_shard(samples in 1u64..400, shard_size in 1u64..60) {
-            let plan = Plan::new(&manifest(samples, shard_size));
+            let plan = Plan::new(&manifest(samples, shard_size)).unwrap();
             let mut all = Vec::new();
             for shard in &plan.shards {
                 let tasks = plan.shard_tasks(shard);

@@ -9,7 +9,7 @@
 use bettimill_grid::npy;
 use bettimill_grid::BinaryImage;
 use bettimill_manifest::{DeformSpec, Manifest};
-use bettimill_plan::{attempt_rng, mode_name, Plan, SampleTask};
+use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask};
 use serde::{Deserialize, Serialize};
 
 /// How many attempts a sample gets before the build reports it as failed.
@@ -64,6 +64,27 @@ pub struct Label {
     /// Deformation applied, if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub deform: Option<DeformSpec>,
+    /// The foreground voxel bin `[lo, hi]` the sample was brought into, if binned.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hypervolume_bin: Option<(u64, u64)>,
+    /// Downscaled copies (stored as `KEY.rSIDE.npy`), each with its own computed labels.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resolutions: Vec<ResolutionLabel>,
+}
+
+/// The label of one downscaled copy.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ResolutionLabel {
+    /// Side length of the copy.
+    pub side: u32,
+    /// Its Betti numbers over Z/2, computed from its voxels.
+    pub betti: Vec<u64>,
+    /// Its Euler characteristic.
+    pub euler: i64,
+    /// Its foreground voxel count.
+    pub hypervolume: u64,
+    /// Whether downscaling kept every Betti number.
+    pub preserved: bool,
 }
 
 /// A verified sample.
@@ -73,6 +94,8 @@ pub struct Sample {
     pub image: BinaryImage,
     /// Its label.
     pub label: Label,
+    /// Downscaled copies, in the manifest's order of `resolutions`.
+    pub downscaled: Vec<BinaryImage>,
 }
 
 impl Sample {
@@ -92,6 +115,50 @@ impl Sample {
     pub fn cls_bytes(&self) -> Vec<u8> {
         self.label.class_index.to_string().into_bytes()
     }
+
+    /// Every field of the sample (`cls`, `json`, `npy`, `rSIDE.npy`...) with its bytes,
+    /// sorted by field name as WebDataset writers should.
+    pub fn fields(&self) -> Vec<(String, Vec<u8>)> {
+        let mut fields = vec![
+            ("cls".to_string(), self.cls_bytes()),
+            ("json".to_string(), self.json_bytes()),
+            ("npy".to_string(), self.npy_bytes()),
+        ];
+        for image in &self.downscaled {
+            fields.push((
+                format!("r{}.npy", image.shape()[0]),
+                npy::write_bytes(image, npy::Dtype::U8),
+            ));
+        }
+        fields.sort_by(|a, b| a.0.cmp(&b.0));
+        fields
+    }
+}
+
+/// Max pooling by `factor` along every axis: a block is foreground when any of its voxels
+/// is. Every axis length must be a multiple of `factor`.
+pub fn downscale(image: &BinaryImage, factor: usize) -> BinaryImage {
+    let d = image.dim().get();
+    let shape: Vec<usize> = image.shape().iter().map(|&n| n / factor).collect();
+    let mut out = BinaryImage::zeros(&shape).expect("a downscaled valid image is valid");
+    for (index, &v) in image.data().iter().enumerate() {
+        if v != 0 {
+            let c = image.coords(index);
+            let mut small = [0usize; 4];
+            for axis in 0..d {
+                small[axis] = c[axis] / factor;
+            }
+            let i = out.index(&small[..d]);
+            out.data_mut()[i] = 1;
+        }
+    }
+    out
+}
+
+/// A u64 seed in the named domain for (sample seed, attempt).
+fn sub_seed(domain: &str, seed: &[u8; 32], attempt: u32) -> u64 {
+    let bytes = derive_seed(domain, &[seed, &attempt.to_le_bytes()]);
+    u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes"))
 }
 
 /// Why a sample could not be made.
@@ -137,8 +204,28 @@ pub fn make_sample(
         };
         let mut image = generated.image;
         if let Some(spec) = &manifest.deform {
-            if let Err(err) = deform(&mut image, spec, &task.seed, attempt) {
+            let settings = bettimill_deform::DeformSettings {
+                method: match spec.method {
+                    bettimill_manifest::DeformMethod::Moves => bettimill_deform::Method::Moves,
+                    bettimill_manifest::DeformMethod::Dilate => bettimill_deform::Method::Dilate,
+                    bettimill_manifest::DeformMethod::Erode => bettimill_deform::Method::Erode,
+                },
+                steps: spec.steps,
+                noise_frequency: spec.noise_frequency,
+                octaves: spec.octaves,
+                max_distance: spec.max_distance,
+                growth_probability: spec.growth_probability,
+            };
+            let seed = sub_seed("bettimill deform seed v1", &task.seed, attempt);
+            if let Err(err) = bettimill_deform::deform(&mut image, &settings, seed) {
                 last = format!("deformation failed: {err}");
+                continue;
+            }
+        }
+        if let Some((lo, hi)) = stratum.hypervolume {
+            let seed = sub_seed("bettimill hypervolume seed v1", &task.seed, attempt);
+            if let Err(err) = bettimill_deform::target_hypervolume(&mut image, lo, hi, seed) {
+                last = format!("hypervolume targeting failed: {err}");
                 continue;
             }
         }
@@ -149,6 +236,20 @@ pub fn make_sample(
                 topology.betti, generated.betti
             );
             continue;
+        }
+        let mut downscaled = Vec::new();
+        let mut resolutions = Vec::new();
+        for &r in &manifest.resolutions {
+            let small = downscale(&image, side / r as usize);
+            let t = bettimill_homology::topology(&small);
+            resolutions.push(ResolutionLabel {
+                side: r,
+                preserved: t.betti == topology.betti,
+                betti: t.betti,
+                euler: t.euler,
+                hypervolume: small.count_foreground(),
+            });
+            downscaled.push(small);
         }
         let label = Label {
             key: task.key.clone(),
@@ -171,8 +272,14 @@ pub fn make_sample(
             tool_version: TOOL_VERSION.to_string(),
             construction: generated.construction,
             deform: manifest.deform.clone(),
+            hypervolume_bin: stratum.hypervolume,
+            resolutions,
         };
-        return Ok(Sample { image, label });
+        return Ok(Sample {
+            image,
+            label,
+            downscaled,
+        });
     }
     Err(SampleError::GaveUp {
         key: task.key.clone(),
@@ -182,16 +289,22 @@ pub fn make_sample(
     })
 }
 
-fn deform(
-    _image: &mut BinaryImage,
-    _spec: &DeformSpec,
-    _seed: &[u8; 32],
-    _attempt: u32,
-) -> Result<(), String> {
-    Err("deformations are not wired into builds yet".to_string())
-}
-
 /// Lower-case hex of bytes.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn downscaling_is_max_pooling() {
+        let mut image = BinaryImage::zeros(&[4, 4, 4]).unwrap();
+        image.set(&[3, 0, 1], true);
+        let small = downscale(&image, 2);
+        assert_eq!(small.shape(), &[2, 2, 2]);
+        assert_eq!(small.count_foreground(), 1);
+        assert!(small.get(&[1, 0, 0]));
+    }
 }
