@@ -320,6 +320,11 @@ fn all_families() -> Vec<Family> {
             circle: true,
             genus: 0,
         },
+        Tunnel {
+            intervals: 1,
+            circle: false,
+            genus: 2,
+        },
         Curve,
         TorusKnot { p: 2, q: 5 },
         TorusKnot { p: 3, q: 3 },
@@ -362,5 +367,44 @@ fn min_sides() {
             }
         }
         println!("SIDE {line}");
+    }
+}
+
+#[test]
+#[ignore = "prints the README table of families"]
+fn readme_table() {
+    println!("TABLE | family | dim | embed (Z/2) | carve (Z/2) | min side embed / carve |");
+    println!("TABLE |---|---|---|---|---|");
+    for family in all_families() {
+        for dim in Dim::ALL {
+            let Ok(embed) = family
+                .expected_betti(dim, Mode::Embed)
+                .or_else(|_| family.expected_betti(dim, Mode::Carve).map(|_| Vec::new()))
+            else {
+                continue;
+            };
+            let carve = family.expected_betti(dim, Mode::Carve).unwrap_or_default();
+            let side = |mode| {
+                family
+                    .min_side(dim, mode)
+                    .map(|s| s.to_string())
+                    .unwrap_or("-".into())
+            };
+            let show = |b: &Vec<u64>| {
+                if b.is_empty() {
+                    "-".to_string()
+                } else {
+                    format!("{b:?}")
+                }
+            };
+            println!(
+                "TABLE | `{}` | {dim}D | {} | {} | {} / {} |",
+                serde_json::to_string(&family).unwrap(),
+                show(&embed),
+                show(&carve),
+                side(Mode::Embed),
+                side(Mode::Carve)
+            );
+        }
     }
 }
