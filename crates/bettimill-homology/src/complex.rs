@@ -332,9 +332,33 @@ impl CellComplex {
         let mut rank = vec![0u64; d + 2];
         let index = PositionIndex::new(&self.cells);
         let within = self.rank_within_dimension();
-        let mut cleared = vec![false; by_dim[0].len()];
         let mut cofacets = Vec::with_capacity(8);
-        for k in 0..d {
+        if d == 0 || by_dim[0].is_empty() {
+            return by_dim.iter().map(|cells| cells.len() as u64).collect();
+        }
+        // The vertex coboundaries fill in badly under column reduction, but their pivots
+        // have a closed form: edge e is a pivot of the coboundary from vertices to edges
+        // iff it joins two components of the graph of the edges after it (the rank of an
+        // incidence matrix is vertices minus components). So that step is a union-find
+        // over the edges in decreasing order.
+        let mut parent: Vec<u32> = (0..by_dim[0].len() as u32).collect();
+        let mut facets = Vec::with_capacity(8);
+        let mut edge_pivots = vec![false; by_dim.get(1).map_or(0, |e| e.len())];
+        for (e, &edge) in by_dim[1].iter().enumerate().rev() {
+            self.layout.facets(edge, &mut facets);
+            let ends: Vec<u32> = facets
+                .iter()
+                .map(|&v| within[index.get(v).expect("a complex is closed under faces")])
+                .collect();
+            let (a, b) = (find(&mut parent, ends[0]), find(&mut parent, ends[1]));
+            if a != b {
+                parent[a.max(b) as usize] = a.min(b);
+                edge_pivots[e] = true;
+                rank[1] += 1;
+            }
+        }
+        let mut cleared = edge_pivots;
+        for k in 1..d {
             let n_rows = by_dim[k + 1].len();
             let columns: Vec<Vec<u32>> = by_dim[k]
                 .iter()
@@ -363,6 +387,15 @@ impl CellComplex {
             .map(|k| by_dim[k].len() as u64 - rank[k] - rank[k + 1])
             .collect()
     }
+}
+
+/// Union-find root with path halving.
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        parent[x as usize] = parent[parent[x as usize] as usize];
+        x = parent[x as usize];
+    }
+    x
 }
 
 /// "No such cell" in a neighbour table.
