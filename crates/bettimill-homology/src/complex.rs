@@ -11,10 +11,12 @@
 //!
 //! Homology is computed in two steps. Elementary collapses (remove a face that has exactly
 //! one coface, together with that coface) shrink the complex without changing its homotopy
-//! type; what survives is usually tiny. The survivors then go through a sparse Z/2 column
-//! reduction of the boundary matrices, and b_k = n_k - rank d_k - rank d_{k+1}.
-//! [`crate::reference`] runs the reduction on the whole, uncollapsed complex, so the two
-//! paths check each other.
+//! type; a per-cell table of the neighbouring cells along each axis, built by linear merges
+//! of the sorted keys, makes them cheap. The survivors then go through sparse Z/2 column
+//! reductions and b_k = n_k - rank d_k - rank d_{k+1}. The fast path ([`CellComplex::betti`])
+//! reduces coboundaries with clearing, the way Ripser does, and gets the vertex-to-edge step
+//! from a union-find; [`crate::reference`] reduces the plain boundary matrices of the whole,
+//! uncollapsed complex ([`CellComplex::betti_by_boundaries`]), so the two check each other.
 
 use bettimill_grid::BinaryImage;
 
