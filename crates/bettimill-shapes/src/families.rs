@@ -16,8 +16,8 @@
 use crate::curves;
 use crate::geometry::{add, axis, round6, uniform, uniform_int, Piece, Rotation, Solid, ORIGIN, P};
 use crate::place::{
-    cell_width, cells_per_axis, grid_cell, random_centre, rasterise, Occupancy, Placed, Region,
-    CUBE_MARGIN,
+    cell_width, cells_per_axis, grid_cell, random_centre, rasterise, rasterise_unless_blocked,
+    Occupancy, Placed, Region, CUBE_MARGIN,
 };
 use crate::{BinaryImage, Dim, Family, Generated, KnotKind, LinkKind, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
@@ -992,10 +992,11 @@ fn sorted(mut entries: Vec<(&str, Value)>) -> Value {
 fn fill_cube(image: &mut BinaryImage, dim: usize, side: usize) {
     let lo = CUBE_MARGIN as usize;
     let hi = side - 1 - CUBE_MARGIN as usize;
-    for index in 0..image.len() {
-        let c = image.coords(index);
-        if (0..dim).all(|k| c[k] >= lo && c[k] <= hi) {
-            image.data_mut()[index] = 1;
+    // Row by row along the last (contiguous) axis.
+    for start in (0..image.len()).step_by(side) {
+        let c = image.coords(start);
+        if (0..dim - 1).all(|k| c[k] >= lo && c[k] <= hi) {
+            image.data_mut()[start + lo..=start + hi].fill(1);
         }
     }
 }
@@ -1110,8 +1111,17 @@ fn place_random(
                 centre,
                 through_axes: Vec::new(),
             };
-            let voxels = rasterise(&placed, dim, side, region.lo, region.hi);
-            if voxels.is_empty() || !occupancy.is_free(&voxels) {
+            let Some(voxels) = rasterise_unless_blocked(
+                &placed,
+                dim,
+                side,
+                region.lo,
+                region.hi,
+                Some(&occupancy),
+            ) else {
+                continue;
+            };
+            if voxels.is_empty() {
                 continue;
             }
             if count > 1 {

@@ -93,6 +93,7 @@ pub(crate) enum Piece {
         points: Vec<P>,
         closed: bool,
         chunks: Vec<(P, f64)>,
+        bound: (P, f64),
     },
     /// The torus of revolution in the first three axes: the circle of radius `minor`
     /// around the circle of radius `major` in the (x0, x1)-plane.
@@ -140,10 +141,40 @@ impl Piece {
             chunks.push((centre, radius));
             start = end;
         }
+        let mut centre = ORIGIN;
+        for &v in &points {
+            centre = add(centre, v);
+        }
+        centre = scale(centre, 1.0 / n.max(1) as f64);
+        let radius = points
+            .iter()
+            .map(|&v| norm(sub(v, centre)))
+            .fold(0.0, f64::max);
         Piece::Polyline {
             points,
             closed,
             chunks,
+            bound: (centre, radius),
+        }
+    }
+
+    /// A ball `(centre, radius)` containing the piece; `None` for prisms, which are
+    /// unbounded along their free axes.
+    pub(crate) fn bounds(&self) -> Option<(P, f64)> {
+        match self {
+            Piece::Point(c) => Some((*c, 0.0)),
+            Piece::Segment(a, b) => Some((scale(add(*a, *b), 0.5), norm(sub(*b, *a)) / 2.0)),
+            Piece::Circle { centre, radius, .. } | Piece::Sphere { centre, radius, .. } => {
+                Some((*centre, *radius))
+            }
+            Piece::Polyline { bound, .. } => Some(*bound),
+            Piece::Torus { major, minor } | Piece::Klein { major, minor } => {
+                Some((ORIGIN, major + minor))
+            }
+            Piece::Spun { centre, inner } => {
+                Some((*centre, inner.iter().map(Piece::extent).fold(0.0, f64::max)))
+            }
+            Piece::Prism { .. } => None,
         }
     }
 
@@ -155,7 +186,11 @@ impl Piece {
                 points,
                 closed,
                 chunks,
+                bound,
             } => {
+                if norm(sub(p, bound.0)) - bound.1 > r {
+                    return false;
+                }
                 let n = points.len();
                 if n == 1 {
                     return norm(sub(p, points[0])) <= r;
@@ -520,6 +555,15 @@ impl Rotation {
             self.m[j][col] = s * a + c * b;
         }
         self.angles.push((i, j, angle));
+    }
+
+    /// The world offset of a local point.
+    pub(crate) fn to_world(&self, local: P) -> P {
+        let mut out = ORIGIN;
+        for (k, slot) in out.iter_mut().enumerate() {
+            *slot = dot(self.m[k], local);
+        }
+        out
     }
 
     /// Local coordinates of a world offset (the transpose is the inverse).

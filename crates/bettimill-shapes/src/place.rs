@@ -8,7 +8,7 @@
 //! least two background voxels between them in every direction, which is what the
 //! labels note asks for (touching cavities gave wrong labels).
 
-use crate::geometry::{round6, sub, uniform, Rotation, Solid, P};
+use crate::geometry::{add, round6, sub, uniform, Rotation, Solid, P};
 use crate::Mode;
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
@@ -103,34 +103,101 @@ pub(crate) fn rasterise(
     box_lo: i64,
     box_hi: i64,
 ) -> Vec<usize> {
-    let extent = placed.solid.extent();
+    rasterise_unless_blocked(placed, dim, side, box_lo, box_hi, None).unwrap_or_default()
+}
+
+/// As [`rasterise`], but `None` as soon as a voxel falls on a blocked one (so rejected
+/// placements cost little). Tube solids are scanned part by part, each over the box of
+/// its own bounding ball, which for spread-out objects (rows of summands, links,
+/// tentacles) visits far fewer voxels than the box of the whole object.
+pub(crate) fn rasterise_unless_blocked(
+    placed: &Placed,
+    dim: usize,
+    side: usize,
+    box_lo: i64,
+    box_hi: i64,
+    blocked: Option<&Occupancy>,
+) -> Option<Vec<usize>> {
+    let mut out = Vec::new();
+    let by_parts = match &placed.solid {
+        Solid::Tube(parts) if placed.through_axes.is_empty() => parts
+            .iter()
+            .map(|(piece, r)| piece.bounds().map(|(c, radius)| (c, radius + r)))
+            .collect::<Option<Vec<_>>>(),
+        _ => None,
+    };
+    match (by_parts, &placed.solid) {
+        (Some(balls), Solid::Tube(parts)) => {
+            for ((centre, reach), (piece, r)) in balls.iter().zip(parts) {
+                let world = add(placed.centre, placed.rotation.to_world(*centre));
+                let test = |local: P| piece.within(local, *r);
+                scan_box(
+                    placed,
+                    dim,
+                    side,
+                    box_lo,
+                    box_hi,
+                    (world, *reach),
+                    &test,
+                    blocked,
+                    &mut out,
+                )?;
+            }
+            out.sort_unstable();
+            out.dedup();
+        }
+        _ => {
+            let test = |local: P| placed.solid.contains(local);
+            let ball = (placed.centre, placed.solid.extent());
+            scan_box(
+                placed, dim, side, box_lo, box_hi, ball, &test, blocked, &mut out,
+            )?;
+        }
+    }
+    Some(out)
+}
+
+/// Tests every voxel in the box around `ball` (clipped to `[box_lo, box_hi]`, and spanning
+/// it entirely along through-axes) and appends those passing `test`.
+#[allow(clippy::too_many_arguments)] // A private kernel; bundling would only rename them.
+fn scan_box(
+    placed: &Placed,
+    dim: usize,
+    side: usize,
+    box_lo: i64,
+    box_hi: i64,
+    ball: (P, f64),
+    test: &dyn Fn(P) -> bool,
+    blocked: Option<&Occupancy>,
+    out: &mut Vec<usize>,
+) -> Option<()> {
+    let (centre, extent) = ball;
     let mut lo = [0i64; 4];
     let mut hi = [0i64; 4];
-    for k in 0..4 {
-        if k >= dim {
-            continue;
-        }
+    for k in 0..dim {
         if placed.through_axes.contains(&k) {
             lo[k] = box_lo;
             hi[k] = box_hi;
         } else {
-            lo[k] = (libm::floor(placed.centre[k] - extent) as i64).max(box_lo);
-            hi[k] = (libm::ceil(placed.centre[k] + extent) as i64).min(box_hi);
+            lo[k] = (libm::floor(centre[k] - extent) as i64).max(box_lo);
+            hi[k] = (libm::ceil(centre[k] + extent) as i64).min(box_hi);
         }
     }
     let side = side as i64;
-    let mut out = Vec::new();
     if (0..dim).any(|k| lo[k] > hi[k]) {
-        return out;
+        return Some(());
     }
     let mut c = lo;
     loop {
         let world = [c[0] as f64, c[1] as f64, c[2] as f64, c[3] as f64];
         let local = placed.rotation.to_local(sub(world, placed.centre));
-        if placed.solid.contains(local) {
+        if test(local) {
             let mut index = 0i64;
             for &ck in c.iter().take(dim) {
                 index = index * side + ck;
+            }
+            if blocked.is_some_and(|b| b.blocked[index as usize]) {
+                return None;
             }
             out.push(index as usize);
         }
@@ -138,7 +205,7 @@ pub(crate) fn rasterise(
         let mut k = dim;
         loop {
             if k == 0 {
-                return out;
+                return Some(());
             }
             k -= 1;
             if c[k] < hi[k] {
@@ -164,10 +231,6 @@ impl Occupancy {
             side,
             blocked: vec![false; side.pow(dim as u32)],
         }
-    }
-
-    pub(crate) fn is_free(&self, voxels: &[usize]) -> bool {
-        voxels.iter().all(|&v| !self.blocked[v])
     }
 
     /// Marks every voxel within Chebyshev distance `GAP` of the given ones.

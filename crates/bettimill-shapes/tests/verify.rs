@@ -408,3 +408,54 @@ fn readme_table() {
         }
     }
 }
+
+#[test]
+#[ignore = "prints generation times (no homology)"]
+fn generation_times() {
+    use Family::*;
+    let cases: Vec<(Family, Dim, usize)> = vec![
+        (Handle, Dim::Three, 64),
+        (
+            Knot {
+                knot: KnotKind::Trefoil,
+            },
+            Dim::Three,
+            64,
+        ),
+        (bettimill_shapes::paper_scene_family(), Dim::Three, 64),
+        (Handle, Dim::Four, 32),
+        (T2xB2, Dim::Four, 32),
+        (
+            ConnectedSum {
+                g: 1,
+                h: 1,
+                i: 1,
+                j: 1,
+            },
+            Dim::Four,
+            64,
+        ),
+        (
+            SpunLink {
+                link: LinkKind::Hopf,
+            },
+            Dim::Four,
+            64,
+        ),
+    ];
+    for (family, dim, side) in cases {
+        for mode in [Mode::Embed, Mode::Carve] {
+            let start = Instant::now();
+            let n = 3;
+            for seed in 0..n {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                generate(&family, dim, side, mode, &mut rng).unwrap();
+            }
+            println!(
+                "TIME {:<40} {dim}D side {side} {mode}: {:.3}s per sample",
+                family.label(),
+                start.elapsed().as_secs_f64() / n as f64
+            );
+        }
+    }
+}
