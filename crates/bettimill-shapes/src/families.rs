@@ -716,10 +716,6 @@ fn objects_of(family: &Family) -> Vec<Family> {
     }
 }
 
-fn tunnel_budget(region: Region) -> f64 {
-    region.budget()
-}
-
 pub(crate) fn check_fits(
     family: &Family,
     dim: Dim,
@@ -755,7 +751,7 @@ fn check_sizes(
     let region = Region::for_mode(side, mode);
     if let Family::Tunnel { .. } = family {
         let need = min_extent(family, d).unwrap_or(f64::INFINITY);
-        let budget = tunnel_budget(region);
+        let budget = region.budget();
         if need > budget {
             return Err(does_not_fit(format!(
                 "the cross-section needs radius {need:.2}, the cube offers {budget:.2}"
@@ -1014,7 +1010,7 @@ fn place_tunnel(
         unreachable!("place_tunnel is only called for tunnels")
     };
     let a = *intervals as usize;
-    let budget = tunnel_budget(region);
+    let budget = region.budget();
     let minimum = min_extent(family, dim).unwrap_or(f64::INFINITY);
     let target = uniform(rng, minimum, budget);
     let (solid, params) =
