@@ -329,3 +329,26 @@ fn agrees_with_the_dual_construction_of_the_background() {
         }
     }
 }
+
+#[test]
+fn non_cubic_shapes_and_empty_images_agree_with_reference() {
+    let mut rng = ChaCha8Rng::seed_from_u64(80);
+    let shapes: [&[usize]; 7] = [
+        &[1, 9],
+        &[7, 3],
+        &[1, 1, 6],
+        &[2, 5, 4],
+        &[6, 2, 3],
+        &[1, 3, 2, 4],
+        &[3, 2, 4, 2],
+    ];
+    for shape in shapes {
+        let empty = BinaryImage::zeros(shape).unwrap();
+        assert_eq!(topology(&empty).betti, vec![0; shape.len()], "{shape:?}");
+        for _ in 0..40 {
+            let density = rng.gen_range(0.2..0.8);
+            let image = random_image(&mut rng, shape, density);
+            assert_eq!(topology(&image), reference::topology(&image), "{image:?}");
+        }
+    }
+}
