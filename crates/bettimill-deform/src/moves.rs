@@ -39,6 +39,12 @@ const MOVES_STREAM: u64 = 1;
 /// that has run out of possible moves ends instead of spinning.
 const ATTEMPTS_PER_MOVE: u64 = 64;
 
+/// A uniform index in `0..n`, drawn as a u64 so that the stream of random numbers is the
+/// same on 32- and 64-bit machines (rand samples usize ranges at pointer width).
+pub(crate) fn index_below(rng: &mut ChaCha8Rng, n: usize) -> usize {
+    rng.gen_range(0..n as u64) as usize
+}
+
 /// The foreground voxels with a background face-neighbour, as a list that supports
 /// uniform random draws plus a slot table for O(1) insertion and removal.
 struct BoundarySet {
@@ -174,10 +180,10 @@ pub(crate) fn run(
     let mut candidates: Vec<(f32, usize)> = Vec::with_capacity(ball.len());
     while applied < steps as u64 && attempts < max_attempts && !boundary.list.is_empty() {
         attempts += 1;
-        let mut source = boundary.list[rng.gen_range(0..boundary.list.len())];
+        let mut source = boundary.list[index_below(&mut rng, boundary.list.len())];
         let mut source_noise = noise.get(source);
         for _ in 1..TOURNAMENT {
-            let v = boundary.list[rng.gen_range(0..boundary.list.len())];
+            let v = boundary.list[index_below(&mut rng, boundary.list.len())];
             let n = noise.get(v);
             if n < source_noise || (n == source_noise && v < source) {
                 source = v;

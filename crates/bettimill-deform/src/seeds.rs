@@ -27,6 +27,7 @@
 //! seeded by the caller) and failed placements are retried a bounded number of times, so
 //! a scene may hold fewer objects than asked for; [`Scene::placed`] says how many.
 
+use crate::moves::index_below;
 use crate::DeformError;
 use bettimill_grid::neighbourhood::{flat_offsets, full_offsets};
 use bettimill_grid::BinaryImage;
@@ -550,7 +551,7 @@ impl SeedBuilder {
         if members.is_empty() {
             return None;
         }
-        Some(members[self.rng.gen_range(0..members.len())])
+        Some(members[index_below(&mut self.rng, members.len())])
     }
 
     fn coords_f(&self, v: usize) -> [f64; 4] {
@@ -564,8 +565,8 @@ impl SeedBuilder {
         if roots.len() < 2 {
             return false;
         }
-        let i = self.rng.gen_range(0..roots.len());
-        let mut j = self.rng.gen_range(0..roots.len() - 1);
+        let i = index_below(&mut self.rng, roots.len());
+        let mut j = index_below(&mut self.rng, roots.len() - 1);
         if j >= i {
             j += 1;
         }
@@ -618,7 +619,7 @@ impl SeedBuilder {
         if roots.is_empty() {
             return false;
         }
-        let root = roots[self.rng.gen_range(0..roots.len())];
+        let root = roots[index_below(&mut self.rng, roots.len())];
         let Some(start) = self.random_voxel_of(root) else {
             return false;
         };
@@ -663,7 +664,7 @@ impl SeedBuilder {
         // the one-voxel-thick direction.
         let mut axes: Vec<usize> = (0..d).collect();
         for i in (1..d).rev() {
-            let j = self.rng.gen_range(0..=i);
+            let j = index_below(&mut self.rng, i + 1);
             axes.swap(i, j);
         }
         let shape = self.image.shape().to_vec();
@@ -676,7 +677,7 @@ impl SeedBuilder {
             if extent[a] + 2 * MARGIN > shape[a] {
                 return false;
             }
-            origin[a] = self.rng.gen_range(MARGIN..=shape[a] - MARGIN - extent[a]);
+            origin[a] = MARGIN + index_below(&mut self.rng, shape[a] - 2 * MARGIN - extent[a] + 1);
         }
         let mut targets = Vec::new();
         for v in 0..shell.len() {
@@ -790,7 +791,8 @@ pub fn random_scene(shape: &[usize], spec: &SceneSpec, seed: u64) -> Result<Scen
         (
             spec.curves,
             |b, s| {
-                let n = b.rng.gen_range((s / 3.0) as usize..(s as usize).max(2));
+                let lo = (s / 3.0) as usize;
+                let n = lo + index_below(&mut b.rng, (s as usize).max(2) - lo);
                 b.add_curve(n)
             },
             |p| &mut p.curves,
@@ -799,9 +801,8 @@ pub fn random_scene(shape: &[usize], spec: &SceneSpec, seed: u64) -> Result<Scen
         (
             spec.tentacles,
             |b, s| {
-                let n = b
-                    .rng
-                    .gen_range((s / 6.0) as usize + 2..(s / 2.0) as usize + 3);
+                let lo = (s / 6.0) as usize + 2;
+                let n = lo + index_below(&mut b.rng, (s / 2.0) as usize + 3 - lo);
                 b.add_tentacle(n)
             },
             |p| &mut p.tentacles,

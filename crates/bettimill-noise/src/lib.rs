@@ -161,7 +161,9 @@ impl Perlin {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut perm: [u8; 256] = core::array::from_fn(|i| i as u8);
         for i in (1..256usize).rev() {
-            let j = rng.gen_range(0..=i);
+            // Drawn as u64, not usize: rand samples usize ranges with the platform's pointer
+            // width, which would make the shuffle differ between 32- and 64-bit machines.
+            let j = rng.gen_range(0..=i as u64) as usize;
             perm.swap(i, j);
         }
         Perlin::from_permutation(&perm)
