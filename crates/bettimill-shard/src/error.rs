@@ -2,7 +2,7 @@
 //!
 //! Every variant carries the facts a user needs to act on it: the path of the file, the
 //! member name, the byte offset in the tar, the limit that was exceeded. Problems found by
-//! [`crate::verify`] in a dataset are not errors (the run goes on and reports them all);
+//! [`crate::verify()`] in a dataset are not errors (the run goes on and reports them all);
 //! they are [`crate::Problem`]s.
 
 use std::path::{Path, PathBuf};

@@ -12,7 +12,7 @@
 //! declaration order, so equal indexes are equal bytes.
 //!
 //! Invariants checked by [`Index::read`] (an index breaking them is refused, because
-//! [`crate::verify`] and readers join shard names onto the dataset directory): the format
+//! [`crate::verify()`] and readers join shard names onto the dataset directory): the format
 //! name and version match, shard names are unique, relative, under `shards/` and free of
 //! `..`, and every member record lies where the deterministic layout of
 //! [`crate::tar_bytes`] puts it, so the records add up to the shard's size.

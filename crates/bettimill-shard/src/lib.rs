@@ -10,9 +10,9 @@
 //! ```
 //!
 //! - [`ustar`]: the byte layout of a shard and a safe reader for untrusted tars.
-//! - [`compress`]: deterministic per-member gzip and zstd (`KEY.npy.gz`, `KEY.npy.zst`).
+//! - [`mod@compress`]: deterministic per-member gzip and zstd (`KEY.npy.gz`, `KEY.npy.zst`).
 //! - [`index`]: shard and member records, `index.json`, the wids index.
-//! - [`verify`]: re-checks a directory against its index and localises damage.
+//! - [`mod@verify`]: re-checks a directory against its index and localises damage.
 //! - [`atomic`]: crash-safe file replacement used for every file the build writes.
 //!
 //! Architecture invariant: the same members always give the same bytes; nothing here

@@ -3,8 +3,8 @@
 
 use bettimill_shard::ustar::{header_block, tar_len};
 use bettimill_shard::{
-    build_shard, read_tar, read_tar_with_limit, tar_bytes, verify, write_atomic, Index, Member,
-    Problem, Region, ShardError, ShardRecord,
+    build_shard, compress, read_tar, read_tar_with_limit, tar_bytes, verify, write_atomic,
+    Compression, Index, Member, Problem, Region, ShardError, ShardRecord,
 };
 use proptest::prelude::*;
 use std::path::Path;
@@ -529,3 +529,37 @@ fn tar_bytes_refuses_bad_names() {
         assert!(matches!(err, ShardError::BadName { .. }), "{name}: {err}");
     }
 }
+
+/// Pins the exact bytes: a change here means every dataset ever built changes hash, so it
+/// must be deliberate (a new index format version or a documented codec upgrade).
+#[test]
+fn golden_hashes_of_tar_and_compressed_members() {
+    let data: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 31) as u8)
+        .collect();
+    let members = vec![
+        Member::new("train/s000000.cls", b"3".to_vec()),
+        Member::new("train/s000000.npy", data.clone()),
+    ];
+    let hash = |bytes: &[u8]| blake3::hash(bytes).to_hex().to_string();
+    let golden = [
+        ("tar", hash(&tar_bytes(&members).unwrap()), GOLDEN_TAR),
+        (
+            "gzip",
+            hash(&compress(&data, Compression::Gzip).unwrap()),
+            GOLDEN_GZIP,
+        ),
+        (
+            "zstd",
+            hash(&compress(&data, Compression::Zstd).unwrap()),
+            GOLDEN_ZSTD,
+        ),
+    ];
+    for (what, found, expected) in golden {
+        assert_eq!(found, expected, "{what} bytes changed");
+    }
+}
+
+const GOLDEN_TAR: &str = "696ca64d3d197aad4e9d81dafd79da5968f0fcd4df909b36ffb830ec32577fb1";
+const GOLDEN_GZIP: &str = "ad73bc0a1e1eadbe9526fa6b99cbf4460deb23bfd1404d6fa938cf63e5799800";
+const GOLDEN_ZSTD: &str = "3a6acd34af019532dad995d478d245e199523e6b3e1f41393bea68697b07e305";
