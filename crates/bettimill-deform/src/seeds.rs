@@ -314,15 +314,16 @@ impl SeedBuilder {
     }
 
     fn rollback(&mut self, t: Transaction) {
-        for &v in &t.added {
+        // `add` pushed each voxel onto its label's list, so undoing in reverse order pops
+        // exactly those entries.
+        for &v in t.added.iter().rev() {
+            let popped = self.voxels_of[self.labels[v] as usize].pop();
+            debug_assert_eq!(popped, Some(v), "voxel lists are undone in push order");
             self.image.data_mut()[v] = 0;
             self.labels[v] = 0;
         }
         self.parent = t.parent;
         self.voxels_of.truncate(t.parent_len);
-        for list in self.voxels_of.iter_mut() {
-            list.retain(|v| !t.added.contains(v));
-        }
         self.betti = t.betti;
     }
 
