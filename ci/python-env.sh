@@ -42,7 +42,10 @@ fi
 
 if [[ "$("$VENV/bin/uv" --version 2>/dev/null || true)" != "uv $UV_VERSION"* ]]; then
     say "installing uv $UV_VERSION into the venv (pip)"
-    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check "uv==$UV_VERSION"
+    # `uv pip sync` removes pip from the venv (it is not in the requirements), so bring it
+    # back if an earlier run left a venv without uv.
+    "$VENV/bin/python" -m pip --version >/dev/null 2>&1 || "$VENV/bin/python" -m ensurepip --upgrade >&2
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps "uv==$UV_VERSION"
 fi
 
 say "installing ci/python-requirements.txt with uv (exact versions; removes anything else)"
