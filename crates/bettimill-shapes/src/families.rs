@@ -884,8 +884,8 @@ pub(crate) fn generate(
     let d = dim.get();
     let region = Region::for_mode(side, mode);
     let objects = objects_of(family);
-    let placed = if let Family::Tunnel { .. } = family {
-        vec![place_tunnel(family, d, side, region, rng)?]
+    let (placed, strategy) = if let Family::Tunnel { .. } = family {
+        (vec![place_tunnel(family, d, side, region, rng)?], "tunnel")
     } else {
         let canvas = Canvas {
             dim: d,
@@ -938,6 +938,9 @@ pub(crate) fn generate(
         ("side", json!(side)),
         ("mode", json!(mode.to_string())),
         ("objects", Value::Array(records)),
+        // How the layout was found: "random" (the normal case), "grid" or "canonical"
+        // (fallbacks that keep a feasible request from failing), or "tunnel".
+        ("placement", json!(strategy)),
         ("betti_field", json!("z2")),
         ("gap_voxels", json!(crate::place::GAP)),
         (
@@ -1148,7 +1151,7 @@ fn place_objects(
     objects: &[Family],
     canvas: Canvas,
     rng: &mut ChaCha8Rng,
-) -> Result<Vec<PlacedObject>, ShapeError> {
+) -> Result<(Vec<PlacedObject>, &'static str), ShapeError> {
     let Canvas {
         dim,
         side,
@@ -1161,19 +1164,19 @@ fn place_objects(
         .map(|o| min_extent(o, dim).unwrap_or(f64::INFINITY))
         .collect();
     if let Some(out) = place_random(objects, &minima, dim, side, region, rng, false) {
-        return Ok(out);
+        return Ok((out, "random"));
     }
     let fits_grid = grid_fits(&minima, dim, region);
     if !fits_grid {
-        return canonical_layout(objects, &minima, dim, side, region).ok_or_else(|| {
-            ShapeError::DoesNotFit {
+        return canonical_layout(objects, &minima, dim, side, region)
+            .map(|out| (out, "canonical"))
+            .ok_or_else(|| ShapeError::DoesNotFit {
                 family: family.label(),
                 dim,
                 side,
                 mode,
                 reason: "the objects could not be packed with the required gaps".into(),
-            }
-        });
+            });
     }
     // Fallback: one object per grid cell, cells separated by the gap. check_fits
     // guarantees every object's minimum fits a cell, so this always succeeds.
@@ -1224,7 +1227,7 @@ fn place_objects(
         let voxels = rasterise(&placed, dim, side, region.lo, region.hi);
         out.push((object.clone(), placed, params, voxels));
     }
-    Ok(out)
+    Ok((out, "grid"))
 }
 
 /// The paper's 3D morphology example (its seed image): a curve, two connected circles, a

@@ -303,6 +303,11 @@ fn records_describe_the_sample() {
     assert_eq!(g.betti_rational, None);
     let objects = g.construction["objects"].as_array().unwrap();
     assert_eq!(objects.len(), 2);
+    let strategy = g.construction["placement"].as_str().unwrap();
+    assert!(
+        ["random", "grid", "canonical"].contains(&strategy),
+        "{strategy}"
+    );
     // Keys are sorted at every level we build.
     let keys: Vec<&String> = g.construction.as_object().unwrap().keys().collect();
     let mut sorted_keys = keys.clone();

@@ -459,3 +459,68 @@ fn generation_times() {
         }
     }
 }
+
+#[test]
+#[ignore = "crowded scenes: the gap logic under pressure"]
+fn crowded_scenes() {
+    use Family::*;
+    let count: u64 = std::env::var("SHAPES_RATE_COUNT")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(10);
+    let cases: Vec<(Family, Dim, usize)> = vec![
+        (
+            Scene {
+                objects: vec![Handle; 8],
+            },
+            Dim::Two,
+            48,
+        ),
+        (
+            Scene {
+                objects: vec![Shell, Handlebody { genus: 2 }, Curve, Ball, Handle, Handle],
+            },
+            Dim::Two,
+            48,
+        ),
+        (
+            Scene {
+                objects: vec![
+                    Link {
+                        link: LinkKind::Hopf,
+                    },
+                    Knot {
+                        knot: KnotKind::Trefoil,
+                    },
+                    TorusShell,
+                    Shell,
+                    Handle,
+                    Tentacled {
+                        object: Box::new(Ball),
+                        tentacles: 3,
+                    },
+                ],
+            },
+            Dim::Three,
+            64,
+        ),
+        (
+            Scene {
+                objects: vec![Ball, Ball, Handle, Shell],
+            },
+            Dim::Four,
+            24,
+        ),
+    ];
+    for (family, dim, side) in cases {
+        for mode in [Mode::Embed, Mode::Carve] {
+            let start = Instant::now();
+            let bad = mismatches(&family, dim, side, mode, 2000, count).expect("fits");
+            println!(
+                "RATE {:<40} {dim}D side {side:>3} {mode:<5} {bad:>3}/{count} mismatched  {:.1}s",
+                family.label().chars().take(40).collect::<String>(),
+                start.elapsed().as_secs_f64()
+            );
+        }
+    }
+}
