@@ -313,3 +313,53 @@ fn betti_reads_user_images() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("bad.npy"), "{}", stderr(&out));
 }
+
+fn preset(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../manifests")
+        .join(name)
+        .to_string_lossy()
+        .into_owned()
+}
+
+#[test]
+fn the_4d_mixed_128_preset_plans() {
+    let out = bettimill(&["plan", &preset("4d-mixed-128.toml")]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let text = stdout(&out);
+    assert!(text.contains("split val: 800 samples"), "{text}");
+    assert!(
+        text.contains("differ by at most 1 within any shard"),
+        "{text}"
+    );
+    let out = bettimill(&["plan", &preset("4d-mixed-128.toml"), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let strata = v["strata"].as_array().unwrap();
+    // 13 cavity classes x 2 cavity counts x 4 hypervolume bins.
+    assert_eq!(strata.len(), 104);
+    let total: u64 = strata.iter().map(|s| s["samples"].as_u64().unwrap()).sum();
+    assert_eq!(total, 9600);
+    assert!(strata.iter().all(|s| s["betti"][0] == 1), "one solid cube");
+    let per_shard: u64 = v["shards"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["samples"].as_u64().unwrap())
+        .sum();
+    assert_eq!(per_shard, 9600);
+}
+
+#[test]
+fn every_preset_plans() {
+    for name in [
+        "demo-2d.toml",
+        "demo-3d.toml",
+        "demo-4d.toml",
+        "paper-figures.toml",
+    ] {
+        let out = bettimill(&["plan", &preset(name), "--json"]);
+        assert_eq!(out.status.code(), Some(0), "{name}: {}", stderr(&out));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(v["infeasible"].as_array().unwrap().is_empty(), "{name}");
+    }
+}

@@ -578,6 +578,7 @@ impl Manifest {
                 "at least one [[classes]] entry is needed",
             ));
         }
+        let copies = self.components.clone().unwrap_or_else(|| vec![1]);
         for (i, class) in self.classes.iter().enumerate() {
             if self.classes[..i].contains(class) {
                 return Err(ManifestError::invalid(
@@ -586,17 +587,29 @@ impl Manifest {
                     format!("class {} ({}) is listed twice", i + 1, class.label()),
                 ));
             }
+            // A class must be buildable in at least one combination of the other axes;
+            // combinations that cannot be built are left out of the plan with a reason.
+            let mut last_error = None;
+            let mut feasible = false;
             for &mode in &modes {
-                class
-                    .expected_betti(self.dimension, mode)
-                    .and_then(|_| class.check_fits(self.dimension, self.side as usize, mode))
-                    .map_err(|err| {
-                        ManifestError::invalid(
-                            source,
-                            "classes",
-                            format!("class {} ({}): {err}", i + 1, class.label()),
-                        )
-                    })?;
+                for &c in &copies {
+                    let family = class_with_copies(class, c);
+                    match family
+                        .expected_betti(self.dimension, mode)
+                        .and_then(|_| family.check_fits(self.dimension, self.side as usize, mode))
+                    {
+                        Ok(()) => feasible = true,
+                        Err(err) => last_error = Some(err),
+                    }
+                }
+            }
+            if !feasible {
+                let err = last_error.expect("at least one combination was tried");
+                return Err(ManifestError::invalid(
+                    source,
+                    "classes",
+                    format!("class {} ({}): {err}", i + 1, class.label()),
+                ));
             }
         }
         if let Some(deform) = &self.deform {
@@ -643,6 +656,21 @@ impl Manifest {
         blake3::hash(self.canonical_json().as_bytes())
             .to_hex()
             .to_string()
+    }
+}
+
+/// The class object repeated `copies` times: itself for one copy, else a scene (the
+/// objects of a scene class are repeated).
+pub fn class_with_copies(class: &Family, copies: u32) -> Family {
+    if copies == 1 {
+        return class.clone();
+    }
+    let one: Vec<Family> = match class {
+        Family::Scene { objects } => objects.clone(),
+        other => vec![other.clone()],
+    };
+    Family::Scene {
+        objects: (0..copies).flat_map(|_| one.iter().cloned()).collect(),
     }
 }
 

@@ -123,3 +123,47 @@ proptest::proptest! {
         let _ = parse(&text);
     }
 }
+
+#[test]
+fn empty_classes_are_refused() {
+    let text = GOOD.replace("[[classes]]\nfamily = \"ball\"\n", "classes = []\n");
+    check_refused(&text, "classes", 10);
+}
+
+#[test]
+fn a_class_that_never_fits_is_refused() {
+    check_refused(&GOOD.replace("side = 24", "side = 8"), "classes", 10);
+}
+
+#[test]
+fn splits_must_add_up() {
+    let text = format!("{GOOD}\n[splits]\ntrain = 6\nval = 3\n");
+    check_refused(&text, "splits", 13);
+}
+
+#[test]
+fn unreachable_hypervolume_bins_are_refused() {
+    let text = format!("{GOOD}\n[hypervolume]\nbins = [[0.9, 1.0]]\n");
+    check_refused(&text, "bins", 14);
+    let text = format!("{GOOD}\n[hypervolume]\nunit = \"voxels\"\nbins = [[5.2, 5.9]]\n");
+    check_refused(&text, "bins", 15);
+}
+
+#[test]
+fn resolutions_must_divide_the_side() {
+    check_refused(
+        &GOOD.replace("seed = 1", "seed = 1\nresolutions = [7]"),
+        "resolutions",
+        9,
+    );
+}
+
+#[test]
+fn ranges_expand_into_classes() {
+    let text = GOOD.replace(
+        "family = \"ball\"",
+        "family = \"handlebody\"\ngenus = [1, 2]",
+    );
+    let m = parse(&text).unwrap();
+    assert_eq!(m.classes.len(), 2);
+}

@@ -272,7 +272,7 @@ fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanEr
         let mut last_reason = String::new();
         for mode in manifest.mode.to_vec() {
             for &copies in &components {
-                let family = with_copies(class, copies);
+                let family = bettimill_manifest::class_with_copies(class, copies);
                 for &bin in &bins {
                     let mut label = format!("{}/{}", class.label(), mode_name(mode));
                     if manifest.components.is_some() {
@@ -320,20 +320,6 @@ fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanEr
         }
     }
     Ok((strata, infeasible))
-}
-
-/// The class object repeated `copies` times (a scene; a scene's objects are repeated).
-fn with_copies(class: &Family, copies: u32) -> Family {
-    if copies == 1 {
-        return class.clone();
-    }
-    let one: Vec<Family> = match class {
-        Family::Scene { objects } => objects.clone(),
-        other => vec![other.clone()],
-    };
-    Family::Scene {
-        objects: (0..copies).flat_map(|_| one.iter().cloned()).collect(),
-    }
 }
 
 /// The manifest spelling of a mode.

@@ -1,0 +1,70 @@
+//! Golden plan hashes for every preset in `manifests/`.
+//!
+//! A plan hash covers the strata, shards and dealing order, and sample seeds follow from the
+//! manifest hash, so these two numbers pin down every sample of a preset. If a change to the
+//! schema or the planner alters them on purpose, that is a new dataset: update the table
+//! in the same commit and say so in the changelog.
+
+use bettimill_manifest::Manifest;
+use bettimill_plan::Plan;
+use std::path::Path;
+
+const GOLDEN: &[(&str, &str, &str)] = &[
+    (
+        "4d-mixed-128.toml",
+        "0a569d549084b9b4769ee989a102a41083ef0a09629eea49d34c84284f7fcff6",
+        "b9c134a19110d5771c45ef17e8d7e5fdc9539052e2e536dc17a78f62b601f234",
+    ),
+    (
+        "demo-2d.toml",
+        "cc2354e39875e9c53d7fb5c6189489551e2077ce40d68d449fce53ccacd2d22c",
+        "025f887a385095a04e787dc2810648422f5691f07ad804f35c0dc3336b953749",
+    ),
+    (
+        "demo-3d.toml",
+        "cd84651b630c278590e533c4446138fc8450c1a2aa8a02cc16306832a37e04a3",
+        "23c6d2ca7f5ce78b049c8c5692551968c697496cec0a5876e4bccc8def4c9e7b",
+    ),
+    (
+        "demo-4d.toml",
+        "7cde66fdff2b0f6b9510368e9df75b45f28d258d081e11aafdbbfeaf77d60678",
+        "7b45f3bbdf93ccd38c116c579986e8e95c72003a091d849d8d79d48365cfe484",
+    ),
+    (
+        "paper-figures.toml",
+        "bb43be13cb9875ec7e8b5b73e5c46c2dd0a6652e83da47d5b91851e45222ffd2",
+        "3c03f6610b9c53f21220a5c7a30f8432a55566a5e90c2d96c650a653b252b144",
+    ),
+];
+
+#[test]
+fn every_preset_has_its_golden_plan() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../manifests");
+    let mut presets: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".toml"))
+        .collect();
+    presets.sort();
+    let listed: Vec<&str> = GOLDEN.iter().map(|g| g.0).collect();
+    assert_eq!(presets, listed, "every preset needs a golden entry");
+    for (file, manifest_hash, plan_hash) in GOLDEN {
+        let manifest = Manifest::from_path(&dir.join(file)).unwrap();
+        let plan = Plan::new(&manifest).unwrap();
+        assert_eq!(&plan.manifest_hash, manifest_hash, "{file}");
+        assert_eq!(&plan.hash(), plan_hash, "{file}");
+        // Two expansions agree sample by sample, not only by hash.
+        let again = Plan::new(&manifest).unwrap();
+        let last = plan.shards.last().unwrap();
+        assert_eq!(plan.shard_tasks(last), again.shard_tasks(last), "{file}");
+    }
+}
+
+#[test]
+fn the_embedded_demo_is_the_3d_preset() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../manifests");
+    assert_eq!(
+        std::fs::read_to_string(dir.join("demo-3d.toml")).unwrap(),
+        bettimill_manifest::DEMO_MANIFEST
+    );
+}
