@@ -29,8 +29,10 @@ pub(crate) const TUBE_MIN: f64 = 2.0;
 const SHELL_MIN: f64 = 1.5;
 /// Smallest gap between surfaces of two parts of one object that must not touch.
 pub(crate) const INNER_GAP: f64 = 2.5;
-/// Random placements tried per object before the grid fallback.
+/// Random placements tried per object in one round.
 const PLACEMENT_ATTEMPTS: usize = 40;
+/// Rounds of random placement before the grid or canonical fallback.
+const RANDOM_ROUNDS: usize = 6;
 
 type Betti = (Vec<u64>, Option<Vec<u64>>);
 
@@ -1163,8 +1165,26 @@ fn place_objects(
         .iter()
         .map(|o| min_extent(o, dim).unwrap_or(f64::INFINITY))
         .collect();
-    if let Some(out) = place_random(objects, &minima, dim, side, region, rng, false) {
-        return Ok((out, "random"));
+    // Largest first: big objects find room in the empty image, small ones fit into the
+    // gaps left. Several rounds, the later ones at minimum sizes, before the fallbacks,
+    // so that fallbacks (which are less diverse) stay rare.
+    let mut order: Vec<usize> = (0..count).collect();
+    order.sort_by(|&a, &b| minima[b].total_cmp(&minima[a]).then(a.cmp(&b)));
+    let sorted_objects: Vec<Family> = order.iter().map(|&k| objects[k].clone()).collect();
+    let sorted_minima: Vec<f64> = order.iter().map(|&k| minima[k]).collect();
+    for round in 0..RANDOM_ROUNDS {
+        let at_minimum = round >= RANDOM_ROUNDS / 2;
+        if let Some(out) = place_random(
+            &sorted_objects,
+            &sorted_minima,
+            dim,
+            side,
+            region,
+            rng,
+            at_minimum,
+        ) {
+            return Ok((out, "random"));
+        }
     }
     let fits_grid = grid_fits(&minima, dim, region);
     if !fits_grid {
