@@ -69,8 +69,8 @@ fn topology_from_counts(padded: &BinaryImage) -> Topology {
     let b0 = components::count_components(padded, 1);
     let top = components::count_components(padded, 0) - 1;
     let betti = if d == 2 {
-        // chi = b0 - b1.
-        vec![b0, (b0 as i64 - chi) as u64]
+        // b1 = top here, so chi = b0 - b1 is a genuine cross-check below.
+        vec![b0, top]
     } else {
         // chi = b0 - b1 + b2.
         vec![b0, (b0 as i64 + top as i64 - chi) as u64, top]
