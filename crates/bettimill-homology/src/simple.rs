@@ -374,8 +374,13 @@ impl SimpleTester {
     /// panics on an out-of-range index.
     #[inline]
     pub(crate) fn configuration_unchecked(&self, image: &BinaryImage, index: usize) -> u128 {
-        let strides = image.strides();
-        let data = image.data();
+        self.configuration_in(image.data(), image.strides(), index)
+    }
+
+    /// The configuration of voxel `index` of C-order voxel bytes `data` laid out with
+    /// `strides` (which may be a slab of a larger image: only the strides matter).
+    #[inline]
+    pub(crate) fn configuration_in(&self, data: &[u8], strides: &[usize], index: usize) -> u128 {
         let start = index - strides.iter().sum::<usize>();
         let row = |p: usize| -> u128 {
             // One unaligned 4-byte load instead of three byte loads: with bytes a, b, c

@@ -5,9 +5,10 @@
 //! blob ends as a single voxel. The remnant's cubical complex is then small enough for
 //! explicit homology.
 //!
-//! Simple points are not jointly deletable, so deletion is strictly sequential: raster
-//! sweeps in index order, each voxel tested against the image as it is at that moment,
-//! until a sweep deletes nothing. Raster order is deterministic and needs no queue, and
+//! Simple points are not jointly deletable, so deletion is sequential: raster sweeps in
+//! index order, each voxel tested against the image as it is at that moment, until a sweep
+//! deletes nothing (the first sweep splits into two slabs too far apart to interact; see
+//! [`thin`]). Raster order is deterministic and needs no queue, and
 //! because the voxels before x are already gone when x is visited, the first sweep (over
 //! the whole image) deletes about 99% of a blob; later sweeps only revisit the survivors.
 //! The 4D test has no table, so its answers are memoised in a small direct-mapped cache
@@ -49,9 +50,46 @@ impl SimpleCache {
     }
 }
 
+/// One raster sweep over the voxels `range` of the slab `data` (C order, `strides` of the
+/// full image), deleting simple ones; pushes the foreground survivors, shifted by
+/// `global_offset`, to `survivors`.
+fn sweep(
+    tester: &SimpleTester,
+    data: &mut [u8],
+    strides: &[usize],
+    face_steps: &[isize],
+    range: std::ops::Range<usize>,
+    global_offset: usize,
+    survivors: &mut Vec<usize>,
+) {
+    let mut cache = SimpleCache::new(16);
+    for i in range {
+        if data[i] == 0 {
+            continue;
+        }
+        // A voxel whose face neighbours are all foreground is never simple (the background
+        // part of its neighbourhood is empty); that check is much cheaper than the test.
+        let exposed = face_steps
+            .iter()
+            .any(|&s| data[(i as isize + s) as usize] == 0);
+        if exposed && cache.is_simple(tester, tester.configuration_in(data, strides, i)) {
+            data[i] = 0;
+        } else {
+            survivors.push(i + global_offset);
+        }
+    }
+}
+
 /// Deletes simple foreground voxels of `image` until none is simple and returns the
 /// survivors' indices in increasing order. `image` must have a background border, so every
 /// foreground voxel has all its neighbours inside.
+///
+/// The first sweep, which does almost all the work, runs on two threads: the image is cut
+/// across its first axis into slabs A (planes below k) and B (planes from k + 2 on) with
+/// planes k and k + 1 left alone. A voxel of A and a voxel of B are at least three planes
+/// apart, so neither ever reads what the other writes: the outcome is exactly that of
+/// sweeping A and then B sequentially, whatever the thread timing. The seam planes are
+/// swept with the survivors afterwards.
 pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize> {
     debug_assert!(image.border_is_background());
     let face_steps: Vec<isize> = flat_offsets(image, tester.offsets())
@@ -60,31 +98,70 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
         .filter(|(_, off)| off.iter().map(|o| o.abs()).sum::<i8>() == 1)
         .map(|(s, _)| s)
         .collect();
-    let mut cache = SimpleCache::new(16);
-    // Tries to delete voxel i; false when it stays.
-    let mut try_delete = |image: &mut BinaryImage, i: usize| -> bool {
-        let data = image.data();
-        // A voxel whose face neighbours are all foreground is never simple (the background
-        // part of its neighbourhood is empty); that check is much cheaper than the test.
-        let exposed = face_steps
-            .iter()
-            .any(|&s| data[(i as isize + s) as usize] == 0);
-        if exposed && cache.is_simple(tester, tester.configuration_unchecked(image, i)) {
-            image.data_mut()[i] = 0;
-            true
-        } else {
-            false
-        }
-    };
+    let strides = image.strides().to_vec();
+    let planes = image.shape()[0];
+    let plane = strides[0];
+    let len = image.len();
     let mut remaining = Vec::new();
-    for i in 0..image.len() {
-        if image.data()[i] == 1 && !try_delete(image, i) {
-            remaining.push(i);
-        }
+    if planes >= 8 {
+        let k = planes / 2;
+        let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
+        let (mut survivors_a, mut survivors_b) = (Vec::new(), Vec::new());
+        rayon::join(
+            || {
+                sweep(
+                    tester,
+                    slab_a,
+                    &strides,
+                    &face_steps,
+                    0..k * plane,
+                    0,
+                    &mut survivors_a,
+                )
+            },
+            || {
+                let n_b = slab_b.len();
+                sweep(
+                    tester,
+                    slab_b,
+                    &strides,
+                    &face_steps,
+                    plane..n_b,
+                    (k + 1) * plane,
+                    &mut survivors_b,
+                )
+            },
+        );
+        remaining = survivors_a;
+        let data = image.data();
+        remaining.extend((k * plane..(k + 2) * plane).filter(|&i| data[i] == 1));
+        remaining.extend(survivors_b);
+    } else {
+        sweep(
+            tester,
+            image.data_mut(),
+            &strides,
+            &face_steps,
+            0..len,
+            0,
+            &mut remaining,
+        );
     }
+    let mut cache = SimpleCache::new(16);
     loop {
         let before = remaining.len();
-        remaining.retain(|&i| !try_delete(image, i));
+        remaining.retain(|&i| {
+            let data = image.data();
+            let exposed = face_steps
+                .iter()
+                .any(|&s| data[(i as isize + s) as usize] == 0);
+            if exposed && cache.is_simple(tester, tester.configuration_unchecked(image, i)) {
+                image.data_mut()[i] = 0;
+                false
+            } else {
+                true
+            }
+        });
         if remaining.len() == before {
             return remaining;
         }
