@@ -50,12 +50,12 @@ fn cases() -> Vec<(Family, [usize; 3])> {
         (Handle, [32, 32, 20]),
         (Shell, [32, 32, 20]),
         (TorusShell, [32, 40, 0]),
-        (Handlebody { genus: 2 }, [32, 40, 28]),
-        (Handlebody { genus: 3 }, [40, 48, 0]),
+        (Handlebody { genus: 2 }, [32, 40, 32]),
+        (Handlebody { genus: 3 }, [48, 48, 0]),
         (S2xB2, [0, 0, 20]),
         (T2xB2, [0, 0, 32]),
         (S1xHandlebody { j: 1 }, [0, 40, 32]),
-        (S1xHandlebody { j: 2 }, [0, 48, 0]),
+        (S1xHandlebody { j: 2 }, [0, 64, 0]),
         (
             ConnectedSum {
                 g: 1,
@@ -81,7 +81,7 @@ fn cases() -> Vec<(Family, [usize; 3])> {
                 i: 1,
                 j: 1,
             },
-            [0, 56, 0],
+            [0, 64, 0],
         ),
         (
             Tunnel {
@@ -121,7 +121,7 @@ fn cases() -> Vec<(Family, [usize; 3])> {
                 circle: false,
                 genus: 2,
             },
-            [0, 40, 28],
+            [0, 40, 32],
         ),
         (Curve, [32, 32, 16]),
         (knot(KnotKind::Unknot), [0, 32, 20]),
