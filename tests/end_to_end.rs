@@ -84,6 +84,12 @@ fn two_builds_of_the_demo_are_byte_identical() {
     let (sa, sb) = (snapshot(&a), snapshot(&b));
     assert!(sa.keys().any(|k| k.starts_with("shards")));
     assert!(sa.contains_key(Path::new("index.json")));
+    assert!(sa.contains_key(Path::new("shardindex-train.json")));
+    let card = String::from_utf8(sa[Path::new("README.md")].clone()).unwrap();
+    assert!(
+        card.contains("| 3 | handle/carve | [1, 1, 1] | 60 |"),
+        "{card}"
+    );
     assert_eq!(sa.keys().collect::<Vec<_>>(), sb.keys().collect::<Vec<_>>());
     for (name, bytes) in &sa {
         assert!(

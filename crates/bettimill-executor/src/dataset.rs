@@ -208,10 +208,26 @@ impl Dataset {
 
     /// Generates, verifies and writes one shard (tar first, then its record).
     pub fn write_shard(&self, shard: &ShardPlan) -> Result<CompletionRecord, BuildError> {
+        self.write_shard_with_progress(shard, &|_| {})
+    }
+
+    /// [`Dataset::write_shard`], calling `progress` with each sample's regenerations
+    /// (rejected attempts) as soon as that sample is verified. Samples run on the current
+    /// rayon pool, so the calls come from its threads in no particular order; the bytes
+    /// written do not depend on that order.
+    pub fn write_shard_with_progress(
+        &self,
+        shard: &ShardPlan,
+        progress: &(dyn Fn(u32) + Sync),
+    ) -> Result<CompletionRecord, BuildError> {
         let tasks = self.plan.shard_tasks(shard);
         let samples: Vec<_> = tasks
             .par_iter()
-            .map(|task| make_sample(&self.manifest, &self.plan, task))
+            .map(|task| {
+                let sample = make_sample(&self.manifest, &self.plan, task)?;
+                progress(sample.label.attempt);
+                Ok(sample)
+            })
             .collect::<Result<_, _>>()
             .map_err(|source| BuildError::Sample {
                 shard: shard.name.clone(),
@@ -249,7 +265,7 @@ impl Dataset {
         }
         let relative = format!("shards/{}.tar", shard.name);
         let (bytes, record) = shard::build_shard(&relative, &shard.split, &members)?;
-        shard::write_atomic(&self.tar_path(shard), &bytes)?;
+        write_tar_atomically(&self.tar_path(shard), &bytes)?;
         let completion = CompletionRecord {
             shard: record,
             regenerations: regenerations.into_iter().collect(),
@@ -283,6 +299,94 @@ impl Dataset {
         Ok(summary)
     }
 
+    /// The state of one shard, judged from the directory alone.
+    pub fn shard_state(&self, shard: &ShardPlan) -> ShardState {
+        let record_path = self.record_path(shard);
+        let tar_path = self.tar_path(shard);
+        let record = match std::fs::read(&record_path) {
+            Ok(bytes) => bytes,
+            Err(err) if err.kind() == std::io::ErrorKind::NotFound => {
+                return if tar_path.exists() {
+                    ShardState::Invalid {
+                        reason: format!("{} has no completion record", tar_path.display()),
+                    }
+                } else {
+                    ShardState::Missing
+                };
+            }
+            Err(err) => {
+                return ShardState::Invalid {
+                    reason: format!("{}: {err}", record_path.display()),
+                }
+            }
+        };
+        let record: CompletionRecord = match serde_json::from_slice(&record) {
+            Ok(record) => record,
+            Err(err) => {
+                return ShardState::Invalid {
+                    reason: format!("{}: not a completion record: {err}", record_path.display()),
+                }
+            }
+        };
+        let tar = match std::fs::read(&tar_path) {
+            Ok(tar) => tar,
+            Err(err) => {
+                return ShardState::Invalid {
+                    reason: format!("{}: {err}", tar_path.display()),
+                }
+            }
+        };
+        if tar.len() as u64 != record.shard.bytes {
+            return ShardState::Invalid {
+                reason: format!(
+                    "{} has {} bytes, its record says {}",
+                    tar_path.display(),
+                    tar.len(),
+                    record.shard.bytes
+                ),
+            };
+        }
+        let found = blake3::hash(&tar).to_hex().to_string();
+        if found != record.shard.blake3 {
+            return ShardState::Invalid {
+                reason: format!(
+                    "{} has blake3 {found}, its record says {}",
+                    tar_path.display(),
+                    record.shard.blake3
+                ),
+            };
+        }
+        ShardState::Complete(record)
+    }
+
+    /// Removes the temporary files that killed writers leave behind (`.NAME.tmp-PID` in the
+    /// directory, `shards/` and `records/`). Call it only when no other process is writing
+    /// this dataset: under the directory lock, or once every shard is complete.
+    pub fn remove_temporaries(&self) -> Result<Vec<PathBuf>, BuildError> {
+        let mut removed = Vec::new();
+        for dir in [
+            self.dir.clone(),
+            self.dir.join("shards"),
+            self.dir.join("records"),
+        ] {
+            let entries = match std::fs::read_dir(&dir) {
+                Ok(entries) => entries,
+                Err(err) if err.kind() == std::io::ErrorKind::NotFound => continue,
+                Err(source) => return Err(BuildError::Io { path: dir, source }),
+            };
+            for entry in entries {
+                let entry = entry.map_err(io(&dir))?;
+                let name = entry.file_name().to_string_lossy().into_owned();
+                if name.starts_with('.') && name.contains(".tmp-") {
+                    let path = entry.path();
+                    std::fs::remove_file(&path).map_err(io(&path))?;
+                    removed.push(path);
+                }
+            }
+        }
+        Ok(removed)
+    }
+
     /// The shards that are not complete yet.
     pub fn missing_shards(&self) -> Vec<ShardPlan> {
         self.plan
@@ -309,9 +413,104 @@ impl Dataset {
             self.plan.hash(),
             shards,
         );
+        // Indexes for other tools and the dataset card first: index.json is written last,
+        // so its presence means the whole dataset is complete.
+        for split in index.splits() {
+            let bytes = shard::wids_index(&split, &index.split_shards(&split));
+            shard::write_atomic(&self.dir.join(format!("shardindex-{split}.json")), &bytes)?;
+        }
+        shard::write_atomic(&self.dir.join("README.md"), self.dataset_card().as_bytes())?;
         shard::write_atomic(&self.dir.join("index.json"), &index.to_json_bytes())?;
         Ok(index)
     }
+
+    /// The dataset card written as DIR/README.md: what the dataset is, how it was built,
+    /// its label distribution, and how to load it.
+    pub fn dataset_card(&self) -> String {
+        let m = &self.manifest;
+        let plan = &self.plan;
+        let mut card = format!(
+            "# {name}\n\nA dataset of {samples} binary images ({dim}D, {side}^{dim} voxels, \
+             uint8 0/1 in C order) with exact Betti numbers over Z/2, built by bettimill \
+             {version}.\n\nEvery sample was verified: its Betti numbers were computed from its \
+             voxels (union of closed voxels; foreground {fg}-adjacency, background {bg}-adjacency) \
+             and equal the construction's analytic numbers.\n\n## How it was built\n\n\
+             - manifest: `manifest.toml` (canonical hash `{mh}`)\n- plan hash: `{ph}`\n\
+             - rebuild or extend: `bettimill build manifest.toml --out DIR`\n\
+             - check: `bettimill verify DIR`\n\n## Labels\n\n\
+             | cls | class | betti | samples |\n|---|---|---|---|\n",
+            name = m.name,
+            samples = plan.samples,
+            dim = plan.dimension,
+            side = plan.side,
+            version = TOOL_VERSION,
+            fg = 3usize.pow(plan.dimension.get() as u32) - 1,
+            bg = 2 * plan.dimension.get(),
+            mh = plan.manifest_hash,
+            ph = plan.hash(),
+        );
+        for (stratum, count) in plan.strata.iter().zip(plan.total_counts()) {
+            card.push_str(&format!(
+                "| {} | {} | {:?} | {count} |\n",
+                stratum.index, stratum.label, stratum.betti
+            ));
+        }
+        card.push_str("\n## Splits\n\n| split | samples | shards |\n|---|---|---|\n");
+        for (split, size) in &plan.splits {
+            let shards = plan.shards.iter().filter(|s| &s.split == split).count();
+            card.push_str(&format!("| {split} | {size} | {shards} |\n"));
+        }
+        let first = plan.shards.first().map(|s| s.name.as_str()).unwrap_or("");
+        let last = plan.shards.last().map(|s| s.name.as_str()).unwrap_or("");
+        card.push_str(&format!(
+            "\n## Loading in PyTorch\n\n```python\nimport torch, webdataset as wds\n\
+             urls = \"shards/{{{first}..{last}}}.tar\"  # or list the files of one split\n\
+             ds = wds.WebDataset(urls, shardshuffle=False).decode().to_tuple(\"npy\", \"json\")\n\
+             loader = torch.utils.data.DataLoader(ds, batch_size=None, num_workers=2)\n\
+             for image, label in loader:\n    print(image.shape, label[\"betti\"])\n```\n\n\
+             Each sample `KEY` has `KEY.cls` (class index), `KEY.json` (label) and `KEY.npy`. \
+             `shardindex-SPLIT.json` files open with `wids.ShardListDataset`.\n"
+        ));
+        card
+    }
+}
+
+/// Test hook: seconds to sleep between writing a shard's temporary file and renaming it
+/// into place, so tests can kill a build in exactly that window. Never set it otherwise.
+pub const PAUSE_BEFORE_RENAME_ENV: &str = "BETTIMILL_TEST_PAUSE_BEFORE_RENAME";
+
+/// [`shard::write_atomic`] for shard tars, with the [`PAUSE_BEFORE_RENAME_ENV`] hook between
+/// the durable temporary file and the rename.
+fn write_tar_atomically(path: &Path, bytes: &[u8]) -> Result<(), BuildError> {
+    let pause = std::env::var(PAUSE_BEFORE_RENAME_ENV)
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0);
+    let Some(seconds) = pause else {
+        return Ok(shard::write_atomic(path, bytes)?);
+    };
+    let temporary = shard::atomic::temporary_path(path);
+    let mut file = std::fs::File::create(&temporary).map_err(io(&temporary))?;
+    std::io::Write::write_all(&mut file, bytes).map_err(io(&temporary))?;
+    file.sync_all().map_err(io(&temporary))?;
+    drop(file);
+    std::thread::sleep(std::time::Duration::from_secs_f64(seconds));
+    std::fs::rename(&temporary, path).map_err(io(path))?;
+    Ok(())
+}
+
+/// What the directory says about one shard.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ShardState {
+    /// Its record exists and the tar matches it.
+    Complete(CompletionRecord),
+    /// Neither tar nor record exists.
+    Missing,
+    /// Something exists but does not make a complete shard; it will be rebuilt.
+    Invalid {
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 fn read_build_info(path: &Path) -> Result<BuildInfo, BuildError> {
