@@ -62,7 +62,9 @@ pub enum NpyError {
     #[error("not a valid .npy file: {0}")]
     Format(String),
     /// The dtype is not boolean or integer.
-    #[error("unsupported dtype {0:?}: bettimill reads bool and integer arrays (non-zero = foreground)")]
+    #[error(
+        "unsupported dtype {0:?}: bettimill reads bool and integer arrays (non-zero = foreground)"
+    )]
     Dtype(String),
     /// The array is stored in Fortran order.
     #[error("Fortran-order arrays are not supported; save with numpy.ascontiguousarray")]
@@ -370,7 +372,9 @@ mod tests {
     #[test]
     fn round_trips_every_integer_dtype() {
         let img = sample();
-        for descr in ["|u1", "|i1", "|b1", "<u2", ">i2", "<i4", ">u4", "<i8", ">u8"] {
+        for descr in [
+            "|u1", "|i1", "|b1", "<u2", ">i2", "<i4", ">u4", "<i8", ">u8",
+        ] {
             let dtype = parse_descr(descr).unwrap();
             let bytes = write_bytes(&img, dtype);
             assert_eq!((bytes.len() - img.len() * dtype.size) % 64, 0);
@@ -385,10 +389,7 @@ mod tests {
         let img = sample();
         let good = write_bytes(&img, Dtype::U8);
         let text = replace(&good, "|u1", "<f4");
-        assert!(matches!(
-            read_bytes(&text, false),
-            Err(NpyError::Dtype(_))
-        ));
+        assert!(matches!(read_bytes(&text, false), Err(NpyError::Dtype(_))));
         let text = replace(&good, "False", "True ");
         assert!(matches!(
             read_bytes(&text, false),
@@ -398,7 +399,10 @@ mod tests {
             read_bytes(&good[..good.len() - 1], false),
             Err(NpyError::Truncated { .. })
         ));
-        assert!(matches!(read_bytes(&good[..20], false), Err(NpyError::Format(_))));
+        assert!(matches!(
+            read_bytes(&good[..20], false),
+            Err(NpyError::Format(_))
+        ));
         let mut extra = good.clone();
         extra.push(0);
         assert!(matches!(
