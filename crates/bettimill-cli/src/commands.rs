@@ -1,7 +1,6 @@
 //! Subcommands. Each returns a [`Status`] or an error that `main` reports with exit code 2.
 
 use anyhow::Context;
-use bettimill_executor::Dataset;
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -30,6 +29,40 @@ enum Command {
         /// Output directory: new, empty, or a partial build of the same manifest to resume.
         #[arg(long)]
         out: PathBuf,
+        /// Worker processes (default: the number of cores).
+        #[arg(long)]
+        workers: Option<usize>,
+        /// Give a shard up after this many failed attempts (worker deaths included).
+        #[arg(long, default_value_t = bettimill_executor::coordinator::DEFAULT_MAX_SHARD_FAILURES)]
+        max_shard_failures: u32,
+    },
+    /// Internal: a build worker (started by `build`, or as an array task on a cluster).
+    #[command(hide = true)]
+    Worker(crate::cluster::WorkerArgs),
+    /// Write Slurm array and finalize scripts for a dataset (and submit them).
+    ///
+    /// Example: bettimill slurm manifests/demo-3d.toml --out /shared/demo --tasks 8 --submit
+    Slurm(crate::cluster::SlurmArgs),
+    /// Print a Kubernetes Indexed Job that builds a dataset.
+    ///
+    /// Example: bettimill k8s manifests/demo-3d.toml --out /data/demo --tasks 8
+    K8s(crate::cluster::KubernetesArgs),
+    /// Write index.json once every shard of a dataset is complete.
+    ///
+    /// Example: bettimill finalize /shared/demo
+    Finalize {
+        /// The dataset directory.
+        dir: PathBuf,
+    },
+    /// Show which shards of a dataset are complete, missing or invalid.
+    ///
+    /// Example: bettimill status /shared/demo --json
+    Status {
+        /// The dataset directory.
+        dir: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
     },
     /// Check every shard and member of a dataset against its index.json.
     ///
@@ -74,6 +107,10 @@ pub enum Status {
     Differs,
     /// Exit 2: usage error, bad input, or failure.
     Failure,
+    /// Exit 130: interrupted by Ctrl-C or SIGTERM (resumable).
+    Interrupted,
+    /// Another documented exit code (3: a cluster task failed on purpose, test hook).
+    Code(u8),
 }
 
 impl From<Status> for ExitCode {
@@ -82,6 +119,8 @@ impl From<Status> for ExitCode {
             Status::Success => 0,
             Status::Differs => 1,
             Status::Failure => 2,
+            Status::Interrupted => 130,
+            Status::Code(code) => code,
         })
     }
 }
@@ -89,7 +128,23 @@ impl From<Status> for ExitCode {
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<Status> {
     match cli.command {
-        Command::Build { manifest, out } => build(manifest.as_deref(), &out, cli.quiet),
+        Command::Build {
+            manifest,
+            out,
+            workers,
+            max_shard_failures,
+        } => crate::cluster::build(
+            manifest.as_deref(),
+            &out,
+            workers,
+            max_shard_failures,
+            cli.quiet,
+        ),
+        Command::Worker(args) => crate::cluster::worker(args, cli.quiet),
+        Command::Slurm(args) => crate::cluster::slurm(args, cli.quiet),
+        Command::K8s(args) => crate::cluster::kubernetes(args),
+        Command::Finalize { dir } => crate::cluster::finalize(&dir, cli.quiet),
+        Command::Status { dir, json } => crate::cluster::status(&dir, json),
         Command::Verify { dir, json } => verify(&dir, json),
         Command::Betti {
             image,
@@ -117,29 +172,6 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
             Ok((DEMO_MANIFEST.to_string(), manifest))
         }
     }
-}
-
-fn build(manifest: Option<&Path>, out: &Path, quiet: bool) -> anyhow::Result<Status> {
-    let (text, manifest) = load_manifest(manifest)?;
-    let dataset = Dataset::create(out, &text, manifest)?;
-    let started = std::time::Instant::now();
-    let summary = dataset.build_in_process(|done, total| {
-        if !quiet {
-            eprint!("\rshards {done}/{total}");
-        }
-    })?;
-    if !quiet {
-        eprintln!(
-            "\rbuilt {} shards, skipped {} complete ones; {} samples, {} regenerations, {:.1} s\n{}",
-            summary.built,
-            summary.skipped,
-            summary.samples,
-            summary.regenerations,
-            started.elapsed().as_secs_f64(),
-            out.join("index.json").display()
-        );
-    }
-    Ok(Status::Success)
 }
 
 fn verify(dir: &Path, json: bool) -> anyhow::Result<Status> {

@@ -1,9 +1,11 @@
 //! The `bettimill` binary: parse arguments, dispatch, map errors to exit codes.
 //!
 //! Exit codes (documented in README.md): 0 success; 1 a check found differences (verify);
-//! 2 bad input, usage error or failure. Everything else lives in library crates; this crate
+//! 2 bad input, usage error or failure; 3 a cluster task failed on purpose (test hook);
+//! 130 interrupted (resumable). Everything else lives in library crates; this crate
 //! is the only one that prints.
 
+mod cluster;
 mod commands;
 mod plan;
 

@@ -17,6 +17,25 @@
 //! shard is a pure function of (manifest, shard index) the result is byte-identical to an
 //! uninterrupted build.
 
-mod dataset;
+//!
+//! Besides the in-process build ([`Dataset::build_in_process`]) there are two ways to run a
+//! plan across processes, both writing shards with [`Dataset::write_shard`] so the bytes
+//! are the same whoever writes them:
+//!
+//! - [`coordinator`]: `bettimill build --workers N` on one machine; worker processes speak
+//!   the [`protocol`] on their stdin/stdout; DIR/.lock ([`lock`]) keeps a second build out.
+//! - [`cluster`]: Slurm array jobs and Kubernetes Indexed Jobs whose tasks run
+//!   [`worker::run_task`] on a shared file system, then `bettimill finalize DIR`.
 
-pub use dataset::{BuildError, BuildSummary, Dataset, ShardOutcome};
+pub mod cluster;
+pub mod coordinator;
+mod dataset;
+pub mod lock;
+pub mod protocol;
+pub mod worker;
+
+pub use dataset::{
+    BuildError, BuildInfo, BuildSummary, CompletionRecord, Dataset, ShardOutcome, ShardState,
+    PAUSE_BEFORE_RENAME_ENV,
+};
+pub use lock::{DirLock, LockError};

@@ -1,0 +1,88 @@
+//! The lock that keeps two builds out of one dataset directory.
+//!
+//! `DIR/.lock` is an empty file that a coordinator locks exclusively (`flock`-style advisory
+//! lock through [`std::fs::File::try_lock`]) for its whole run. The operating system drops
+//! the lock when the process exits in any way, kill -9 included, so a lock left by a dead
+//! process is never mistaken for a live one and needs no cleaning up: the file stays, the
+//! lock does not. The file is always empty, so it never makes two directories differ.
+//!
+//! Cluster workers (`bettimill worker --task-index-from-env`) do not take it: they build
+//! disjoint shards on shared file systems where such locks may not work, and every write is
+//! atomic with deterministic bytes anyway.
+
+use std::fs::{File, OpenOptions, TryLockError};
+use std::path::{Path, PathBuf};
+
+/// Why the directory could not be locked.
+#[derive(Debug, thiserror::Error)]
+pub enum LockError {
+    /// Another live process holds the lock.
+    #[error("another bettimill build is running in {dir} (it holds {path}); wait for it to finish or stop it, or use another --out directory")]
+    Busy {
+        /// The dataset directory.
+        dir: PathBuf,
+        /// The lock file.
+        path: PathBuf,
+    },
+    /// The lock file could not be opened or locked.
+    #[error("cannot lock {path}: {source}")]
+    Io {
+        /// The lock file.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+}
+
+/// An exclusive lock on a dataset directory, released on drop or process exit.
+#[derive(Debug)]
+pub struct DirLock {
+    _file: File,
+    path: PathBuf,
+}
+
+impl DirLock {
+    /// Takes the lock on `dir` (which must exist) without waiting.
+    pub fn acquire(dir: &Path) -> Result<DirLock, LockError> {
+        let path = dir.join(".lock");
+        let file = OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|source| LockError::Io {
+                path: path.clone(),
+                source,
+            })?;
+        match file.try_lock() {
+            Ok(()) => Ok(DirLock { _file: file, path }),
+            Err(TryLockError::WouldBlock) => Err(LockError::Busy {
+                dir: dir.to_path_buf(),
+                path,
+            }),
+            Err(TryLockError::Error(source)) => Err(LockError::Io { path, source }),
+        }
+    }
+
+    /// The lock file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_second_lock_is_refused_until_the_first_is_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let first = DirLock::acquire(dir.path()).unwrap();
+        let err = DirLock::acquire(dir.path()).unwrap_err();
+        assert!(matches!(err, LockError::Busy { .. }), "{err}");
+        assert!(err.to_string().contains("another bettimill build"), "{err}");
+        drop(first);
+        let again = DirLock::acquire(dir.path()).unwrap();
+        assert_eq!(std::fs::read(again.path()).unwrap(), b"");
+    }
+}

@@ -1,0 +1,347 @@
+//! The worker side: serving a coordinator over pipes, and cluster array tasks.
+//!
+//! Two ways to run a worker:
+//!
+//! - [`serve`]: `bettimill worker --dir DIR` started by `bettimill build`. It speaks the
+//!   [`crate::protocol`] on stdin/stdout, builds the shards it is asked for on a rayon pool
+//!   of one thread (so N workers use N cores), and exits as soon as its stdin reaches end of
+//!   file, which is how it notices that its coordinator died.
+//! - [`run_task`]: `bettimill worker --dir DIR --task-index-from-env --task-count N` in a
+//!   Slurm/Kubernetes/PBS/SGE/LSF array job. Task `t` builds the shards `s` with
+//!   `s % N == t` that are not complete yet; the directory is the only coordination.
+//!
+//! Test hooks (documented in docs/cluster.md; never set them otherwise):
+//! [`FAIL_TASK_ENV`] makes array task `t` fail before any work, [`FAIL_SHARD_ENV`] makes
+//! every attempt at one shard fail, and [`crate::PAUSE_BEFORE_RENAME_ENV`] widens the window
+//! between a shard's temporary file and its rename.
+
+use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
+use crate::{BuildError, Dataset};
+use bettimill_sample::TOOL_VERSION;
+use std::io::{Read, Write};
+use std::sync::Mutex;
+
+/// Test hook: the array task with this index exits with code 3 before doing any work.
+pub const FAIL_TASK_ENV: &str = "BETTIMILL_TEST_FAIL_TASK";
+
+/// Test hook: every attempt at the shard with this index fails (nothing is written).
+pub const FAIL_SHARD_ENV: &str = "BETTIMILL_TEST_FAIL_SHARD";
+
+/// Why a worker stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkerError {
+    /// The dataset could not be opened.
+    #[error(transparent)]
+    Build(#[from] BuildError),
+    /// The session with the coordinator broke.
+    #[error(transparent)]
+    Protocol(#[from] ProtocolError),
+    /// A worker pool could not be made.
+    #[error("cannot start the worker's thread pool: {0}")]
+    Pool(String),
+    /// No array index in the environment.
+    #[error("no array task index in the environment: set one of {}, or pass --task-index", TASK_INDEX_VARIABLES.iter().map(|v| v.0).collect::<Vec<_>>().join(", "))]
+    NoTaskIndex,
+    /// An array index that is not a number in range.
+    #[error("{variable}={value} is not a task index below --task-count {count} ({base}-based)")]
+    BadTaskIndex {
+        /// The variable read.
+        variable: String,
+        /// Its value.
+        value: String,
+        /// The task count.
+        count: u64,
+        /// 0 or 1.
+        base: u64,
+    },
+    /// The failure-injection hook fired.
+    #[error("{FAIL_TASK_ENV}={index}: failing array task {index} on purpose (test hook)")]
+    InjectedTaskFailure {
+        /// The task index.
+        index: u64,
+    },
+}
+
+/// Environment variables that carry an array task index, with the index of the first task.
+pub const TASK_INDEX_VARIABLES: [(&str, u64); 5] = [
+    ("SLURM_ARRAY_TASK_ID", 0),
+    ("JOB_COMPLETION_INDEX", 0),
+    ("PBS_ARRAY_INDEX", 0),
+    ("SGE_TASK_ID", 1),
+    ("LSB_JOBINDEX", 1),
+];
+
+/// Where a task index came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TaskIndex {
+    /// The 0-based index.
+    pub index: u64,
+    /// The variable it was read from.
+    pub variable: &'static str,
+}
+
+/// Reads the array task index from the first of [`TASK_INDEX_VARIABLES`] that is set
+/// (SGE's "undefined" counts as unset), converting 1-based schedulers to 0-based.
+pub fn task_index_from_env(
+    lookup: impl Fn(&str) -> Option<String>,
+    count: u64,
+) -> Result<TaskIndex, WorkerError> {
+    for (variable, base) in TASK_INDEX_VARIABLES {
+        let Some(value) = lookup(variable) else {
+            continue;
+        };
+        let value = value.trim().to_string();
+        if value.is_empty() || value == "undefined" {
+            continue;
+        }
+        let bad = || WorkerError::BadTaskIndex {
+            variable: variable.to_string(),
+            value: value.clone(),
+            count,
+            base,
+        };
+        let raw: u64 = value.parse().map_err(|_| bad())?;
+        let index = raw.checked_sub(base).ok_or_else(bad)?;
+        if index >= count {
+            return Err(bad());
+        }
+        return Ok(TaskIndex { index, variable });
+    }
+    Err(WorkerError::NoTaskIndex)
+}
+
+fn injected_shard_failure(shard_index: u64) -> bool {
+    std::env::var(FAIL_SHARD_ENV)
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok())
+        == Some(shard_index)
+}
+
+fn our_handshake(dataset: &Dataset) -> Handshake {
+    Handshake {
+        protocol_version: protocol::PROTOCOL_VERSION,
+        tool_version: TOOL_VERSION.to_string(),
+        plan_hash: dataset.plan.hash(),
+    }
+}
+
+/// Serves one coordinator: handshake, then shards on request until `Shutdown` or end of
+/// input. `input` is read on its own thread; when it ends (the coordinator closed the pipe
+/// or died), `on_end_of_input` runs there, and the binary passes a function that exits the
+/// process at once, abandoning any shard in progress (its writes are atomic). If it
+/// returns, the current shard is finished first.
+pub fn serve(
+    dataset: &Dataset,
+    input: impl Read + Send + 'static,
+    output: impl Write + Send,
+    on_end_of_input: impl FnOnce() + Send + 'static,
+) -> Result<(), WorkerError> {
+    let ours = our_handshake(dataset);
+    let output = Mutex::new(output);
+    let send = |message: &FromWorker| -> Result<(), ProtocolError> {
+        let mut out = output.lock().unwrap_or_else(|e| e.into_inner());
+        protocol::write_frame(&mut *out, message, "coordinator")
+    };
+    {
+        let mut out = output.lock().unwrap_or_else(|e| e.into_inner());
+        protocol::write_frame(&mut *out, &ours, "coordinator")?;
+    }
+    let mut input = input;
+    let Some(theirs) = protocol::read_frame::<Handshake>(&mut input, "coordinator")? else {
+        return Ok(());
+    };
+    protocol::check_handshake(&ours, &theirs, Peer::Coordinator)?;
+
+    let (requests, received) = std::sync::mpsc::channel::<Result<ToWorker, ProtocolError>>();
+    std::thread::spawn(move || {
+        loop {
+            match protocol::read_frame::<ToWorker>(&mut input, "coordinator") {
+                Ok(Some(message)) => {
+                    if requests.send(Ok(message)).is_err() {
+                        return;
+                    }
+                }
+                Ok(None) => break,
+                Err(err) => {
+                    let _ = requests.send(Err(err));
+                    break;
+                }
+            }
+        }
+        on_end_of_input();
+    });
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| WorkerError::Pool(e.to_string()))?;
+    while let Ok(request) = received.recv() {
+        let shard_index = match request? {
+            ToWorker::Shutdown => break,
+            ToWorker::Build { shard_index } => shard_index,
+        };
+        let Some(shard) = usize::try_from(shard_index)
+            .ok()
+            .and_then(|i| dataset.plan.shards.get(i))
+        else {
+            send(&FromWorker::Failed {
+                shard_index,
+                reason: format!(
+                    "the plan has {} shards, there is no shard {shard_index}",
+                    dataset.plan.shards.len()
+                ),
+            })?;
+            continue;
+        };
+        if injected_shard_failure(shard_index) {
+            send(&FromWorker::Failed {
+                shard_index,
+                reason: format!("{FAIL_SHARD_ENV}={shard_index}: failing on purpose (test hook)"),
+            })?;
+            continue;
+        }
+        let progress = |regenerations: u32| {
+            // A broken pipe here means the coordinator is gone; the reader thread ends the
+            // process, so the error needs no handling of its own.
+            let _ = send(&FromWorker::Progress {
+                shard_index,
+                regenerations,
+            });
+        };
+        let result = pool.install(|| dataset.write_shard_with_progress(shard, &progress));
+        match result {
+            Ok(record) => send(&FromWorker::Done {
+                shard_index,
+                regenerations: record.regenerations.iter().map(|r| r.1).sum(),
+                bytes: record.shard.bytes,
+            })?,
+            Err(err) => send(&FromWorker::Failed {
+                shard_index,
+                reason: err.to_string(),
+            })?,
+        }
+    }
+    Ok(())
+}
+
+/// What one array task did.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TaskReport {
+    /// Shards this task built now.
+    pub built: Vec<String>,
+    /// Shards of this task that were already complete.
+    pub skipped: Vec<String>,
+    /// Shards that failed, with the reason.
+    pub failed: Vec<(String, String)>,
+}
+
+/// Builds the incomplete shards of array task `task_index` of `task_count` (every shard `s`
+/// with `s % task_count == task_index`), on the current rayon pool. A failing shard is
+/// reported and the others are still built. `on_shard` is called after each shard.
+pub fn run_task(
+    dataset: &Dataset,
+    task_index: u64,
+    task_count: u64,
+    mut on_shard: impl FnMut(&str, Result<(), &str>),
+) -> Result<TaskReport, WorkerError> {
+    if std::env::var(FAIL_TASK_ENV)
+        .ok()
+        .and_then(|v| v.parse::<u64>().ok())
+        == Some(task_index)
+    {
+        return Err(WorkerError::InjectedTaskFailure { index: task_index });
+    }
+    let mut report = TaskReport::default();
+    for shard in dataset
+        .plan
+        .shards
+        .iter()
+        .filter(|s| task_count > 0 && s.index % task_count == task_index)
+    {
+        if dataset.completed(shard).is_some() {
+            report.skipped.push(shard.name.clone());
+            continue;
+        }
+        let result = if injected_shard_failure(shard.index) {
+            Err(format!(
+                "{FAIL_SHARD_ENV}={}: failing on purpose (test hook)",
+                shard.index
+            ))
+        } else {
+            dataset
+                .write_shard(shard)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        };
+        match result {
+            Ok(()) => {
+                on_shard(&shard.name, Ok(()));
+                report.built.push(shard.name.clone());
+            }
+            Err(reason) => {
+                on_shard(&shard.name, Err(&reason));
+                report.failed.push((shard.name.clone(), reason));
+            }
+        }
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(vars: &[(&str, &str)], count: u64) -> Result<(u64, &'static str), String> {
+        let lookup = |name: &str| {
+            vars.iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, v)| v.to_string())
+        };
+        task_index_from_env(lookup, count)
+            .map(|t| (t.index, t.variable))
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn task_indices_from_every_scheduler() {
+        assert_eq!(
+            check(&[("SLURM_ARRAY_TASK_ID", "2")], 4),
+            Ok((2, "SLURM_ARRAY_TASK_ID"))
+        );
+        assert_eq!(
+            check(&[("JOB_COMPLETION_INDEX", "0")], 4),
+            Ok((0, "JOB_COMPLETION_INDEX"))
+        );
+        assert_eq!(
+            check(&[("PBS_ARRAY_INDEX", "3")], 4),
+            Ok((3, "PBS_ARRAY_INDEX"))
+        );
+        assert_eq!(check(&[("SGE_TASK_ID", "1")], 4), Ok((0, "SGE_TASK_ID")));
+        assert_eq!(check(&[("LSB_JOBINDEX", "4")], 4), Ok((3, "LSB_JOBINDEX")));
+        // SGE sets "undefined" outside array jobs; the next variable is used.
+        assert_eq!(
+            check(&[("SGE_TASK_ID", "undefined"), ("LSB_JOBINDEX", "2")], 4),
+            Ok((1, "LSB_JOBINDEX"))
+        );
+        // Slurm wins over the others.
+        assert_eq!(
+            check(&[("LSB_JOBINDEX", "1"), ("SLURM_ARRAY_TASK_ID", "3")], 4),
+            Ok((3, "SLURM_ARRAY_TASK_ID"))
+        );
+    }
+
+    #[test]
+    fn bad_task_indices_are_refused_with_the_variable() {
+        let err = check(&[("SLURM_ARRAY_TASK_ID", "4")], 4).unwrap_err();
+        assert!(
+            err.contains("SLURM_ARRAY_TASK_ID=4") && err.contains("4"),
+            "{err}"
+        );
+        let err = check(&[("SGE_TASK_ID", "0")], 4).unwrap_err();
+        assert!(err.contains("1-based"), "{err}");
+        let err = check(&[("PBS_ARRAY_INDEX", "x")], 4).unwrap_err();
+        assert!(err.contains("PBS_ARRAY_INDEX=x"), "{err}");
+        let err = check(&[], 4).unwrap_err();
+        assert!(err.contains("JOB_COMPLETION_INDEX"), "{err}");
+    }
+}

@@ -1,0 +1,380 @@
+//! Multi-process builds with real processes: `bettimill build --workers N` with worker
+//! deaths, coordinator deaths (kill -9 at several points, including between a shard's
+//! temporary file and its rename), a second concurrent build, a shard that keeps failing,
+//! and SIGTERM. Every finished directory must be byte-identical to a clean build.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn bettimill() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_bettimill"))
+}
+
+fn run(args: &[&str]) -> Output {
+    bettimill().args(args).output().expect("bettimill runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Every file under `dir`, by relative path, with its bytes.
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path.strip_prefix(dir).unwrap().to_path_buf();
+                out.insert(rel, std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    out
+}
+
+fn assert_same(a: &Path, b: &Path) {
+    let (sa, sb) = (snapshot(a), snapshot(b));
+    assert!(sa.contains_key(Path::new("index.json")), "{}", a.display());
+    assert_eq!(
+        sa.keys().collect::<Vec<_>>(),
+        sb.keys().collect::<Vec<_>>(),
+        "{} and {} hold different files",
+        a.display(),
+        b.display()
+    );
+    for (name, bytes) in &sa {
+        assert!(bytes == &sb[name], "{} differs", name.display());
+    }
+}
+
+fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
+    let path = dir.join(format!("m{dimension}d-{side}-{samples}-{shard_size}.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"w{dimension}d\"\ndimension = {dimension}\nside = {side}\n\
+             mode = [\"embed\", \"carve\"]\nsamples = {samples}\nshard_size = {shard_size}\nseed = 11\n\n\
+             [[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+fn build(manifest: &Path, out: &Path, workers: u32) -> Output {
+    run(&[
+        "build",
+        manifest.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--workers",
+        &workers.to_string(),
+    ])
+}
+
+fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) -> Child {
+    let mut command = bettimill();
+    command
+        .args([
+            "build",
+            manifest.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--workers", &workers.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    for (k, v) in env {
+        command.env(k, v);
+    }
+    command.spawn().unwrap()
+}
+
+/// The child processes of `pid` (from /proc; Linux only).
+fn children(pid: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
+        return out;
+    };
+    for task in tasks.flatten() {
+        if let Ok(list) = std::fs::read_to_string(task.path().join("children")) {
+            out.extend(
+                list.split_whitespace()
+                    .filter_map(|p| p.parse::<u32>().ok()),
+            );
+        }
+    }
+    out
+}
+
+fn alive(pid: u32) -> bool {
+    // A zombie is dead for our purposes.
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        Ok(stat) => !matches!(
+            stat.rsplit(')')
+                .next()
+                .and_then(|s| s.split_whitespace().next()),
+            Some("Z") | Some("X")
+        ),
+        Err(_) => false,
+    }
+}
+
+fn kill(signal: &str, pid: u32) {
+    let status = Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success(), "kill {signal} {pid}");
+}
+
+fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
+    let start = Instant::now();
+    while !check() {
+        assert!(start.elapsed() < limit, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn shard_files(out: &Path) -> Vec<String> {
+    std::fs::read_dir(out.join("shards"))
+        .map(|rd| {
+            rd.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+fn finish(child: Child) -> (Option<i32>, String) {
+    let out = child.wait_with_output().unwrap();
+    (out.status.code(), text(&out.stderr))
+}
+
+#[test]
+fn one_and_two_workers_build_identical_bytes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let m = manifest(tmp.path(), 3, 18, 16, 3);
+    let (one, two) = (tmp.path().join("one"), tmp.path().join("two"));
+    let out = build(&m, &one, 1);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let out = build(&m, &two, 2);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("2 workers"),
+        "{}",
+        text(&out.stderr)
+    );
+    assert_same(&one, &two);
+    let out = run(&["verify", one.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stdout));
+    // The status of a finished directory: every shard complete.
+    let out = run(&["status", two.to_str().unwrap(), "--json"]);
+    let status: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(status["complete"].as_array().unwrap().len(), 6);
+    assert_eq!(status["missing"], serde_json::json!([]));
+    assert_eq!(status["finalized"], serde_json::json!(true));
+}
+
+#[test]
+fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identical() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 4D samples are slow enough for the kill to land inside a shard.
+    let m = manifest(tmp.path(), 4, 32, 6, 3);
+    let clean = tmp.path().join("clean");
+    assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
+
+    let out = tmp.path().join("killed");
+    let coordinator = spawn_build(&m, &out, 1, &[]);
+    let mut first = 0;
+    wait_until("a worker", Duration::from_secs(30), || {
+        first = children(coordinator.id()).first().copied().unwrap_or(0);
+        first != 0
+    });
+    // Let it take its first shard, then kill it before the shard can be finished.
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(
+        !shard_files(&out).iter().any(|n| n.ends_with(".tar")),
+        "a shard finished before the kill; the test needs slower samples"
+    );
+    kill("-9", first);
+    let (code, stderr) = finish(coordinator);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stderr.contains("killed by signal 9"), "{stderr}");
+    assert!(stderr.contains("re-queued"), "{stderr}");
+    assert_same(&clean, &out);
+}
+
+#[test]
+fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resumes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let m = manifest(tmp.path(), 2, 20, 12, 3);
+    let clean = tmp.path().join("clean");
+    assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
+
+    let out = tmp.path().join("paused");
+    let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "60")]);
+    wait_until("a temporary shard file", Duration::from_secs(60), || {
+        shard_files(&out).iter().any(|n| n.contains(".tmp-"))
+    });
+    let workers = children(coordinator.id());
+    assert!(!workers.is_empty());
+
+    // While it runs, a second build of the same directory is refused.
+    let second = build(&m, &out, 1);
+    assert_eq!(second.status.code(), Some(2));
+    assert!(
+        text(&second.stderr).contains("another bettimill build is running"),
+        "{}",
+        text(&second.stderr)
+    );
+
+    kill("-9", coordinator.id());
+    let _ = finish(coordinator);
+    // Orphaned workers notice that their coordinator is gone and exit.
+    for pid in workers {
+        wait_until(
+            "an orphaned worker to exit",
+            Duration::from_secs(10),
+            || !alive(pid),
+        );
+    }
+    // Nothing partial is visible: only temporary files, no tar.
+    let files = shard_files(&out);
+    assert!(files.iter().all(|n| n.starts_with('.')), "{files:?}");
+    let status = run(&["status", out.to_str().unwrap(), "--json"]);
+    let status: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+    assert_eq!(status["invalid"], serde_json::json!([]), "{status}");
+    assert_eq!(status["complete"], serde_json::json!([]), "{status}");
+
+    // The lock died with its process: the same command resumes and matches a clean build.
+    let out_resume = build(&m, &out, 2);
+    assert_eq!(
+        out_resume.status.code(),
+        Some(0),
+        "{}",
+        text(&out_resume.stderr)
+    );
+    assert_same(&clean, &out);
+}
+
+#[test]
+fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 12 one-sample 4D shards: slow enough that each kill lands inside the build.
+    let m = manifest(tmp.path(), 4, 24, 12, 1);
+    let clean = tmp.path().join("clean");
+    assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
+
+    let out = tmp.path().join("killed");
+    let records = |out: &Path| {
+        std::fs::read_dir(out.join("records"))
+            .map(|rd| {
+                rd.flatten()
+                    .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
+                    .count()
+            })
+            .unwrap_or(0)
+    };
+    let mut complete_counts = Vec::new();
+    // Kill once the workers are up, then after 2, 5 and 8 complete shards.
+    for target in [0usize, 2, 5, 8] {
+        let coordinator = spawn_build(&m, &out, 2, &[]);
+        wait_until("workers and progress", Duration::from_secs(60), || {
+            children(coordinator.id()).len() == 2 && records(&out) >= target
+        });
+        let workers = children(coordinator.id());
+        kill("-9", coordinator.id());
+        let _ = finish(coordinator);
+        for pid in workers {
+            wait_until(
+                "an orphaned worker to exit",
+                Duration::from_secs(10),
+                || !alive(pid),
+            );
+        }
+        let status = run(&["status", out.to_str().unwrap(), "--json"]);
+        let status: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+        // A tar without its record can exist (killed between the two renames); it is
+        // reported as invalid and rebuilt. A tar that does not match its record never is.
+        for invalid in status["invalid"].as_array().unwrap() {
+            let reason = invalid["reason"].as_str().unwrap();
+            assert!(reason.contains("no completion record"), "{status}");
+        }
+        assert!(
+            !out.join("index.json").exists(),
+            "the build finished before the kill"
+        );
+        complete_counts.push(status["complete"].as_array().unwrap().len());
+    }
+    let resumed = build(&m, &out, 2);
+    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    assert_same(&clean, &out);
+    // Progress survived the kills.
+    assert!(
+        complete_counts.windows(2).all(|w| w[0] <= w[1]) && complete_counts[3] >= 8,
+        "{complete_counts:?}"
+    );
+}
+
+#[test]
+fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
+    let tmp = tempfile::tempdir().unwrap();
+    let m = manifest(tmp.path(), 2, 20, 12, 3);
+    let out = tmp.path().join("out");
+    let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_FAIL_SHARD", "1")]);
+    let (code, stderr) = finish(coordinator);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("1 shard(s) failed 3 times"), "{stderr}");
+    assert!(
+        stderr.contains("w2d-000001: BETTIMILL_TEST_FAIL_SHARD"),
+        "{stderr}"
+    );
+    assert!(!out.join("index.json").exists());
+    let status = run(&["status", out.to_str().unwrap(), "--json"]);
+    let status: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+    assert_eq!(
+        status["missing"],
+        serde_json::json!(["w2d-000001"]),
+        "{status}"
+    );
+    assert_eq!(status["complete"].as_array().unwrap().len(), 3, "{status}");
+    let out_finalize = run(&["finalize", out.to_str().unwrap()]);
+    assert_eq!(out_finalize.status.code(), Some(2));
+    assert!(text(&out_finalize.stderr).contains("w2d-000001"));
+
+    // With the cause gone, the same command finishes the dataset.
+    let resumed = build(&m, &out, 2);
+    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    let clean = tmp.path().join("clean");
+    assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
+    assert_same(&clean, &out);
+}
+
+#[test]
+fn sigterm_stops_the_workers_and_says_how_to_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let m = manifest(tmp.path(), 2, 20, 12, 3);
+    let out = tmp.path().join("out");
+    let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "60")]);
+    wait_until("a temporary shard file", Duration::from_secs(60), || {
+        shard_files(&out).iter().any(|n| n.contains(".tmp-"))
+    });
+    let workers = children(coordinator.id());
+    kill("-TERM", coordinator.id());
+    let (code, stderr) = finish(coordinator);
+    assert_eq!(code, Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    assert!(stderr.contains("resume with: bettimill build"), "{stderr}");
+    for pid in workers {
+        assert!(!alive(pid), "worker {pid} outlived its coordinator");
+    }
+    // A clean stop leaves no temporary files either.
+    assert!(shard_files(&out).is_empty(), "{:?}", shard_files(&out));
+}
