@@ -97,6 +97,48 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Draw a sample, or a contact sheet of several, as a PNG with its label.
+    ///
+    /// 2D images are drawn as they are, 3D images as a projection and slices along the first
+    /// axis, 4D images as one row per 3D slice along the first axis.
+    ///
+    /// Example: bettimill preview demo-out --n 16 --out sheet.png
+    Preview {
+        /// A dataset directory, one .tar shard, or a .npy image.
+        input: PathBuf,
+        /// The key of the sample to draw (default: the first sample).
+        #[arg(long, conflicts_with = "n")]
+        key: Option<String>,
+        /// Draw a contact sheet of the first N samples instead.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=400))]
+        n: Option<u32>,
+        /// The PNG file to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Count a dataset's samples per Betti vector, class, split and more.
+    ///
+    /// Also per component count, knot or link type and hypervolume (bins and a histogram),
+    /// the regeneration rate of each class, and the build time when it was recorded.
+    ///
+    /// Example: bettimill stats demo-out --plot stats.png
+    Stats {
+        /// The dataset directory.
+        dir: PathBuf,
+        /// Print the statistics as JSON.
+        #[arg(long)]
+        json: bool,
+        /// Also draw the counts and the hypervolume histogram as a PNG.
+        #[arg(long, value_name = "FILE.png")]
+        plot: Option<PathBuf>,
+    },
+    /// Print a shell completion script.
+    ///
+    /// Example: bettimill completions bash > ~/.local/share/bash-completion/completions/bettimill
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
 }
 
 /// How a command ended.
@@ -156,6 +198,17 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
             crate::plan::show(&manifest, json)?;
             Ok(Status::Success)
         }
+        Command::Preview { input, key, n, out } => crate::preview::run(&crate::preview::Request {
+            input: &input,
+            key: key.as_deref(),
+            n: n.map(|n| n as usize),
+            out: &out,
+            quiet: cli.quiet,
+        }),
+        Command::Stats { dir, json, plot } => {
+            crate::stats::run(&dir, json, plot.as_deref(), cli.quiet)
+        }
+        Command::Completions { shell } => crate::completions::run(shell),
     }
 }
 

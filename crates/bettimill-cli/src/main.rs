@@ -7,7 +7,10 @@
 
 mod cluster;
 mod commands;
+mod completions;
 mod plan;
+mod preview;
+mod stats;
 
 use clap::Parser;
 use std::process::ExitCode;

@@ -1,0 +1,155 @@
+//! `bettimill preview`: a PNG of one sample (or a contact sheet of several) from a dataset
+//! directory, one shard, or a plain `.npy` image.
+
+use crate::commands::Status;
+use anyhow::{bail, Context};
+use bettimill_preview::{caption, contact_sheet, render_sample, samples_in_tar, short_caption};
+use std::path::{Path, PathBuf};
+
+/// What to draw.
+pub struct Request<'a> {
+    /// A dataset directory, a `.tar` shard or a `.npy` image.
+    pub input: &'a Path,
+    /// One sample by key.
+    pub key: Option<&'a str>,
+    /// A contact sheet of the first `n` samples.
+    pub n: Option<usize>,
+    /// The PNG to write.
+    pub out: &'a Path,
+    /// Say nothing on success.
+    pub quiet: bool,
+}
+
+/// The shards of a dataset directory in build order: from `index.json` when the build is
+/// finished, otherwise every `shards/*.tar` by name.
+pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)>> {
+    let index_path = dir.join("index.json");
+    if index_path.exists() {
+        let index = bettimill_shard::Index::read(&index_path)?;
+        return Ok(index
+            .shards
+            .iter()
+            .map(|s| (s.split.clone(), dir.join(&s.name)))
+            .collect());
+    }
+    let shards_dir = dir.join("shards");
+    let mut shards: Vec<PathBuf> = match std::fs::read_dir(&shards_dir) {
+        Ok(entries) => entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "tar"))
+            .collect(),
+        Err(_) => Vec::new(),
+    };
+    if shards.is_empty() {
+        bail!(
+            "{} holds no shards: give a directory written by `bettimill build --out DIR`",
+            dir.display()
+        );
+    }
+    shards.sort();
+    Ok(shards
+        .into_iter()
+        .map(|p| ("unknown".to_string(), p))
+        .collect())
+}
+
+fn read_shard(path: &Path) -> anyhow::Result<Vec<u8>> {
+    std::fs::read(path).with_context(|| format!("cannot read shard {}", path.display()))
+}
+
+/// Runs `bettimill preview`.
+pub fn run(request: &Request) -> anyhow::Result<Status> {
+    let input = request.input;
+    let is_npy = input.extension().is_some_and(|e| e == "npy");
+    let canvas = if is_npy {
+        if request.key.is_some() || request.n.is_some() {
+            bail!("--key and --n pick samples of a dataset or shard; a .npy file is one image");
+        }
+        let npy = bettimill_grid::npy::read_path(input, false)
+            .with_context(|| format!("cannot use {} as an image", input.display()))?;
+        let topology = bettimill_homology::topology(&npy.image);
+        let image = &npy.image;
+        let shape: Vec<String> = image.shape().iter().map(|n| n.to_string()).collect();
+        let name = input
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let lines = vec![
+            name,
+            format!(
+                "betti {}  euler {}  (Z/2, computed now)",
+                bettimill_preview::render::betti_text(&topology.betti),
+                topology.euler
+            ),
+            format!(
+                "hypervolume {} of {} voxels  shape {}",
+                image.count_foreground(),
+                image.len(),
+                shape.join("x")
+            ),
+        ];
+        render_sample(image, &lines)?
+    } else {
+        let shards: Vec<PathBuf> = if input.is_dir() {
+            dataset_shards(input)?.into_iter().map(|(_, p)| p).collect()
+        } else if input.extension().is_some_and(|e| e == "tar") {
+            if !input.exists() {
+                bail!("{} does not exist", input.display());
+            }
+            vec![input.to_path_buf()]
+        } else {
+            bail!(
+                "{}: expected a dataset directory, a .tar shard or a .npy image",
+                input.display()
+            );
+        };
+        let want = request.n.unwrap_or(1);
+        let mut found = Vec::new();
+        for shard in &shards {
+            let bytes = read_shard(shard)?;
+            let mut keep = |key: &str| match request.key {
+                Some(wanted) => key == wanted,
+                None => found.len() < want,
+            };
+            let mut samples = samples_in_tar(&bytes, &mut keep)
+                .with_context(|| format!("cannot read samples of {}", shard.display()))?;
+            found.append(&mut samples);
+            if found.len() >= want {
+                break;
+            }
+        }
+        found.truncate(want);
+        if found.is_empty() {
+            match request.key {
+                Some(key) => bail!(
+                    "no sample with key {key} in {}; list the keys with `tar tf SHARD`",
+                    input.display()
+                ),
+                None => bail!("{} holds no samples", input.display()),
+            }
+        }
+        if request.n.is_some() {
+            let tiles: Vec<_> = found
+                .into_iter()
+                .map(|s| {
+                    let lines = short_caption(&s.label);
+                    (s.image, lines)
+                })
+                .collect();
+            contact_sheet(&tiles)?
+        } else {
+            render_sample(&found[0].image, &caption(&found[0].label))?
+        }
+    };
+    let png = canvas.to_png();
+    std::fs::write(request.out, &png)
+        .with_context(|| format!("cannot write {}", request.out.display()))?;
+    if !request.quiet {
+        eprintln!(
+            "wrote {} ({}x{} pixels)",
+            request.out.display(),
+            canvas.width(),
+            canvas.height()
+        );
+    }
+    Ok(Status::Success)
+}

@@ -1,0 +1,62 @@
+//! `bettimill stats`: counts per Betti vector, class, split, component count, knot type and
+//! hypervolume; regeneration rates; build time; an optional histogram PNG.
+
+use crate::commands::Status;
+use anyhow::{bail, Context};
+use bettimill_preview::{labels_in_tar, plot, RecordStats, Stats};
+use std::path::{Path, PathBuf};
+
+/// Runs `bettimill stats`.
+pub fn run(
+    dir: &Path,
+    json: bool,
+    plot_path: Option<&Path>,
+    quiet: bool,
+) -> anyhow::Result<Status> {
+    if !dir.is_dir() {
+        bail!(
+            "{} is not a directory: give a dataset directory written by `bettimill build --out DIR`",
+            dir.display()
+        );
+    }
+    let shards = crate::preview::dataset_shards(dir)?;
+    let mut labels = Vec::new();
+    for (split, shard) in &shards {
+        let bytes = std::fs::read(shard)
+            .with_context(|| format!("cannot read shard {}", shard.display()))?;
+        let shard_labels = labels_in_tar(&bytes)
+            .with_context(|| format!("cannot read the labels of {}", shard.display()))?;
+        labels.extend(shard_labels.into_iter().map(|l| (split.clone(), l)));
+    }
+    let mut record_paths: Vec<PathBuf> = match std::fs::read_dir(dir.join("records")) {
+        Ok(entries) => entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "json"))
+            .collect(),
+        Err(_) => Vec::new(),
+    };
+    record_paths.sort();
+    let mut records = Vec::new();
+    for path in &record_paths {
+        let bytes =
+            std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let record: RecordStats = serde_json::from_slice(&bytes)
+            .with_context(|| format!("{} is not a completion record", path.display()))?;
+        records.push(record);
+    }
+    let stats = Stats::collect(&labels, &records, shards.len() as u64);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&stats)?);
+    } else {
+        print!("{}", stats.to_text());
+    }
+    if let Some(path) = plot_path {
+        let canvas = plot(&stats)?;
+        std::fs::write(path, canvas.to_png())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        if !quiet {
+            eprintln!("wrote {}", path.display());
+        }
+    }
+    Ok(Status::Success)
+}

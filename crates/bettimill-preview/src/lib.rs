@@ -1,0 +1,68 @@
+//! Pictures and summaries of datasets for people: PNG previews of samples (2D as is, 3D as
+//! slices and a projection, 4D as rows of 3D slices), contact sheets, and statistics with a
+//! histogram chart.
+//!
+//! Everything here is a pure function of bytes and images: the CLI reads the files and
+//! writes the PNGs. Equal inputs give equal PNG bytes (see [`png`]).
+//!
+//! - [`png`]: the PNG encoder.
+//! - [`font`]: the built-in 5x7 bitmap font for captions.
+//! - [`canvas`]: the RGB drawing surface.
+//! - [`render`]: layouts of one sample and of contact sheets.
+//! - [`samples`]: labels and arrays read back from shard bytes.
+//! - [`stats`]: counts, regeneration rates, the hypervolume histogram and the chart.
+
+pub mod canvas;
+pub mod font;
+pub mod png;
+pub mod render;
+pub mod samples;
+pub mod stats;
+
+pub use canvas::Canvas;
+pub use render::{caption, contact_sheet, render_sample, short_caption};
+pub use samples::{keys_in_tar, labels_in_tar, samples_in_tar, SampleView};
+pub use stats::{plot, RecordStats, Stats};
+
+/// Why a preview or statistic could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum PreviewError {
+    /// A shard could not be read.
+    #[error(transparent)]
+    Shard(#[from] bettimill_shard::ShardError),
+    /// An array member is not a valid `.npy`.
+    #[error("{what} is not a usable image: {source}")]
+    Npy {
+        /// The member.
+        what: String,
+        /// Why.
+        source: bettimill_grid::npy::NpyError,
+    },
+    /// A label member is not a bettimill label.
+    #[error("{key}.json is not a bettimill label: {source}")]
+    Label {
+        /// The sample key.
+        key: String,
+        /// Why.
+        source: serde_json::Error,
+    },
+    /// A sample lacks a member.
+    #[error("sample {key} has no {field} member")]
+    Missing {
+        /// The sample key.
+        key: String,
+        /// `json` or `npy`.
+        field: &'static str,
+    },
+    /// The picture would be too large to draw.
+    #[error("a {width}x{height} picture is too large to draw (at most {max} pixels)", max = canvas::MAX_PIXELS)]
+    TooLarge {
+        /// Requested width.
+        width: usize,
+        /// Requested height.
+        height: usize,
+    },
+    /// Nothing to draw.
+    #[error("no samples to draw")]
+    Empty,
+}

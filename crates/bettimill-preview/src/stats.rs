@@ -1,0 +1,364 @@
+//! Dataset statistics from labels and completion records, as data, text and a chart.
+//!
+//! Everything is counted in `BTreeMap`s, so the JSON and the text are in a fixed order and
+//! equal datasets give equal output.
+
+use crate::canvas::{Canvas, BAR, FRAME, INK, MUTED, PAGE};
+use crate::font;
+use crate::render::betti_text;
+use crate::PreviewError;
+use bettimill_sample::Label;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Number of bins of the hypervolume histogram.
+pub const HISTOGRAM_BINS: usize = 16;
+
+/// The parts of a shard's completion record (`DIR/records/NAME.json`) that statistics use.
+/// Unknown fields are ignored so records of other versions still count.
+#[derive(Clone, Debug, Default, Deserialize)]
+pub struct RecordStats {
+    /// Rejected attempts per stratum label.
+    #[serde(default)]
+    pub regenerations: Vec<(String, u64)>,
+    /// Seconds spent building the shard, when the build recorded it.
+    #[serde(default)]
+    pub seconds: Option<f64>,
+}
+
+/// Regeneration counts of one class.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Regeneration {
+    /// Samples of the class.
+    pub samples: u64,
+    /// Samples whose first attempt was rejected (`attempt > 0`).
+    pub regenerated: u64,
+    /// `regenerated / samples`.
+    pub rate: f64,
+    /// Rejected attempts in all (the sum of `attempt`).
+    pub rejected_attempts: u64,
+}
+
+/// A histogram of foreground voxel counts: `counts[k]` samples lie in
+/// `[edges[k], edges[k + 1])` (the last bin includes its upper edge).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Histogram {
+    /// Bin edges, one more than bins.
+    pub edges: Vec<u64>,
+    /// Samples per bin.
+    pub counts: Vec<u64>,
+}
+
+/// Everything `bettimill stats` reports.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Stats {
+    /// Samples counted.
+    pub samples: u64,
+    /// Shards read.
+    pub shards: u64,
+    /// Samples per split.
+    pub splits: BTreeMap<String, u64>,
+    /// Samples per Betti vector (`[b0, b1, ...]`).
+    pub betti: BTreeMap<String, u64>,
+    /// Samples per class label.
+    pub classes: BTreeMap<String, u64>,
+    /// Samples per construction family.
+    pub families: BTreeMap<String, u64>,
+    /// Samples per mode.
+    pub modes: BTreeMap<String, u64>,
+    /// Samples per component count.
+    pub components: BTreeMap<u64, u64>,
+    /// Samples per knot or link type.
+    pub knot_types: BTreeMap<String, u64>,
+    /// Samples per declared hypervolume bin (`[lo, hi]`), when the manifest bins.
+    pub hypervolume_bins: BTreeMap<String, u64>,
+    /// Smallest foreground voxel count.
+    pub hypervolume_min: u64,
+    /// Largest foreground voxel count.
+    pub hypervolume_max: u64,
+    /// Mean foreground voxel count.
+    pub hypervolume_mean: f64,
+    /// Histogram of foreground voxel counts.
+    pub hypervolume_histogram: Histogram,
+    /// Regenerations per class label, from the labels' `attempt`.
+    pub regeneration: BTreeMap<String, Regeneration>,
+    /// Rejected attempts per class label, from the completion records.
+    pub record_regenerations: BTreeMap<String, u64>,
+    /// Seconds of build time summed over the records that recorded it (`None` when none did).
+    pub build_seconds: Option<f64>,
+}
+
+impl Stats {
+    /// Counts `labels` (each with its split) and `records`.
+    pub fn collect(labels: &[(String, Label)], records: &[RecordStats], shards: u64) -> Stats {
+        let mut stats = Stats {
+            samples: labels.len() as u64,
+            shards,
+            ..Stats::default()
+        };
+        for (split, label) in labels {
+            *stats.splits.entry(split.clone()).or_default() += 1;
+            *stats.betti.entry(betti_text(&label.betti)).or_default() += 1;
+            *stats.classes.entry(label.class_label.clone()).or_default() += 1;
+            *stats.families.entry(label.family.clone()).or_default() += 1;
+            *stats.modes.entry(label.mode.clone()).or_default() += 1;
+            *stats.components.entry(label.components).or_default() += 1;
+            *stats.knot_types.entry(label.knot_type.clone()).or_default() += 1;
+            if let Some((lo, hi)) = label.hypervolume_bin {
+                *stats
+                    .hypervolume_bins
+                    .entry(format!("[{lo}, {hi}]"))
+                    .or_default() += 1;
+            }
+            let regeneration = stats
+                .regeneration
+                .entry(label.class_label.clone())
+                .or_default();
+            regeneration.samples += 1;
+            regeneration.regenerated += (label.attempt > 0) as u64;
+            regeneration.rejected_attempts += label.attempt as u64;
+        }
+        for regeneration in stats.regeneration.values_mut() {
+            regeneration.rate = regeneration.regenerated as f64 / regeneration.samples as f64;
+        }
+        for record in records {
+            for (class, n) in &record.regenerations {
+                *stats.record_regenerations.entry(class.clone()).or_default() += n;
+            }
+            if let Some(seconds) = record.seconds {
+                *stats.build_seconds.get_or_insert(0.0) += seconds;
+            }
+        }
+        let volumes: Vec<u64> = labels.iter().map(|(_, l)| l.hypervolume).collect();
+        if let (Some(&min), Some(&max)) = (volumes.iter().min(), volumes.iter().max()) {
+            stats.hypervolume_min = min;
+            stats.hypervolume_max = max;
+            stats.hypervolume_mean = volumes.iter().sum::<u64>() as f64 / volumes.len() as f64;
+            stats.hypervolume_histogram = histogram(&volumes, min, max);
+        }
+        stats
+    }
+
+    /// A plain-text report, one table per count.
+    pub fn to_text(&self) -> String {
+        let mut out = format!("{} samples in {} shards\n", self.samples, self.shards);
+        let mut table = |title: &str, rows: Vec<(String, String)>| {
+            out.push_str(&format!("\n{title}\n"));
+            let width = rows.iter().map(|(k, _)| k.len()).max().unwrap_or(0);
+            for (key, value) in rows {
+                out.push_str(&format!("  {key:<width$}  {value}\n"));
+            }
+        };
+        let counts = |map: &BTreeMap<String, u64>| -> Vec<(String, String)> {
+            map.iter()
+                .map(|(k, v)| (k.clone(), v.to_string()))
+                .collect()
+        };
+        table("per split", counts(&self.splits));
+        table("per betti vector", counts(&self.betti));
+        table("per class", counts(&self.classes));
+        table("per family", counts(&self.families));
+        table("per mode", counts(&self.modes));
+        table(
+            "per component count",
+            self.components
+                .iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect(),
+        );
+        table("per knot/link type", counts(&self.knot_types));
+        if !self.hypervolume_bins.is_empty() {
+            table("per hypervolume bin", counts(&self.hypervolume_bins));
+        }
+        let h = &self.hypervolume_histogram;
+        table(
+            &format!(
+                "hypervolume (min {}, mean {:.1}, max {})",
+                self.hypervolume_min, self.hypervolume_mean, self.hypervolume_max
+            ),
+            h.counts
+                .iter()
+                .enumerate()
+                .map(|(k, c)| {
+                    (
+                        format!("[{}, {})", h.edges[k], h.edges[k + 1]),
+                        c.to_string(),
+                    )
+                })
+                .collect(),
+        );
+        table(
+            "regenerations per class (samples with attempt > 0 / samples, rejected attempts)",
+            self.regeneration
+                .iter()
+                .map(|(k, r)| {
+                    (
+                        k.clone(),
+                        format!(
+                            "{}/{} ({:.1}%), {} rejected",
+                            r.regenerated,
+                            r.samples,
+                            r.rate * 100.0,
+                            r.rejected_attempts
+                        ),
+                    )
+                })
+                .collect(),
+        );
+        let total: u64 = self.record_regenerations.values().sum();
+        out.push_str(&format!(
+            "\nrejected attempts in completion records: {total}\n"
+        ));
+        match self.build_seconds {
+            Some(seconds) => out.push_str(&format!("build time: {seconds:.1} s\n")),
+            None => out.push_str("build time: not recorded\n"),
+        }
+        out
+    }
+}
+
+fn histogram(values: &[u64], min: u64, max: u64) -> Histogram {
+    let span = max - min + 1;
+    let bins = (HISTOGRAM_BINS as u64).min(span);
+    let width = span.div_ceil(bins);
+    let edges: Vec<u64> = (0..=bins).map(|k| min + k * width).collect();
+    let mut counts = vec![0u64; bins as usize];
+    for &v in values {
+        counts[((v - min) / width) as usize] += 1;
+    }
+    Histogram { edges, counts }
+}
+
+/// Draws horizontal bars, one per (label, count), under `title`; returns the height used.
+fn bars(canvas: &mut Canvas, x: usize, y: usize, title: &str, rows: &[(String, u64)]) -> usize {
+    const SCALE: usize = 2;
+    const BAR_MAX: usize = 360;
+    let line = font::LINE_HEIGHT * SCALE;
+    canvas.text(x, y, title, SCALE, INK);
+    let label_w = rows
+        .iter()
+        .map(|(l, _)| font::text_width(l, SCALE))
+        .max()
+        .unwrap_or(0);
+    let max = rows.iter().map(|r| r.1).max().unwrap_or(0).max(1);
+    for (n, (label, count)) in rows.iter().enumerate() {
+        let row_y = y + (n + 1) * line + 4;
+        canvas.text(x, row_y, label, SCALE, MUTED);
+        let bar_x = x + label_w + 12;
+        let length = (*count as usize * BAR_MAX).div_ceil(max as usize);
+        canvas.fill(bar_x, row_y, length, line - 6, BAR);
+        canvas.text(bar_x + length + 6, row_y, &count.to_string(), SCALE, INK);
+    }
+    (rows.len() + 1) * line + 16
+}
+
+fn bars_width(title: &str, rows: &[(String, u64)]) -> usize {
+    let label_w = rows
+        .iter()
+        .map(|(l, _)| font::text_width(l, 2))
+        .max()
+        .unwrap_or(0);
+    let count_w = rows
+        .iter()
+        .map(|(_, c)| font::text_width(&c.to_string(), 2))
+        .max()
+        .unwrap_or(0);
+    (label_w + 12 + 360 + 6 + count_w).max(font::text_width(title, 2))
+}
+
+/// The `--plot` chart: bars per Betti vector, per class, per split, and the hypervolume
+/// histogram.
+pub fn plot(stats: &Stats) -> Result<Canvas, PreviewError> {
+    let to_rows = |map: &BTreeMap<String, u64>| map.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    let h = &stats.hypervolume_histogram;
+    let histogram_rows: Vec<(String, u64)> = h
+        .counts
+        .iter()
+        .enumerate()
+        .map(|(k, c)| (format!("{}-{}", h.edges[k], h.edges[k + 1] - 1), *c))
+        .collect();
+    let sections: Vec<(String, Vec<(String, u64)>)> = vec![
+        (
+            format!("{} samples per betti vector", stats.samples),
+            to_rows(&stats.betti),
+        ),
+        ("per class".to_string(), to_rows(&stats.classes)),
+        ("per split".to_string(), to_rows(&stats.splits)),
+        ("per knot/link type".to_string(), to_rows(&stats.knot_types)),
+        (
+            "hypervolume histogram (foreground voxels)".to_string(),
+            histogram_rows,
+        ),
+    ];
+    let line = font::LINE_HEIGHT * 2;
+    let width = sections
+        .iter()
+        .map(|(t, r)| bars_width(t, r))
+        .max()
+        .unwrap_or(0)
+        + 32;
+    let height: usize = sections
+        .iter()
+        .map(|(_, r)| (r.len() + 1) * line + 16)
+        .sum::<usize>()
+        + 32;
+    let mut canvas = Canvas::new(width, height, PAGE)?;
+    let mut y = 16;
+    for (title, rows) in &sections {
+        y += bars(&mut canvas, 16, y, title, rows);
+    }
+    canvas.frame(0, 0, width, height, FRAME);
+    Ok(canvas)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn label(class: &str, betti: Vec<u64>, hypervolume: u64, attempt: u32) -> Label {
+        serde_json::from_value(serde_json::json!({
+            "key": "k", "betti": betti, "field": "Z/2", "euler": 1, "hypervolume": hypervolume,
+            "components": 1, "shape": [8, 8], "dim": 2, "mode": "embed", "family": class,
+            "knot_type": "none", "class_index": 0, "class_label": class, "seed": "00",
+            "attempt": attempt, "manifest_hash": "00", "tool_version": "0", "construction": {}
+        }))
+        .unwrap()
+    }
+
+    #[test]
+    fn counts_rates_and_histogram_add_up() {
+        let labels = vec![
+            ("train".to_string(), label("ball", vec![1, 0], 10, 0)),
+            ("train".to_string(), label("ball", vec![1, 0], 20, 2)),
+            ("val".to_string(), label("handle", vec![1, 1], 41, 0)),
+        ];
+        let records = vec![RecordStats {
+            regenerations: vec![("ball".to_string(), 2)],
+            seconds: None,
+        }];
+        let stats = Stats::collect(&labels, &records, 1);
+        assert_eq!(stats.samples, 3);
+        assert_eq!(stats.splits["train"], 2);
+        assert_eq!(stats.betti["[1, 0]"], 2);
+        assert_eq!(stats.regeneration["ball"].regenerated, 1);
+        assert_eq!(stats.regeneration["ball"].rejected_attempts, 2);
+        assert_eq!(stats.regeneration["ball"].rate, 0.5);
+        assert_eq!(stats.record_regenerations["ball"], 2);
+        assert_eq!(stats.build_seconds, None);
+        let h = &stats.hypervolume_histogram;
+        assert_eq!(h.counts.iter().sum::<u64>(), 3);
+        assert_eq!(h.edges[0], 10);
+        assert!(*h.edges.last().unwrap() > 41);
+        assert_eq!(*h.counts.last().unwrap(), 1);
+        assert!(stats.to_text().contains("1/2 (50.0%), 2 rejected"));
+        let png = plot(&stats).unwrap().to_png();
+        assert_eq!(png, plot(&stats).unwrap().to_png());
+    }
+
+    #[test]
+    fn histogram_of_one_value_has_one_bin() {
+        let h = histogram(&[5, 5], 5, 5);
+        assert_eq!(h.edges, vec![5, 6]);
+        assert_eq!(h.counts, vec![2]);
+    }
+}

@@ -1,0 +1,505 @@
+//! What a user sees: `--help` snapshots, one-line errors for typical mistakes, `--json`
+//! outputs, previews and statistics, shell completions, and the README's tour run as
+//! written. Every test runs the real binary in a fresh temporary directory.
+//!
+//! Help snapshots live in `tests/snapshots/help-*.txt`; after a deliberate change to a
+//! command's help, run `UPDATE_SNAPSHOTS=1 cargo test -p bettimill-cli --test cli_ux` and
+//! review the diff.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn bettimill_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_bettimill"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the bettimill binary runs")
+}
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn check_snapshot(name: &str, actual: &str) {
+    let path = repo_root().join("tests/snapshots").join(name);
+    if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, actual).unwrap();
+        return;
+    }
+    let expected = std::fs::read_to_string(&path).unwrap_or_else(|_| {
+        panic!(
+            "no snapshot {}; create it with UPDATE_SNAPSHOTS=1 cargo test -p bettimill-cli --test cli_ux",
+            path.display()
+        )
+    });
+    assert!(
+        expected == actual,
+        "{name} differs from its snapshot {}.\n--- expected\n{expected}\n--- actual\n{actual}\n\
+         If the change is deliberate: UPDATE_SNAPSHOTS=1 cargo test -p bettimill-cli --test cli_ux",
+        path.display()
+    );
+}
+
+/// The visible subcommands, read from the top-level help.
+fn subcommands(tmp: &Path) -> Vec<String> {
+    let help = text(&bettimill_in(tmp, &["--help"]).stdout);
+    let section = help
+        .split("Commands:\n")
+        .nth(1)
+        .expect("the help lists commands");
+    section
+        .lines()
+        .take_while(|line| line.starts_with("  "))
+        .filter_map(|line| line.split_whitespace().next())
+        .filter(|name| *name != "help")
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn help_of_every_command_matches_its_snapshot_and_has_an_example() {
+    let tmp = tempfile::tempdir().unwrap();
+    let top = bettimill_in(tmp.path(), &["--help"]);
+    assert_eq!(top.status.code(), Some(0));
+    check_snapshot("help.txt", &text(&top.stdout));
+    let commands = subcommands(tmp.path());
+    for expected in [
+        "build",
+        "verify",
+        "betti",
+        "plan",
+        "preview",
+        "stats",
+        "completions",
+    ] {
+        assert!(commands.iter().any(|c| c == expected), "{expected} missing");
+    }
+    for command in &commands {
+        let out = bettimill_in(tmp.path(), &[command, "--help"]);
+        assert_eq!(out.status.code(), Some(0), "{command} --help");
+        let help = text(&out.stdout);
+        assert!(
+            help.contains("Example: bettimill "),
+            "`bettimill {command} --help` shows no example"
+        );
+        check_snapshot(&format!("help-{command}.txt"), &help);
+    }
+}
+
+/// Runs a command that must fail with exit code 2 and a one-line message on stderr
+/// containing every `needle`.
+fn check_one_line_error(dir: &Path, args: &[&str], needles: &[&str]) {
+    let out = bettimill_in(dir, args);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+    assert_eq!(
+        stderr.trim_end().lines().count(),
+        1,
+        "{args:?} should fail with one line, got:\n{stderr}"
+    );
+    assert!(stderr.starts_with("error: "), "{stderr}");
+    for needle in needles {
+        assert!(stderr.contains(needle), "{args:?}: {stderr} lacks {needle}");
+    }
+    assert!(out.stdout.is_empty(), "{args:?} printed data on failure");
+}
+
+#[test]
+fn typical_mistakes_fail_with_exit_code_2_and_one_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    check_one_line_error(
+        dir,
+        &["build", "missing.toml", "--out", "out"],
+        &["missing.toml", "cannot read manifest"],
+    );
+    assert!(!dir.join("out").exists(), "a failed build wrote its output");
+
+    std::fs::write(
+        dir.join("typo.toml"),
+        "schema_version = 1\nname = \"x\"\ndimenson = 3\n",
+    )
+    .unwrap();
+    check_one_line_error(
+        dir,
+        &["build", "typo.toml", "--out", "out"],
+        &["typo.toml:3", "dimenson"],
+    );
+    check_one_line_error(dir, &["plan", "typo.toml"], &["typo.toml:3", "dimenson"]);
+
+    std::fs::create_dir(dir.join("thesis")).unwrap();
+    std::fs::write(dir.join("thesis/chapter1.tex"), "precious").unwrap();
+    check_one_line_error(dir, &["build", "--out", "thesis"], &["thesis", "not empty"]);
+    let left: Vec<_> = std::fs::read_dir(dir.join("thesis")).unwrap().collect();
+    assert_eq!(
+        left.len(),
+        1,
+        "a refused build wrote into a foreign directory"
+    );
+
+    check_one_line_error(dir, &["verify", "nowhere"], &["nowhere"]);
+    check_one_line_error(dir, &["betti", "nothing.npy"], &["nothing.npy"]);
+    std::fs::write(dir.join("junk.npy"), b"not an array").unwrap();
+    check_one_line_error(dir, &["betti", "junk.npy"], &["junk.npy", ".npy"]);
+    check_one_line_error(
+        dir,
+        &["preview", "junk.npy", "--out", "x.png"],
+        &["junk.npy"],
+    );
+    check_one_line_error(
+        dir,
+        &["preview", "thesis/chapter1.tex", "--out", "x.png"],
+        &["expected a dataset directory, a .tar shard or a .npy image"],
+    );
+    check_one_line_error(dir, &["stats", "nowhere"], &["nowhere", "not a directory"]);
+    check_one_line_error(dir, &["stats", "thesis"], &["holds no shards"]);
+    assert!(!dir.join("x.png").exists());
+
+    // Usage errors are clap's (several lines with a usage hint) but exit with 2 too.
+    let out = bettimill_in(dir, &["bulid"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("unrecognized subcommand"));
+}
+
+/// A fast manifest in `dir`.
+fn small_manifest(dir: &Path, dimension: u32, side: u32) -> PathBuf {
+    let path = dir.join(format!("small-{dimension}d.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"small{dimension}d\"\ndimension = {dimension}\n\
+             side = {side}\nmode = [\"embed\", \"carve\"]\nsamples = 8\nshard_size = 4\n\
+             seed = 5\ncompression = \"{}\"\n\n[splits]\ntrain = 4\nval = 4\n\n\
+             [[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n",
+            if dimension == 4 { "zstd" } else { "none" }
+        ),
+    )
+    .unwrap();
+    path
+}
+
+fn build_small(dir: &Path, dimension: u32, side: u32) -> PathBuf {
+    let manifest = small_manifest(dir, dimension, side);
+    let out_dir = dir.join(format!("out{dimension}"));
+    let out = bettimill_in(
+        dir,
+        &[
+            "build",
+            "--quiet",
+            manifest.to_str().unwrap(),
+            "--out",
+            out_dir.to_str().unwrap(),
+        ],
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    out_dir
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", text(&out.stdout)))
+}
+
+fn check_keys(value: &serde_json::Value, keys: &[&str]) {
+    for key in keys {
+        assert!(value.get(key).is_some(), "no {key} in {value}");
+    }
+}
+
+#[test]
+fn json_outputs_parse_and_carry_their_keys() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let manifest = small_manifest(dir, 3, 18);
+    let plan = json(&bettimill_in(
+        dir,
+        &["plan", manifest.to_str().unwrap(), "--json"],
+    ));
+    check_keys(
+        &plan,
+        &[
+            "name",
+            "dimension",
+            "side",
+            "manifest_hash",
+            "plan_hash",
+            "samples",
+            "strata",
+            "shards",
+        ],
+    );
+    assert_eq!(plan["samples"], 8);
+
+    let out_dir = build_small(dir, 3, 18);
+    let out_str = out_dir.to_str().unwrap();
+    let verify = json(&bettimill_in(dir, &["verify", out_str, "--json"]));
+    check_keys(&verify, &["shards_checked", "samples_checked", "problems"]);
+    assert_eq!(verify["samples_checked"], 8);
+    assert_eq!(verify["problems"].as_array().unwrap().len(), 0);
+
+    let status = json(&bettimill_in(dir, &["status", out_str, "--json"]));
+    assert!(status.is_object());
+
+    let stats = json(&bettimill_in(dir, &["stats", out_str, "--json"]));
+    check_keys(
+        &stats,
+        &[
+            "samples",
+            "shards",
+            "splits",
+            "betti",
+            "classes",
+            "components",
+            "knot_types",
+            "hypervolume_histogram",
+            "regeneration",
+            "record_regenerations",
+            "build_seconds",
+        ],
+    );
+    assert_eq!(stats["samples"], 8);
+    assert_eq!(stats["splits"]["train"], 4);
+    assert_eq!(stats["splits"]["val"], 4);
+    let per_betti: u64 = stats["betti"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(per_betti, 8);
+    let histogram: u64 = stats["hypervolume_histogram"]["counts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(histogram, 8);
+    assert_eq!(stats["classes"].as_object().unwrap().len(), 4);
+
+    // betti --json on a member extracted from a shard agrees with its label.
+    let shard = std::fs::read(out_dir.join("shards/small3d-train-000000.tar")).unwrap();
+    let members = bettimill_shard::read_tar(&shard).unwrap();
+    let npy = members.iter().find(|m| m.name.ends_with(".npy")).unwrap();
+    let key = npy.name.trim_end_matches(".npy");
+    let label = members
+        .iter()
+        .find(|m| m.name == format!("{key}.json"))
+        .unwrap();
+    std::fs::write(dir.join("one.npy"), &npy.data).unwrap();
+    let betti = json(&bettimill_in(dir, &["betti", "one.npy", "--json"]));
+    check_keys(&betti, &["betti", "euler", "shape", "hypervolume", "field"]);
+    let label: serde_json::Value = serde_json::from_slice(&label.data).unwrap();
+    assert_eq!(betti["betti"], label["betti"]);
+    assert_eq!(betti["hypervolume"], label["hypervolume"]);
+}
+
+/// Width and height from a PNG's IHDR, after checking the signature.
+fn png_size(bytes: &[u8]) -> (u32, u32) {
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "not a PNG");
+    assert_eq!(&bytes[12..16], b"IHDR");
+    (
+        u32::from_be_bytes(bytes[16..20].try_into().unwrap()),
+        u32::from_be_bytes(bytes[20..24].try_into().unwrap()),
+    )
+}
+
+#[test]
+fn previews_of_2d_3d_4d_samples_shards_and_images_are_deterministic_pngs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    for (dimension, side) in [(2, 16), (3, 18), (4, 18)] {
+        let out_dir = build_small(dir, dimension, side);
+        let out_str = out_dir.to_str().unwrap();
+        let run = |args: &[&str], png: &str| -> Vec<u8> {
+            let mut all = args.to_vec();
+            all.extend(["--out", png]);
+            let out = bettimill_in(dir, &all);
+            assert!(out.status.success(), "{all:?}: {}", text(&out.stderr));
+            std::fs::read(dir.join(png)).unwrap()
+        };
+        let first = run(&["preview", out_str], "a.png");
+        let again = run(&["preview", out_str], "b.png");
+        assert_eq!(first, again, "{dimension}D preview is not deterministic");
+        let (width, height) = png_size(&first);
+        assert!(
+            width >= 200 && height >= 100,
+            "{dimension}D: {width}x{height}"
+        );
+
+        // Every key of a shard can be drawn, from the directory and from the shard.
+        let shard = out_dir.join(format!("shards/small{dimension}d-val-000000.tar"));
+        let members = bettimill_shard::read_tar(&std::fs::read(&shard).unwrap()).unwrap();
+        let key = members[0].name.split('.').next().unwrap().to_string();
+        let by_dir = run(&["preview", out_str, "--key", &key], "c.png");
+        let by_shard = run(
+            &["preview", shard.to_str().unwrap(), "--key", &key],
+            "d.png",
+        );
+        assert_eq!(by_dir, by_shard);
+        assert_ne!(
+            by_dir, first,
+            "a val sample drew like the first train sample"
+        );
+
+        let sheet = run(&["preview", out_str, "--n", "6"], "e.png");
+        assert_ne!(sheet, first);
+        png_size(&sheet);
+
+        // A plain image.
+        let npy = members.iter().find(|m| m.name.contains(".npy")).unwrap();
+        if npy.name.ends_with(".npy") {
+            std::fs::write(dir.join("plain.npy"), &npy.data).unwrap();
+            png_size(&run(&["preview", "plain.npy"], "f.png"));
+        }
+    }
+}
+
+#[test]
+fn stats_plot_is_a_png_and_text_names_every_section() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let out_dir = build_small(dir, 2, 16);
+    let out = bettimill_in(
+        dir,
+        &["stats", out_dir.to_str().unwrap(), "--plot", "plot.png"],
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report = text(&out.stdout);
+    for section in [
+        "8 samples in 2 shards",
+        "per split",
+        "per betti vector",
+        "per class",
+        "per component count",
+        "per knot/link type",
+        "hypervolume",
+        "regenerations per class",
+        "build time",
+    ] {
+        assert!(report.contains(section), "no {section:?} in\n{report}");
+    }
+    png_size(&std::fs::read(dir.join("plot.png")).unwrap());
+}
+
+#[test]
+fn completions_exist_for_every_shell() {
+    let tmp = tempfile::tempdir().unwrap();
+    for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {
+        let out = bettimill_in(tmp.path(), &["completions", shell]);
+        assert!(out.status.success(), "{shell}: {}", text(&out.stderr));
+        let script = text(&out.stdout);
+        assert!(script.contains("bettimill"), "{shell}");
+        assert!(
+            script.contains("preview"),
+            "{shell} completion lacks preview"
+        );
+    }
+    let out = bettimill_in(tmp.path(), &["completions", "tcsh"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+/// The lines of the first ```sh block after the tour heading of README.md.
+fn tour_commands() -> Vec<String> {
+    let readme = std::fs::read_to_string(repo_root().join("README.md")).unwrap();
+    let tour = readme
+        .split("## A five-minute tour")
+        .nth(1)
+        .expect("README.md has a five-minute tour");
+    let block = tour
+        .split("```sh\n")
+        .nth(1)
+        .and_then(|b| b.split("```").next())
+        .expect("the tour has a ```sh block");
+    block
+        .lines()
+        .map(|line| match line.find(" #") {
+            Some(comment) => line[..comment].trim().to_string(),
+            None => line.trim().to_string(),
+        })
+        .filter(|line| !line.is_empty())
+        .collect()
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, to.join(path.file_name().unwrap())).unwrap();
+    }
+}
+
+#[test]
+fn the_readme_tour_runs_as_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    // The tour runs from the repository root, where manifests/ is.
+    copy_dir(&repo_root().join("manifests"), &dir.join("manifests"));
+    let commands = tour_commands();
+    assert!(commands.len() >= 6, "{commands:?}");
+    for line in &commands {
+        // Words split on spaces; `> FILE` redirects stdout, the only shell syntax allowed.
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let (words, redirect) = match words.iter().position(|w| *w == ">") {
+            Some(at) => (&words[..at], Some(words[at + 1])),
+            None => (&words[..], None),
+        };
+        assert!(
+            words
+                .iter()
+                .all(|w| !w.contains(['|', '&', ';', '$', '"', '\''])),
+            "the tour line {line:?} needs a shell; keep the tour to plain commands"
+        );
+        let program = match words[0] {
+            "bettimill" => env!("CARGO_BIN_EXE_bettimill"),
+            other => other,
+        };
+        let mut command = Command::new(program);
+        command.args(&words[1..]).current_dir(dir);
+        if let Some(file) = redirect {
+            command.stdout(Stdio::from(std::fs::File::create(dir.join(file)).unwrap()));
+        }
+        let out = command.output().unwrap();
+        assert!(
+            out.status.success(),
+            "README tour line {line:?} failed: {}",
+            text(&out.stderr)
+        );
+    }
+    let mentioned: Vec<&str> = commands
+        .iter()
+        .flat_map(|l| l.split_whitespace())
+        .filter(|w| w.ends_with(".png"))
+        .collect();
+    assert!(!mentioned.is_empty());
+    for png in mentioned {
+        png_size(&std::fs::read(dir.join(png)).unwrap());
+    }
+}
+
+#[test]
+fn the_committed_preview_figures_are_pngs() {
+    let figures = repo_root().join("docs/figures/previews");
+    for name in [
+        "demo-2d-s000000.png",
+        "demo-3d-s000006.png",
+        "demo-4d-s000007.png",
+        "demo-3d-sheet.png",
+        "demo-3d-stats.png",
+    ] {
+        let bytes = std::fs::read(figures.join(name)).unwrap();
+        let (width, height) = png_size(&bytes);
+        assert!(width > 100 && height > 100, "{name}");
+    }
+    let readme = std::fs::read_to_string(repo_root().join("README.md")).unwrap();
+    for link in readme.split("](docs/figures/previews/").skip(1) {
+        let file = link.split(')').next().unwrap();
+        assert!(figures.join(file).exists(), "README links a missing {file}");
+    }
+}
