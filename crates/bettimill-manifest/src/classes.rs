@@ -22,8 +22,22 @@ pub(crate) fn expand<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<F
         for concrete in expand_table(table)
             .map_err(|reason| D::Error::custom(format!("class {}: {reason}", position + 1)))?
         {
-            let family = Family::deserialize(Value::Table(concrete))
+            let family = Family::deserialize(Value::Table(concrete.clone()))
                 .map_err(|err| D::Error::custom(format!("class {}: {err}", position + 1)))?;
+            // serde ignores extra keys next to a unit variant (`{ family = "ball", radius =
+            // 3 }`); a misspelt or unsupported parameter must never be silently dropped, so
+            // every key written must survive a round trip.
+            let known = Value::try_from(&family)
+                .ok()
+                .and_then(|v| v.as_table().cloned())
+                .unwrap_or_default();
+            if let Some(extra) = concrete.keys().find(|k| !known.contains_key(*k)) {
+                return Err(D::Error::custom(format!(
+                    "class {}: unknown field `{extra}` for family {}",
+                    position + 1,
+                    family.label()
+                )));
+            }
             out.push(family);
         }
     }
@@ -83,6 +97,19 @@ mod tests {
             classes: Vec<Family>,
         }
         toml::from_str::<Wrapper>(text).unwrap().classes
+    }
+
+    #[test]
+    fn extra_keys_on_unit_families_are_refused() {
+        #[derive(Deserialize, Debug)]
+        #[allow(dead_code)]
+        struct Wrapper {
+            #[serde(deserialize_with = "expand")]
+            classes: Vec<Family>,
+        }
+        let err =
+            toml::from_str::<Wrapper>("[[classes]]\nfamily = \"ball\"\nradius = 3\n").unwrap_err();
+        assert!(err.message().contains("unknown field `radius`"), "{err}");
     }
 
     #[test]

@@ -160,7 +160,7 @@ fn resolutions_must_divide_the_side() {
 
 #[test]
 fn ranges_expand_into_classes() {
-    let text = GOOD.replace(
+    let text = GOOD.replace("side = 24", "side = 40").replace(
         "family = \"ball\"",
         "family = \"handlebody\"\ngenus = [1, 2]",
     );
