@@ -69,17 +69,22 @@ fn sbatch_wait(script: &Path, env: &[(&str, &str)]) -> Option<i32> {
     out.status.code()
 }
 
-/// The dataset's files (not the lock, not the Slurm scripts and logs), with their bytes.
+/// The dataset's files (everything but the lock and the Slurm scripts and logs).
 fn dataset_files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     let mut out = BTreeMap::new();
-    for name in ["index.json", "build.json", "manifest.toml"] {
-        out.insert(PathBuf::from(name), std::fs::read(dir.join(name)).unwrap());
-    }
-    for sub in ["shards", "records"] {
-        for entry in std::fs::read_dir(dir.join(sub)).unwrap() {
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
             let path = entry.unwrap().path();
             let rel = path.strip_prefix(dir).unwrap().to_path_buf();
-            out.insert(rel, std::fs::read(&path).unwrap());
+            if rel == Path::new("slurm") || rel == Path::new(".lock") {
+                continue;
+            }
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                out.insert(rel, std::fs::read(&path).unwrap());
+            }
         }
     }
     out

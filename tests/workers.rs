@@ -126,6 +126,27 @@ fn alive(pid: u32) -> bool {
     }
 }
 
+/// User plus system CPU time of a process in clock ticks (usually 1/100 s).
+fn cpu_ticks(pid: u32) -> u64 {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+        return 0;
+    };
+    // Fields after the command name: state is field 3, utime 14, stime 15.
+    let fields: Vec<&str> = stat
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let field = |n: usize| {
+        fields
+            .get(n - 3)
+            .and_then(|f| f.parse::<u64>().ok())
+            .unwrap_or(0)
+    };
+    field(14) + field(15)
+}
+
 fn kill(signal: &str, pid: u32) {
     let status = Command::new("kill")
         .args([signal, &pid.to_string()])
@@ -197,8 +218,11 @@ fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identic
         first = children(coordinator.id()).first().copied().unwrap_or(0);
         first != 0
     });
-    // Let it take its first shard, then kill it before the shard can be finished.
-    std::thread::sleep(Duration::from_millis(300));
+    // Kill it once it has computed for a while (so it is inside its first shard, whatever
+    // the machine's load), which is well before the shard can be finished.
+    wait_until("the worker to compute", Duration::from_secs(60), || {
+        cpu_ticks(first) >= 15
+    });
     assert!(
         !shard_files(&out).iter().any(|n| n.ends_with(".tar")),
         "a shard finished before the kill; the test needs slower samples"

@@ -448,6 +448,8 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
         let job = cluster::sbatch(build, &[])?;
         println!("build job {job}");
         finalize_args.push(format!("--dependency=afterok:{job}"));
+        // Without this a failed array leaves finalize pending forever (and --wait hanging).
+        finalize_args.push("--kill-on-invalid-dep=yes".to_string());
     }
     if args.wait {
         finalize_args.push("--wait".to_string());
@@ -519,11 +521,20 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
         .chain(status.invalid.iter().map(|s| s.shard.as_str()))
         .collect();
     if !incomplete.is_empty() {
+        const SHOWN: usize = 20;
+        let mut names = incomplete[..incomplete.len().min(SHOWN)].join(", ");
+        if incomplete.len() > SHOWN {
+            names.push_str(&format!(
+                " and {} more (`bettimill status {}` lists them all)",
+                incomplete.len() - SHOWN,
+                dir.display()
+            ));
+        }
         eprintln!(
             "error: {} of {} shards are not complete: {}\nindex.json not written; build them (resubmit `bettimill slurm ... --submit`, or run `bettimill build ... --out {}`), then finalize again",
             incomplete.len(),
             status.shards,
-            incomplete.join(", "),
+            names,
             dir.display()
         );
         return Ok(Status::Failure);
@@ -551,28 +562,38 @@ pub fn status(dir: &Path, json: bool) -> anyhow::Result<Status> {
     }
     let dataset = Dataset::open(dir)?;
     let report = cluster::status(&dataset);
+    let mut text = String::new();
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(Status::Success);
-    }
-    println!(
-        "{}: {} of {} shards complete, {} missing, {} invalid; index.json {}",
-        dir.display(),
-        report.complete.len(),
-        report.shards,
-        report.missing.len(),
-        report.invalid.len(),
-        if report.finalized {
-            "written"
-        } else {
-            "not written"
+        text = serde_json::to_string_pretty(&report)?;
+        text.push('\n');
+    } else {
+        text.push_str(&format!(
+            "{}: {} of {} shards complete, {} missing, {} invalid; index.json {}\n",
+            dir.display(),
+            report.complete.len(),
+            report.shards,
+            report.missing.len(),
+            report.invalid.len(),
+            if report.finalized {
+                "written"
+            } else {
+                "not written"
+            }
+        ));
+        for name in &report.missing {
+            text.push_str(&format!("missing {name}\n"));
         }
-    );
-    for name in &report.missing {
-        println!("missing {name}");
+        for invalid in &report.invalid {
+            text.push_str(&format!("invalid {}: {}\n", invalid.shard, invalid.reason));
+        }
     }
-    for invalid in &report.invalid {
-        println!("invalid {}: {}", invalid.shard, invalid.reason);
+    // A reader that stops early (`| head`) is not an error.
+    let mut stdout = std::io::stdout().lock();
+    match std::io::Write::write_all(&mut stdout, text.as_bytes()) {
+        Err(err) if err.kind() != std::io::ErrorKind::BrokenPipe => {
+            return Err(err).context("cannot write to stdout")
+        }
+        _ => {}
     }
     Ok(Status::Success)
 }

@@ -305,6 +305,7 @@ async fn drive(
         plan_hash: dataset.plan.hash(),
     };
     let shared = Arc::new(SlotContext {
+        any_handshake: std::sync::atomic::AtomicBool::new(false),
         options: options.clone(),
         handshake,
         shards: dataset
@@ -362,6 +363,10 @@ async fn drive(
 }
 
 struct SlotContext {
+    /// Whether any worker of this build has completed its handshake: after that, a worker
+    /// that dies before its handshake (killed, out of memory) is a fault to retry, not a
+    /// broken installation.
+    any_handshake: std::sync::atomic::AtomicBool,
     options: BuildOptions,
     handshake: Handshake,
     shards: Vec<(String, u64)>,
@@ -411,6 +416,9 @@ async fn start_worker(context: &SlotContext) -> Result<Worker, CoordinatorError>
     };
     protocol::check_handshake(&context.handshake, &theirs, Peer::Worker)
         .map_err(CoordinatorError::Handshake)?;
+    context
+        .any_handshake
+        .store(true, std::sync::atomic::Ordering::Relaxed);
     Ok(Worker {
         child,
         pid,
@@ -434,12 +442,21 @@ async fn run_slot(
             break;
         };
         let (name, samples) = context.shards[shard_index].clone();
+        let mut early_death = None;
         if worker.is_none() {
-            let started = start_worker(&context).await;
-            match started {
+            match start_worker(&context).await {
                 Ok(w) => {
                     let _ = events.send(BuildEvent::WorkerStarted { slot, pid: w.pid });
                     worker = Some(w);
+                }
+                Err(CoordinatorError::WorkerDiedEarly { pid, status })
+                    if context
+                        .any_handshake
+                        .load(std::sync::atomic::Ordering::Relaxed) =>
+                {
+                    early_death = Some(format!(
+                        "worker process {pid} exited before its handshake ({status})"
+                    ));
                 }
                 Err(err) => {
                     context.lock().queue.push_front(shard_index);
@@ -447,16 +464,21 @@ async fn run_slot(
                 }
             }
         }
-        let current = worker.as_mut().expect("a worker was just started");
-        let _ = events.send(BuildEvent::ShardStarted {
-            slot,
-            shard: name.clone(),
-            samples,
-        });
         let mut samples_reported = 0u64;
-        let attempt = tokio::select! {
-            attempt = attempt_shard(current, shard_index as u64, slot, &events, &mut samples_reported) => attempt,
-            _ = stop.wait_for(|stopped| *stopped) => Attempt::Interrupted,
+        let attempt = match (early_death, worker.as_mut()) {
+            (Some(reason), _) => Attempt::Died(reason),
+            (None, Some(current)) => {
+                let _ = events.send(BuildEvent::ShardStarted {
+                    slot,
+                    shard: name.clone(),
+                    samples,
+                });
+                tokio::select! {
+                    attempt = attempt_shard(current, shard_index as u64, slot, &events, &mut samples_reported) => attempt,
+                    _ = stop.wait_for(|stopped| *stopped) => Attempt::Interrupted,
+                }
+            }
+            (None, None) => unreachable!("a worker was just started or its death recorded"),
         };
         let died = matches!(attempt, Attempt::Died(_));
         match attempt {

@@ -360,7 +360,7 @@ mod tests {
         let frame = encode_frame(&hello("0.1.0", "ab"));
         assert_eq!(
             frame,
-            [11, 0, 0, 0, 1, 5, b'0', b'.', b'1', b'.', b'0', 2, b'a', b'b']
+            [10, 0, 0, 0, 1, 5, b'0', b'.', b'1', b'.', b'0', 2, b'a', b'b']
         );
     }
 
