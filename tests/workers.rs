@@ -402,3 +402,23 @@ fn sigterm_stops_the_workers_and_says_how_to_resume() {
     // A clean stop leaves no temporary files either.
     assert!(shard_files(&out).is_empty(), "{:?}", shard_files(&out));
 }
+
+#[test]
+fn a_worker_of_another_version_is_refused_with_what_to_do() {
+    let tmp = tempfile::tempdir().unwrap();
+    let m = manifest(tmp.path(), 2, 20, 6, 3);
+    let out = tmp.path().join("out");
+    let coordinator = spawn_build(&m, &out, 1, &[("BETTIMILL_TEST_WORKER_VERSION", "9.9.9")]);
+    let (code, stderr) = finish(coordinator);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("worker is bettimill 9.9.9")
+            && stderr.contains(&format!(
+                "coordinator is bettimill {}",
+                env!("CARGO_PKG_VERSION")
+            ))
+            && stderr.contains("rebuild or reinstall so that both are the same binary"),
+        "{stderr}"
+    );
+    assert!(!out.join("index.json").exists());
+}

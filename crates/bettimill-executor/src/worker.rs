@@ -12,8 +12,9 @@
 //!
 //! Test hooks (documented in docs/cluster.md; never set them otherwise):
 //! [`FAIL_TASK_ENV`] makes array task `t` fail before any work, [`FAIL_SHARD_ENV`] makes
-//! every attempt at one shard fail, and [`crate::PAUSE_BEFORE_RENAME_ENV`] widens the window
-//! between a shard's temporary file and its rename.
+//! every attempt at one shard fail, [`FAKE_VERSION_ENV`] makes a served worker claim another
+//! version, and [`crate::PAUSE_BEFORE_RENAME_ENV`] widens the window between a shard's
+//! temporary file and its rename.
 
 use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
 use crate::{BuildError, Dataset};
@@ -117,10 +118,14 @@ fn injected_shard_failure(shard_index: u64) -> bool {
         == Some(shard_index)
 }
 
+/// Test hook: the version a served worker claims in its handshake, to exercise the
+/// coordinator's mismatch message with real processes.
+pub const FAKE_VERSION_ENV: &str = "BETTIMILL_TEST_WORKER_VERSION";
+
 fn our_handshake(dataset: &Dataset) -> Handshake {
     Handshake {
         protocol_version: protocol::PROTOCOL_VERSION,
-        tool_version: TOOL_VERSION.to_string(),
+        tool_version: std::env::var(FAKE_VERSION_ENV).unwrap_or_else(|_| TOOL_VERSION.to_string()),
         plan_hash: dataset.plan.hash(),
     }
 }
