@@ -289,9 +289,24 @@ pub fn render_sample(image: &BinaryImage, caption: &[String]) -> Result<Canvas, 
     Ok(canvas)
 }
 
-/// The small views of one sample in a contact sheet: the image itself in 2D; a projection
-/// and the middle slice in 3D and 4D (in 4D the projection is along the first two axes and
-/// the slice is the middle slice of the middle 3D slice).
+/// The 2D slice (among `layers` slices of `area` voxels) whose foreground covers closest to
+/// half of it, the first on ties: the widest cross-section of an object in empty space, the
+/// widest cavity in a solid cube, so a single slice shows as much of the shape as one can.
+fn most_mixed_slice(data: &[u8], layers: usize, area: usize) -> usize {
+    (0..layers)
+        .min_by_key(|&i| {
+            let count = data[i * area..(i + 1) * area]
+                .iter()
+                .filter(|&&v| v != 0)
+                .count();
+            (2 * count).abs_diff(area)
+        })
+        .unwrap_or(0)
+}
+
+/// The small views of one sample in a contact sheet: the image itself in 2D; in 3D and 4D
+/// a projection along every axis but the last two, and the most telling 2D slice
+/// ([`most_mixed_slice`]).
 fn thumbnails(image: &BinaryImage) -> Vec<Tile> {
     let shape = image.shape();
     let data = image.data();
@@ -305,10 +320,11 @@ fn thumbnails(image: &BinaryImage) -> Vec<Tile> {
         }];
     }
     let layers: usize = shape[..d - 2].iter().product();
-    let middle = if d == 3 {
-        shape[0] / 2
+    let slice = most_mixed_slice(data, layers, area);
+    let label = if d == 3 {
+        format!("i={slice}")
     } else {
-        (shape[0] / 2) * shape[1] + shape[1] / 2
+        format!("i={},j={}", slice / shape[1], slice % shape[1])
     };
     vec![
         Tile {
@@ -316,8 +332,8 @@ fn thumbnails(image: &BinaryImage) -> Vec<Tile> {
             label: "proj".to_string(),
         },
         Tile {
-            plane: slice_plane(&data[middle * area..(middle + 1) * area], rows, cols),
-            label: "middle".to_string(),
+            plane: slice_plane(&data[slice * area..(slice + 1) * area], rows, cols),
+            label,
         },
     ]
 }
@@ -416,6 +432,13 @@ mod tests {
         let data = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0];
         assert_eq!(pick_occupied(&data, 5, 2, 24), vec![2, 3, 4]);
         assert_eq!(pick_occupied(&[0; 10], 5, 2, 24), vec![0, 1, 2, 3, 4]);
+    }
+
+    #[test]
+    fn the_thumbnail_slice_is_the_one_closest_to_half_full() {
+        // Three 1x4 slices holding 0, 3 and 2 voxels.
+        let data = [0, 0, 0, 0, 1, 1, 1, 0, 1, 1, 0, 0];
+        assert_eq!(most_mixed_slice(&data, 3, 4), 2);
     }
 
     #[test]
