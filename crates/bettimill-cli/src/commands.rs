@@ -64,6 +64,12 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Rebuild shards from the stored manifest and compare bytes, and/or recompute labels.
+    ///
+    /// Exit 0 when everything matches, 1 when something differs.
+    ///
+    /// Example: bettimill audit demo-out --rebuild 0.1 --relabel
+    Audit(crate::audit::AuditArgs),
     /// Check every shard and member of a dataset against its index.json.
     ///
     /// Example: bettimill verify demo-out
@@ -187,6 +193,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
         Command::K8s(args) => crate::cluster::kubernetes(args),
         Command::Finalize { dir } => crate::cluster::finalize(&dir, cli.quiet),
         Command::Status { dir, json } => crate::cluster::status(&dir, json),
+        Command::Audit(args) => crate::audit::run(&args),
         Command::Verify { dir, json } => verify(&dir, json),
         Command::Betti {
             image,

@@ -5,6 +5,7 @@
 //! 130 interrupted (resumable). Everything else lives in library crates; this crate
 //! is the only one that prints.
 
+mod audit;
 mod cluster;
 mod commands;
 mod completions;

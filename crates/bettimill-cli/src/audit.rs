@@ -1,0 +1,83 @@
+//! `bettimill audit`: rebuild chosen shards and compare bytes, and/or recompute labels.
+
+use crate::commands::Status;
+use bettimill_audit::{AuditReport, Selection};
+use bettimill_executor::Dataset;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `bettimill audit`.
+#[derive(Args, Debug)]
+pub struct AuditArgs {
+    /// The dataset directory.
+    dir: PathBuf,
+    /// Rebuild this fraction of the shards (chosen reproducibly) and compare bytes.
+    #[arg(long, value_name = "FRACTION", conflicts_with = "shards")]
+    rebuild: Option<f64>,
+    /// Rebuild these shards (numbers or names, comma-separated) and compare bytes.
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    shards: Option<Vec<String>>,
+    /// Seed for choosing the shards of --rebuild FRACTION.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Recompute the Betti numbers of every stored sample (of the chosen shards, or of all
+    /// shards when none are chosen) and compare them with the stored labels.
+    #[arg(long)]
+    relabel: bool,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs an audit.
+pub fn run(args: &AuditArgs) -> anyhow::Result<Status> {
+    let dataset = Dataset::open(&args.dir)?;
+    let selection = match (&args.rebuild, &args.shards) {
+        (Some(fraction), _) => Some(Selection::Fraction {
+            fraction: *fraction,
+            seed: args.seed,
+        }),
+        (None, Some(list)) => Some(Selection::Shards(list.clone())),
+        (None, None) => None,
+    };
+    if selection.is_none() && !args.relabel {
+        anyhow::bail!("nothing to audit: give --rebuild FRACTION, --shards LIST and/or --relabel");
+    }
+    let chosen = match &selection {
+        Some(selection) => bettimill_audit::select(&dataset, selection)?,
+        None => dataset.plan.shards.clone(),
+    };
+    drop(dataset);
+    let mut report = AuditReport::default();
+    if selection.is_some() {
+        report = bettimill_audit::rebuild(&args.dir, &chosen)?;
+    }
+    if args.relabel {
+        let relabelled = bettimill_audit::relabel(&args.dir, &chosen)?;
+        report.relabelled_samples = relabelled.relabelled_samples;
+        report.findings.extend(relabelled.findings);
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        for finding in &report.findings {
+            println!("{finding}");
+        }
+        println!(
+            "{}: rebuilt {} shard(s), relabelled {} sample(s), {} difference(s)",
+            if report.findings.is_empty() {
+                "ok"
+            } else {
+                "DIFFERS"
+            },
+            report.rebuilt.len(),
+            report.relabelled_samples,
+            report.findings.len()
+        );
+    }
+    Ok(if report.findings.is_empty() {
+        Status::Success
+    } else {
+        Status::Differs
+    })
+}
