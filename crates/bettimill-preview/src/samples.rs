@@ -106,3 +106,71 @@ pub fn samples_in_tar(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bettimill_shard::{compress, tar_bytes, Member};
+
+    fn label_json(key: &str) -> Vec<u8> {
+        serde_json::to_vec(&serde_json::json!({
+            "key": key, "betti": [1, 0], "field": "Z/2", "euler": 1, "hypervolume": 1,
+            "components": 1, "shape": [4, 4], "dim": 2, "mode": "embed", "family": "ball",
+            "knot_type": "none", "class_index": 0, "class_label": "ball/embed", "seed": "00",
+            "attempt": 0, "manifest_hash": "00", "tool_version": "0", "construction": {}
+        }))
+        .unwrap()
+    }
+
+    fn shard(compression: Compression, keys: &[&str]) -> Vec<u8> {
+        let mut members = Vec::new();
+        for (n, key) in keys.iter().enumerate() {
+            let mut image = BinaryImage::zeros(&[4, 4]).unwrap();
+            image.set(&[n % 4, 1], true);
+            let npy = npy::write_bytes(&image, npy::Dtype::U8);
+            members.push(Member::new(format!("{key}.cls"), b"0".to_vec()));
+            members.push(Member::new(format!("{key}.json"), label_json(key)));
+            members.push(Member::new(
+                format!("{key}.npy{}", compression.suffix()),
+                compress(&npy, compression).unwrap(),
+            ));
+            members.push(Member::new(format!("{key}.r2.npy"), b"ignored".to_vec()));
+        }
+        tar_bytes(&members).unwrap()
+    }
+
+    #[test]
+    fn kept_samples_decode_with_every_compression() {
+        for compression in [Compression::None, Compression::Gzip, Compression::Zstd] {
+            let bytes = shard(compression, &["s0", "s1", "s2"]);
+            assert_eq!(keys_in_tar(&bytes).unwrap(), vec!["s0", "s1", "s2"]);
+            assert_eq!(labels_in_tar(&bytes).unwrap().len(), 3);
+            let samples = samples_in_tar(&bytes, &mut |key| key != "s1").unwrap();
+            let keys: Vec<&str> = samples.iter().map(|s| s.key.as_str()).collect();
+            assert_eq!(keys, vec!["s0", "s2"], "{compression}");
+            assert!(samples[1].image.get(&[2, 1]), "{compression}");
+            assert_eq!(samples[1].image.count_foreground(), 1);
+            assert_eq!(samples[1].label.key, "s2");
+        }
+    }
+
+    #[test]
+    fn a_sample_without_its_array_or_with_a_bad_label_is_an_error() {
+        let members = vec![Member::new("s0.json", label_json("s0"))];
+        let bytes = tar_bytes(&members).unwrap();
+        assert!(matches!(
+            samples_in_tar(&bytes, &mut |_| true),
+            Err(PreviewError::Missing { field: "npy", .. })
+        ));
+        let members = vec![Member::new("s0.json", b"{}".to_vec())];
+        let bytes = tar_bytes(&members).unwrap();
+        assert!(matches!(
+            labels_in_tar(&bytes),
+            Err(PreviewError::Label { .. })
+        ));
+        assert!(matches!(
+            samples_in_tar(b"not a tar", &mut |_| true),
+            Err(PreviewError::Shard(_))
+        ));
+    }
+}
