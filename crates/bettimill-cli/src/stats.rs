@@ -4,6 +4,7 @@
 use crate::commands::Status;
 use anyhow::{bail, Context};
 use bettimill_preview::{labels_in_tar, plot, RecordStats, Stats};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 
 /// Runs `bettimill stats`.
@@ -20,8 +21,19 @@ pub fn run(
         );
     }
     let shards = crate::preview::dataset_shards(dir)?;
+    // indicatif draws nothing when stderr is not a terminal; --quiet hides the bar too.
+    let target = if quiet {
+        ProgressDrawTarget::hidden()
+    } else {
+        ProgressDrawTarget::stderr()
+    };
+    let bar = ProgressBar::with_draw_target(Some(shards.len() as u64), target).with_style(
+        ProgressStyle::with_template("reading labels {bar:30} {pos}/{len} shards")
+            .expect("the template is valid"),
+    );
     let mut labels = Vec::new();
     for (split, shard) in &shards {
+        bar.inc(1);
         let bytes = std::fs::read(shard)
             .with_context(|| format!("cannot read shard {}", shard.display()))?;
         let shard_labels = labels_in_tar(&bytes)
@@ -44,6 +56,7 @@ pub fn run(
             .with_context(|| format!("{} is not a completion record", path.display()))?;
         records.push(record);
     }
+    bar.finish_and_clear();
     let stats = Stats::collect(&labels, &records, shards.len() as u64);
     if json {
         println!("{}", serde_json::to_string_pretty(&stats)?);
