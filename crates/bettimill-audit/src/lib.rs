@@ -219,7 +219,7 @@ pub fn rebuild(dir: &Path, shards: &[ShardPlan]) -> Result<AuditReport, AuditErr
                         entries
                             .iter()
                             .find(|e| {
-                                let start = e.header_offset as u64;
+                                let start = e.header_offset;
                                 let end = start + 512 + (e.data.len() as u64).div_ceil(512) * 512;
                                 (start..end).contains(&offset)
                             })
@@ -262,6 +262,9 @@ pub fn relabel(dir: &Path, shards: &[ShardPlan]) -> Result<AuditReport, AuditErr
     Ok(report)
 }
 
+/// A sample's fields (`json`, `npy`, ...) with their bytes, in tar order.
+type Fields = Vec<(String, Vec<u8>)>;
+
 fn relabel_shard(dataset: &Dataset, shard: &ShardPlan) -> Result<(u64, Vec<Finding>), AuditError> {
     let path = dataset.tar_path(shard);
     let mut findings = Vec::new();
@@ -283,7 +286,7 @@ fn relabel_shard(dataset: &Dataset, shard: &ShardPlan) -> Result<(u64, Vec<Findi
         Err(err) => return Ok((0, vec![undecodable("(tar)", err.to_string())])),
     };
     // Group members by key, keeping the tar order.
-    let mut samples: Vec<(String, Vec<(String, Vec<u8>)>)> = Vec::new();
+    let mut samples: Vec<(String, Fields)> = Vec::new();
     for member in members {
         let Some((key, field)) = member.name.split_once('.') else {
             findings.push(undecodable(&member.name, "no field".into()));
