@@ -7,6 +7,10 @@ use clap_complete::Shell;
 /// Writes the completion script for `shell` to stdout.
 pub fn run(shell: Shell) -> anyhow::Result<Status> {
     let mut command = Cli::command();
-    clap_complete::generate(shell, &mut command, "bettimill", &mut std::io::stdout());
+    // Generated into memory first: clap_complete panics when its writer fails, and stdout
+    // can be a closed pipe.
+    let mut script = Vec::new();
+    clap_complete::generate(shell, &mut command, "bettimill", &mut script);
+    crate::stats::write_stdout(&script)?;
     Ok(Status::Success)
 }

@@ -58,11 +58,12 @@ pub fn run(
     }
     bar.finish_and_clear();
     let stats = Stats::collect(&labels, &records, shards.len() as u64);
-    if json {
-        println!("{}", serde_json::to_string_pretty(&stats)?);
+    let output = if json {
+        serde_json::to_string_pretty(&stats)? + "\n"
     } else {
-        print!("{}", stats.to_text());
-    }
+        stats.to_text()
+    };
+    write_stdout(output.as_bytes())?;
     if let Some(path) = plot_path {
         let canvas = plot(&stats)?;
         std::fs::write(path, canvas.to_png())
@@ -72,4 +73,18 @@ pub fn run(
         }
     }
     Ok(Status::Success)
+}
+
+/// Writes data to stdout. A reader that stops early (`bettimill stats DIR | head`) closes
+/// the pipe; that is the reader's choice, not an error, so a broken pipe ends quietly
+/// instead of panicking the way `println!` does.
+pub(crate) fn write_stdout(bytes: &[u8]) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    match stdout.write_all(bytes).and_then(|()| stdout.flush()) {
+        Err(err) if err.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(err).context("cannot write to stdout")
+        }
+        _ => Ok(()),
+    }
 }
