@@ -422,3 +422,69 @@ fn audit_names_the_tampered_shard_and_the_wrong_label() {
     let out = bettimill(&["audit", d]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn deform_keeps_topology_shape_and_dtype() {
+    let tmp = tempfile::tempdir().unwrap();
+    // An annulus in a 40x40 int16 image.
+    let mut image = bettimill_grid::BinaryImage::zeros(&[40, 40]).unwrap();
+    for i in 0..40i64 {
+        for j in 0..40i64 {
+            let r2 = (i - 20) * (i - 20) + (j - 20) * (j - 20);
+            if (36..=144).contains(&r2) {
+                image.set(&[i as usize, j as usize], true);
+            }
+        }
+    }
+    let dtype = bettimill_grid::npy::Dtype {
+        kind: 'i',
+        size: 2,
+        big_endian: false,
+    };
+    let input = tmp.path().join("annulus.npy");
+    std::fs::write(&input, bettimill_grid::npy::write_bytes(&image, dtype)).unwrap();
+    for (method, same_count) in [("moves", true), ("dilate", false), ("erode", false)] {
+        let output = tmp.path().join(format!("{method}.npy"));
+        let out = bettimill(&[
+            "deform",
+            input.to_str().unwrap(),
+            "--out",
+            output.to_str().unwrap(),
+            "--method",
+            method,
+            "--steps",
+            if method == "moves" { "300" } else { "2" },
+            "--seed",
+            "7",
+            "--json",
+        ]);
+        assert_eq!(out.status.code(), Some(0), "{method}: {}", stderr(&out));
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let result = bettimill_grid::npy::read_path(&output, true).unwrap();
+        assert_eq!(result.dtype, dtype, "{method}");
+        assert_eq!(result.image.shape(), image.shape());
+        assert_ne!(result.image, image, "{method} changed nothing");
+        assert_eq!(
+            bettimill_homology::topology(&result.image).betti,
+            vec![1, 1],
+            "{method}"
+        );
+        assert_eq!(report["betti"], serde_json::json!([1, 1]));
+        if same_count {
+            assert_eq!(result.image.count_foreground(), image.count_foreground());
+        }
+    }
+    let out = bettimill(&[
+        "deform",
+        tmp.path().join("missing.npy").to_str().unwrap(),
+        "--out",
+        tmp.path().join("x.npy").to_str().unwrap(),
+        "--method",
+        "moves",
+        "--steps",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("missing.npy"), "{}", stderr(&out));
+    assert!(!tmp.path().join("x.npy").exists());
+}

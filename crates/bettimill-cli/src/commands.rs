@@ -80,6 +80,10 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Deform a .npy image without changing its topology (moves, dilation, erosion).
+    ///
+    /// Example: bettimill deform disc.npy --out moved.npy --method moves --steps 600 --seed 1
+    Deform(crate::deform::DeformArgs),
     /// Compute the Betti numbers of a binary image stored as .npy.
     ///
     /// Example: bettimill betti image.npy --json
@@ -195,6 +199,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
         Command::Status { dir, json } => crate::cluster::status(&dir, json),
         Command::Audit(args) => crate::audit::run(&args),
         Command::Verify { dir, json } => verify(&dir, json),
+        Command::Deform(args) => crate::deform::run(&args),
         Command::Betti {
             image,
             json,

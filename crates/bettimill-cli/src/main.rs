@@ -8,6 +8,7 @@
 mod audit;
 mod cluster;
 mod commands;
+mod deform;
 mod completions;
 mod plan;
 mod preview;
