@@ -386,6 +386,15 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
         assert!(report.contains(section), "no {section:?} in\n{report}");
     }
     png_size(&std::fs::read(dir.join("plot.png")).unwrap());
+
+    // An unfinished build (no index.json yet) still has statistics, splits from its
+    // completion records.
+    std::fs::remove_file(out_dir.join("index.json")).unwrap();
+    let out = bettimill_in(dir, &["stats", out_dir.to_str().unwrap(), "--json"]);
+    let stats = json(&out);
+    assert_eq!(stats["samples"], 8);
+    assert_eq!(stats["splits"]["train"], 4);
+    assert_eq!(stats["splits"]["val"], 4);
 }
 
 #[test]

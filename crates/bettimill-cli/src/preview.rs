@@ -20,8 +20,9 @@ pub struct Request<'a> {
     pub quiet: bool,
 }
 
-/// The shards of a dataset directory in build order: from `index.json` when the build is
-/// finished, otherwise every `shards/*.tar` by name.
+/// The shards of a dataset directory in build order, with their splits: from `index.json`
+/// when the build is finished, otherwise every `shards/*.tar` by name, its split taken from
+/// its completion record (`unknown` without one).
 pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)>> {
     let index_path = dir.join("index.json");
     if index_path.exists() {
@@ -47,9 +48,15 @@ pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)
         );
     }
     shards.sort();
+    let split_of = |tar: &Path| -> Option<String> {
+        let stem = tar.file_stem()?.to_str()?;
+        let bytes = std::fs::read(dir.join("records").join(format!("{stem}.json"))).ok()?;
+        let record: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
+        Some(record["shard"]["split"].as_str()?.to_string())
+    };
     Ok(shards
         .into_iter()
-        .map(|p| ("unknown".to_string(), p))
+        .map(|p| (split_of(&p).unwrap_or_else(|| "unknown".to_string()), p))
         .collect())
 }
 
