@@ -32,6 +32,7 @@
 //!   influence each other's test) gives the same answers on any number of threads.
 
 mod field;
+pub mod hitmiss;
 mod morphology;
 mod moves;
 pub mod seeds;
