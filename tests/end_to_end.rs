@@ -443,7 +443,12 @@ fn deform_keeps_topology_shape_and_dtype() {
     };
     let input = tmp.path().join("annulus.npy");
     std::fs::write(&input, bettimill_grid::npy::write_bytes(&image, dtype)).unwrap();
-    for (method, same_count) in [("moves", true), ("dilate", false), ("erode", false)] {
+    for (method, same_count) in [
+        ("moves", true),
+        ("dilate", false),
+        ("erode", false),
+        ("hit-or-miss", false),
+    ] {
         let output = tmp.path().join(format!("{method}.npy"));
         let out = bettimill(&[
             "deform",

@@ -15,6 +15,9 @@ pub enum MethodArg {
     Dilate,
     /// Noise-modulated topology-preserving erosion.
     Erode,
+    /// 2D only: the paper's hit-or-miss thickening (thinning of the background), each flip
+    /// guarded by the simple-point test; `--steps` counts rounds; no noise, no seed.
+    HitOrMiss,
 }
 
 /// Arguments of `bettimill deform`.
@@ -58,12 +61,14 @@ pub struct DeformArgs {
 pub fn run(args: &DeformArgs) -> anyhow::Result<Status> {
     let input = bettimill_grid::npy::read_path(&args.image, args.strict)
         .with_context(|| format!("cannot use {} as an image", args.image.display()))?;
+    let method = match args.method {
+        MethodArg::Moves => Method::Moves,
+        MethodArg::Dilate => Method::Dilate,
+        MethodArg::Erode => Method::Erode,
+        MethodArg::HitOrMiss => Method::Dilate,
+    };
     let settings = DeformSettings {
-        method: match args.method {
-            MethodArg::Moves => Method::Moves,
-            MethodArg::Dilate => Method::Dilate,
-            MethodArg::Erode => Method::Erode,
-        },
+        method,
         steps: args.steps,
         noise_frequency: args.noise_frequency,
         octaves: args.octaves,
@@ -72,7 +77,10 @@ pub fn run(args: &DeformArgs) -> anyhow::Result<Status> {
     };
     let mut image = input.image.clone();
     let before = bettimill_homology::topology(&image);
-    let report = bettimill_deform::deform(&mut image, &settings, args.seed)?;
+    let report = match args.method {
+        MethodArg::HitOrMiss => bettimill_deform::hitmiss::thicken_2d(&mut image, args.steps)?,
+        _ => bettimill_deform::deform(&mut image, &settings, args.seed)?,
+    };
     // The deformation is topology-preserving by construction; the check is cheap next to it
     // and keeps the promise visible to the user.
     let after = bettimill_homology::topology(&image);
