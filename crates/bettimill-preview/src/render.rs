@@ -343,16 +343,19 @@ pub fn contact_sheet(samples: &[(BinaryImage, Vec<String>)]) -> Result<Canvas, P
     if samples.is_empty() {
         return Err(PreviewError::Empty);
     }
-    let cells: Vec<(Vec<Tile>, usize, &[String])> = samples
+    let cells: Vec<(Vec<Tile>, usize, Vec<String>)> = samples
         .iter()
         .map(|(image, caption)| {
             let shape = image.shape();
             let d = shape.len();
-            let scale = scale_for(shape[d - 2], shape[d - 1], 96);
-            (thumbnails(image), scale, caption.as_slice())
+            let scale = scale_for(shape[d - 2], shape[d - 1], 128);
+            let tiles = thumbnails(image);
+            let views_w: usize = tiles.iter().map(|t| tile_size(t, scale).0 + GAP).sum();
+            let caption = wrap(caption, (views_w / font::ADVANCE).max(20));
+            (tiles, scale, caption)
         })
         .collect();
-    let cell_size = |(tiles, scale, caption): &(Vec<Tile>, usize, &[String])| {
+    let cell_size = |(tiles, scale, caption): &(Vec<Tile>, usize, Vec<String>)| {
         let views_w: usize = tiles.iter().map(|t| tile_size(t, *scale).0 + GAP).sum();
         let views_h = tiles
             .iter()
@@ -405,6 +408,32 @@ pub fn contact_sheet(samples: &[(BinaryImage, Vec<String>)]) -> Result<Canvas, P
     Ok(canvas)
 }
 
+/// Breaks every line longer than `width` characters, after the last `,` or space that
+/// keeps a piece within `width` (or at `width` when there is none), so long class names
+/// do not widen every cell of a contact sheet.
+fn wrap(lines: &[String], width: usize) -> Vec<String> {
+    let mut out = Vec::new();
+    for line in lines {
+        let mut rest: Vec<char> = line.chars().collect();
+        while rest.len() > width {
+            let cut = rest[..width]
+                .iter()
+                .rposition(|&c| c == ',' || c == ' ')
+                .map_or(width, |i| i + 1);
+            out.push(
+                rest[..cut]
+                    .iter()
+                    .collect::<String>()
+                    .trim_end()
+                    .to_string(),
+            );
+            rest.drain(..cut);
+        }
+        out.push(rest.into_iter().collect());
+    }
+    out
+}
+
 /// The short caption of a sample in a contact sheet.
 pub fn short_caption(label: &Label) -> Vec<String> {
     vec![
@@ -439,6 +468,19 @@ mod tests {
         // Three 1x4 slices holding 0, 3 and 2 voxels.
         let data = [0, 0, 0, 0, 1, 1, 1, 0, 1, 1, 0, 0];
         assert_eq!(most_mixed_slice(&data, 3, 4), 2);
+    }
+
+    #[test]
+    fn long_caption_lines_wrap_after_commas_or_spaces() {
+        let lines = vec![
+            "scene(curve,handle,knot) carve".to_string(),
+            "short".to_string(),
+        ];
+        assert_eq!(
+            wrap(&lines, 12),
+            vec!["scene(curve,", "handle,", "knot) carve", "short"]
+        );
+        assert_eq!(wrap(&["abcdefgh".to_string()], 3), vec!["abc", "def", "gh"]);
     }
 
     #[test]
