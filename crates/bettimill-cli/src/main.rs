@@ -8,8 +8,8 @@
 mod audit;
 mod cluster;
 mod commands;
-mod deform;
 mod completions;
+mod deform;
 mod plan;
 mod preview;
 mod stats;
