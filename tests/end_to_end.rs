@@ -493,3 +493,21 @@ fn deform_keeps_topology_shape_and_dtype() {
     assert!(stderr(&out).contains("missing.npy"), "{}", stderr(&out));
     assert!(!tmp.path().join("x.npy").exists());
 }
+
+/// `bettimill plan | head` used to panic in `println!` when `head` closed the pipe.
+#[test]
+fn a_closed_stdout_pipe_is_not_a_panic() {
+    use std::io::Read;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_bettimill"))
+        .args(["plan", &preset("4d-mixed-128.toml"), "--json"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 16];
+    child.stdout.take().unwrap().read_exact(&mut first).unwrap();
+    // The read end is dropped here: the rest of the output meets a closed pipe.
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
+}

@@ -58,12 +58,12 @@ pub fn run(args: &AuditArgs) -> anyhow::Result<Status> {
         report.findings.extend(relabelled.findings);
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         for finding in &report.findings {
-            println!("{finding}");
+            outln!("{finding}");
         }
-        println!(
+        outln!(
             "{}: rebuilt {} shard(s), relabelled {} sample(s), {} difference(s)",
             if report.findings.is_empty() {
                 "ok"

@@ -446,7 +446,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
     let mut finalize_args = Vec::new();
     if let Some(build) = &scripts.build {
         let job = cluster::sbatch(build, &[])?;
-        println!("build job {job}");
+        outln!("build job {job}");
         finalize_args.push(format!("--dependency=afterok:{job}"));
         // Without this a failed array leaves finalize pending forever (and --wait hanging).
         finalize_args.push("--kill-on-invalid-dep=yes".to_string());
@@ -456,7 +456,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
     }
     match cluster::sbatch(&scripts.finalize, &finalize_args) {
         Ok(job) => {
-            println!("finalize job {job}");
+            outln!("finalize job {job}");
             Ok(Status::Success)
         }
         Err(err) if args.wait => {

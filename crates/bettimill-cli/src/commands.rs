@@ -242,18 +242,18 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
 fn verify(dir: &Path, json: bool) -> anyhow::Result<Status> {
     let report = bettimill_shard::verify(dir)?;
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        outln!("{}", serde_json::to_string_pretty(&report)?);
     } else if report.problems.is_empty() {
-        println!(
+        outln!(
             "ok: {} shards match {}",
             report.shards_checked,
             dir.join("index.json").display()
         );
     } else {
         for problem in &report.problems {
-            println!("{problem}");
+            outln!("{problem}");
         }
-        println!("{} problem(s) found", report.problems.len());
+        outln!("{} problem(s) found", report.problems.len());
     }
     Ok(if report.problems.is_empty() {
         Status::Success
@@ -274,10 +274,10 @@ fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<Status> {
             "hypervolume": npy.image.count_foreground(),
             "field": "Z/2",
         });
-        println!("{value}");
+        outln!("{value}");
     } else {
         let betti: Vec<String> = topology.betti.iter().map(|b| b.to_string()).collect();
-        println!("betti: [{}]  euler: {}", betti.join(", "), topology.euler);
+        outln!("betti: [{}]  euler: {}", betti.join(", "), topology.euler);
     }
     Ok(Status::Success)
 }

@@ -103,9 +103,9 @@ pub fn run(args: &DeformArgs) -> anyhow::Result<Status> {
             "hypervolume_before": report.foreground_before,
             "hypervolume_after": report.foreground_after,
         });
-        println!("{value}");
+        outln!("{value}");
     } else {
-        println!(
+        outln!(
             "applied {} of {} steps; hypervolume {} -> {}; betti {:?} unchanged",
             report.applied,
             args.steps,

@@ -5,6 +5,18 @@
 //! 130 interrupted (resumable). Everything else lives in library crates; this crate
 //! is the only one that prints.
 
+/// `println!` for data on stdout that ends quietly when the reader closes the pipe
+/// (`bettimill plan | head`) instead of panicking; see `stats::write_stdout`. Only usable
+/// in functions that return `anyhow::Result`.
+macro_rules! outln {
+    () => {
+        crate::stats::write_stdout(b"\n")?
+    };
+    ($($arg:tt)*) => {
+        crate::stats::write_stdout(format!("{}\n", format_args!($($arg)*)).as_bytes())?
+    };
+}
+
 mod audit;
 mod cluster;
 mod commands;

@@ -61,22 +61,28 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
             "estimated_bytes": bytes,
             "estimated_seconds": seconds,
         });
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        outln!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
-    println!(
+    outln!(
         "dataset {}: {}D, side {}, {} samples",
-        manifest.name, plan.dimension, plan.side, plan.samples
+        manifest.name,
+        plan.dimension,
+        plan.side,
+        plan.samples
     );
-    println!("manifest hash {}", plan.manifest_hash);
-    println!("plan hash     {}", plan.hash());
-    println!();
-    println!(
+    outln!("manifest hash {}", plan.manifest_hash);
+    outln!("plan hash     {}", plan.hash());
+    outln!();
+    outln!(
         "{:>4}  {:<40} {:<16} {:>8}",
-        "cls", "stratum", "betti", "samples"
+        "cls",
+        "stratum",
+        "betti",
+        "samples"
     );
     for (stratum, count) in plan.strata.iter().zip(&totals) {
-        println!(
+        outln!(
             "{:>4}  {:<40} {:<16} {:>8}",
             stratum.index,
             stratum.label,
@@ -85,15 +91,15 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
         );
     }
     if !plan.infeasible.is_empty() {
-        println!("\nleft out (cannot be built):");
+        outln!("\nleft out (cannot be built):");
         for item in &plan.infeasible {
-            println!("  {}: {}", item.label, item.reason);
+            outln!("  {}: {}", item.label, item.reason);
         }
     }
-    println!();
+    outln!();
     for (split, size) in &plan.splits {
         let shards: Vec<_> = plan.shards.iter().filter(|s| &s.split == split).collect();
-        println!(
+        outln!(
             "split {split}: {size} samples in {} shards of up to {}",
             shards.len(),
             plan.shard_size
@@ -104,8 +110,8 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
         .map(|c| c.iter().max().unwrap_or(&0) - c.iter().min().unwrap_or(&0))
         .max()
         .unwrap_or(0);
-    println!("per-shard balance: stratum counts differ by at most {spread} within any shard");
-    println!(
+    outln!("per-shard balance: stratum counts differ by at most {spread} within any shard");
+    outln!(
         "estimated output {:.1} MiB uncompressed, build time about {} on {} cores",
         bytes as f64 / (1024.0 * 1024.0),
         human_duration(seconds),
