@@ -13,7 +13,8 @@
 //!   in 2D and 3D that determines everything (b_1 = b_0 + b_2 - chi in 3D).
 //! - In 4D b_1 and b_2 are tied by one equation only, so the image is thinned by sequential
 //!   simple-point deletion in raster sweeps (same homotopy type; about 1% of a blob's
-//!   voxels survive) and the remnant's cubical complex is collapsed and reduced explicitly.
+//!   voxels survive), and the remnant's cubical complex is shrunk by collapses and
+//!   coreductions (module `complex`) until a few cells are left for an explicit Z/2 rank.
 //!
 //! Memory: the padded copy (one byte per voxel) plus the remnant's complex; a 128^4 blob
 //! peaked below 1 GB including the caller's copy of the image.
@@ -92,9 +93,7 @@ fn topology_by_thinning(mut padded: BinaryImage) -> Topology {
         let c = padded.coords(index);
         layout.for_each_face_of_voxel(layout.voxel(&c[..d]), |cell| cells.push(cell));
     }
-    let mut complex = CellComplex::from_cells(layout, cells);
-    complex.collapse();
-    let mut betti = complex.betti();
+    let mut betti = CellComplex::from_cells(layout, cells).betti_by_reduction();
     betti.truncate(d);
     Topology::from_betti(betti)
 }

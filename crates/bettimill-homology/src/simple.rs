@@ -377,6 +377,15 @@ impl SimpleTester {
         self.configuration_in(image.data(), image.strides(), index)
     }
 
+    /// The configuration of a voxel from its whole 3^d block (bit 3r + c = row r of the
+    /// 3^(d-1) rows along the last axis in lexicographic order, position c = 0, 1, 2 for
+    /// offsets -1, 0, +1): drops the centre bit, as [`SimpleTester::configuration_in`] does.
+    #[inline]
+    pub(crate) fn configuration_of_block(&self, block: u128) -> u128 {
+        let centre = self.tables.centre;
+        (block & ((1u128 << centre) - 1)) | ((block >> (centre + 1)) << centre)
+    }
+
     /// The configuration of voxel `index` of C-order voxel bytes `data` laid out with
     /// `strides` (which may be a slab of a larger image: only the strides matter).
     #[inline]

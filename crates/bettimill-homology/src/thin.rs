@@ -10,7 +10,9 @@
 //! deletes nothing (the first sweep splits into two slabs too far apart to interact; see
 //! [`thin`]). Raster order is deterministic and needs no queue, and
 //! because the voxels before x are already gone when x is visited, the first sweep (over
-//! the whole image) deletes about 99% of a blob; later sweeps only revisit the survivors.
+//! the whole image) deletes about 99% of a blob; later sweeps only revisit the survivors
+//! whose neighbourhood changed since their last test. The first sweep slides the 3^d block
+//! along the last axis, reading one new column per voxel instead of the whole block.
 //! The 4D test has no table, so its answers are memoised in a small direct-mapped cache
 //! (a pure function memoised: it cannot change a result).
 
@@ -57,26 +59,100 @@ fn sweep(
     tester: &SimpleTester,
     data: &mut [u8],
     strides: &[usize],
-    face_steps: &[isize],
     range: std::ops::Range<usize>,
     global_offset: usize,
     survivors: &mut Vec<usize>,
 ) {
     let mut cache = SimpleCache::new(16);
+    let window = Window::new(strides);
+    // `block` is the 3^d block of voxel `previous`, kept current: between two voxels the
+    // only write is the deletion of the voxel itself, whose centre bit is cleared.
+    let mut block = 0u128;
+    let mut previous = usize::MAX;
     for i in range {
         if data[i] == 0 {
             continue;
         }
+        block = if previous.wrapping_add(1) == i {
+            window.advance(data, block, i)
+        } else {
+            window.block(data, i)
+        };
+        previous = i;
         // A voxel whose face neighbours are all foreground is never simple (the background
         // part of its neighbourhood is empty); that check is much cheaper than the test.
-        let exposed = face_steps
-            .iter()
-            .any(|&s| data[(i as isize + s) as usize] == 0);
-        if exposed && cache.is_simple(tester, tester.configuration_in(data, strides, i)) {
+        let exposed = block & window.face_bits != window.face_bits;
+        if exposed && cache.is_simple(tester, tester.configuration_of_block(block)) {
             data[i] = 0;
+            block &= !window.centre_bit;
         } else {
             survivors.push(i + global_offset);
         }
+    }
+}
+
+/// The 3^d block of a voxel as 3^(d-1) rows of three bits along the last axis (bit 3r + c,
+/// rows in lexicographic order of the other axes, c = 0, 1, 2 for offsets -1, 0, +1), read
+/// whole or slid by one voxel along the last axis (one new column of 3^(d-1) bytes instead
+/// of the whole block).
+struct Window {
+    /// Flat offset of each row's middle voxel.
+    rows: Vec<isize>,
+    /// Bits 0 and 1 of every row.
+    low_two: u128,
+    /// The bits of the 2d face neighbours.
+    face_bits: u128,
+    centre_bit: u128,
+}
+
+impl Window {
+    fn new(strides: &[usize]) -> Window {
+        let d = strides.len();
+        let mut rows = vec![0isize];
+        for &stride in &strides[..d - 1] {
+            rows = rows
+                .iter()
+                .flat_map(|&o| [-1isize, 0, 1].map(|t| o + t * stride as isize))
+                .collect();
+        }
+        let n_rows = rows.len();
+        let middle_row = n_rows / 2;
+        let low_two = (0..n_rows).fold(0u128, |m, r| m | 0b011 << (3 * r));
+        let centre_bit = 1u128 << (3 * middle_row + 1);
+        let mut face_bits = (centre_bit >> 1) | (centre_bit << 1);
+        // Along axis a < d - 1 the rows one step away are 3^(d-2-a) rows apart.
+        for axis in 0..d - 1 {
+            let apart = 3usize.pow((d - 2 - axis) as u32);
+            face_bits |= 1u128 << (3 * (middle_row - apart) + 1);
+            face_bits |= 1u128 << (3 * (middle_row + apart) + 1);
+        }
+        Window {
+            rows,
+            low_two,
+            face_bits,
+            centre_bit,
+        }
+    }
+
+    /// The column at flat index `at` (the rows' voxels shifted by `at`), at bits 3r.
+    #[inline]
+    fn column(&self, data: &[u8], at: usize) -> u128 {
+        let mut bits = 0u128;
+        for (r, &o) in self.rows.iter().enumerate() {
+            bits |= ((data[(at as isize + o) as usize] & 1) as u128) << (3 * r);
+        }
+        bits
+    }
+
+    #[inline]
+    fn block(&self, data: &[u8], i: usize) -> u128 {
+        self.column(data, i - 1) | self.column(data, i) << 1 | self.column(data, i + 1) << 2
+    }
+
+    /// The block of voxel i from the (current) block of voxel i - 1.
+    #[inline]
+    fn advance(&self, data: &[u8], block: u128, i: usize) -> u128 {
+        ((block >> 1) & self.low_two) | self.column(data, i + 1) << 2
     }
 }
 
@@ -108,24 +184,13 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
         let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
         let (mut survivors_a, mut survivors_b) = (Vec::new(), Vec::new());
         rayon::join(
-            || {
-                sweep(
-                    tester,
-                    slab_a,
-                    &strides,
-                    &face_steps,
-                    0..k * plane,
-                    0,
-                    &mut survivors_a,
-                )
-            },
+            || sweep(tester, slab_a, &strides, 0..k * plane, 0, &mut survivors_a),
             || {
                 let n_b = slab_b.len();
                 sweep(
                     tester,
                     slab_b,
                     &strides,
-                    &face_steps,
                     plane..n_b,
                     (k + 1) * plane,
                     &mut survivors_b,
@@ -141,36 +206,60 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
             tester,
             image.data_mut(),
             &strides,
-            &face_steps,
             0..len,
             0,
             &mut remaining,
         );
     }
+    // Later sweeps: a voxel can only have become simple if a neighbour was deleted since
+    // its last test, so each deletion flags its foreground neighbours (bit 1 of their
+    // byte, which configurations and the exposure check ignore) and a sweep after the
+    // first retests only flagged voxels, clearing the flag as it does. Skipping a voxel
+    // never deletes anything, so it cannot affect correctness, and when a sweep deletes
+    // nothing no flag is left: no survivor is simple, as with full sweeps.
+    let steps = flat_offsets(image, tester.offsets());
     let mut cache = SimpleCache::new(16);
+    let mut every = true;
     loop {
         let before = remaining.len();
+        let data = image.data_mut();
         remaining.retain(|&i| {
-            let data = image.data();
+            if !every && data[i] & 2 == 0 {
+                return true;
+            }
+            data[i] = 1;
             let exposed = face_steps
                 .iter()
                 .any(|&s| data[(i as isize + s) as usize] == 0);
-            if exposed && cache.is_simple(tester, tester.configuration_unchecked(image, i)) {
-                image.data_mut()[i] = 0;
+            if exposed && cache.is_simple(tester, tester.configuration_in(data, &strides, i)) {
+                data[i] = 0;
+                for &s in &steps {
+                    let j = (i as isize + s) as usize;
+                    if data[j] != 0 {
+                        data[j] = 3;
+                    }
+                }
                 false
             } else {
                 true
             }
         });
+        every = false;
         if remaining.len() == before {
-            return remaining;
+            break;
         }
     }
+    let data = image.data_mut();
+    for &i in &remaining {
+        data[i] = 1;
+    }
+    remaining
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bettimill_grid::neighbourhood::is_interior;
     use bettimill_grid::Dim;
 
     #[test]
@@ -200,6 +289,51 @@ mod tests {
                 "{d}D ring"
             );
             assert_eq!(survivors.len() as u64, ring.count_foreground());
+        }
+    }
+
+    /// The sliding window sees exactly what a fresh read sees, so a sweep deletes exactly
+    /// the voxels that a sweep reading every configuration afresh deletes.
+    #[test]
+    fn sliding_window_sweep_matches_fresh_reads() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        for dim in Dim::ALL {
+            let d = dim.get();
+            let tester = SimpleTester::new(dim);
+            for trial in 0..30 {
+                let side = [9, 7, 6][d - 2];
+                let shape: Vec<usize> = (0..d).map(|a| side + a % 2).collect();
+                let mut image = BinaryImage::zeros(&shape).unwrap();
+                let density: f64 = rng.gen_range(0.2..0.95);
+                for index in 0..image.len() {
+                    if is_interior(&image, index, 1) {
+                        image.data_mut()[index] = rng.gen_bool(density) as u8;
+                    }
+                }
+                let mut fresh = image.clone();
+                for i in 0..fresh.len() {
+                    if fresh.data()[i] == 1
+                        && tester.is_simple_configuration(tester.configuration_unchecked(&fresh, i))
+                    {
+                        fresh.data_mut()[i] = 0;
+                    }
+                }
+                let strides = image.strides().to_vec();
+                let len = image.len();
+                let mut survivors = Vec::new();
+                sweep(
+                    &tester,
+                    image.data_mut(),
+                    &strides,
+                    0..len,
+                    0,
+                    &mut survivors,
+                );
+                assert_eq!(image.data(), fresh.data(), "{d}D trial {trial}");
+                let expected: Vec<usize> = (0..len).filter(|&i| fresh.data()[i] == 1).collect();
+                assert_eq!(survivors, expected);
+            }
         }
     }
 }
