@@ -803,7 +803,7 @@ fn random_kills_of_coordinator_and_workers_end_byte_identical() {
     soak_test(2, 32, 300, 10, 8, 2026);
 }
 
-/// The long soak (about 20 minutes on 2 cores): `BETTIMILL_SOAK_KILLS=200
+/// The long soak (about 3 minutes per 120 kills on 2 cores): `BETTIMILL_SOAK_KILLS=200
 /// CARGO_TARGET_DIR=/tmp/target-rel cargo test -p bettimill-cli --release --test reliability
 /// -- --ignored long_soak --nocapture`.
 #[test]
