@@ -36,6 +36,7 @@ pub mod hitmiss;
 mod morphology;
 mod moves;
 pub mod seeds;
+mod simple_memo;
 
 use bettimill_grid::BinaryImage;
 use serde::{Deserialize, Serialize};
