@@ -200,10 +200,18 @@ impl Dataset {
     pub fn completed(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
         let bytes = std::fs::read(self.record_path(shard)).ok()?;
         let record: CompletionRecord = serde_json::from_slice(&bytes).ok()?;
-        let tar = std::fs::read(self.tar_path(shard)).ok()?;
-        let ok = tar.len() as u64 == record.shard.bytes
-            && blake3::hash(&tar).to_hex().as_str() == record.shard.blake3;
-        ok.then_some(record)
+        // Size first (cheap), then the hash streamed through a fixed buffer: the coordinator
+        // checks every shard on start, resume and finalize, and must not hold a whole shard
+        // (hundreds of MB at 128^4) in memory to do it.
+        let path = self.tar_path(shard);
+        if std::fs::metadata(&path).ok()?.len() != record.shard.bytes {
+            return None;
+        }
+        let mut hasher = blake3::Hasher::new();
+        hasher
+            .update_reader(std::fs::File::open(&path).ok()?)
+            .ok()?;
+        (hasher.finalize().to_hex().as_str() == record.shard.blake3).then_some(record)
     }
 
     /// Generates, verifies and writes one shard (tar first, then its record).
