@@ -511,3 +511,33 @@ fn a_closed_stdout_pipe_is_not_a_panic() {
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
 }
+
+/// Thread count must not reach the bytes: the in-process pool (rayon) and the worker pools.
+#[test]
+fn thread_and_worker_counts_do_not_change_a_byte() {
+    let tmp = tempfile::tempdir().unwrap();
+    let manifest = small_manifest(tmp.path(), 3, 18, 24);
+    let mut snapshots = Vec::new();
+    for (threads, workers) in [("1", "1"), ("2", "2"), ("3", "1")] {
+        let dir = tmp.path().join(format!("t{threads}w{workers}"));
+        let out = Command::new(env!("CARGO_BIN_EXE_bettimill"))
+            .args([
+                "build",
+                manifest.to_str().unwrap(),
+                "--quiet",
+                "--workers",
+                workers,
+                "--out",
+                dir.to_str().unwrap(),
+            ])
+            .env("RAYON_NUM_THREADS", threads)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        let mut snapshot = snapshot(&dir);
+        snapshot.remove(Path::new(".lock"));
+        snapshots.push(snapshot);
+    }
+    assert_eq!(snapshots[0], snapshots[1]);
+    assert_eq!(snapshots[0], snapshots[2]);
+}
