@@ -241,8 +241,8 @@ impl Dataset {
                 shard: shard.name.clone(),
                 source,
             })?;
-        let compression = match self.manifest.compression {
-            Compression::None => shard::Compression::None,
+        let compression = match self.manifest.member_compression() {
+            Compression::None | Compression::Auto => shard::Compression::None,
             Compression::Gzip => shard::Compression::Gzip,
             Compression::Zstd => shard::Compression::Zstd,
         };

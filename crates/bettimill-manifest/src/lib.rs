@@ -112,6 +112,21 @@ pub enum HypervolumeUnit {
 }
 
 impl Manifest {
+    /// The member compression actually used: `auto` resolved by the array size.
+    pub fn member_compression(&self) -> Compression {
+        match self.compression {
+            Compression::Auto => {
+                let voxels = (self.side as u64).pow(self.dimension.get() as u32);
+                if voxels >= AUTO_COMPRESSION_THRESHOLD {
+                    Compression::Gzip
+                } else {
+                    Compression::None
+                }
+            }
+            other => other,
+        }
+    }
+
     /// Samples per shard, from `shard_size` or derived from `shard_bytes`.
     pub fn samples_per_shard(&self) -> u64 {
         match (self.shard_size, self.shard_bytes) {
@@ -195,14 +210,23 @@ impl Modes {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Compression {
-    /// Plain `.npy` members (readable by every client).
+    /// The default: plain `.npy` when one array is smaller than
+    /// [`AUTO_COMPRESSION_THRESHOLD`] bytes (every client reads it, and tiny members gain
+    /// little), `.npy.gz` from that size on (binary images shrink by one to two orders of
+    /// magnitude, and webdataset and HF datasets both decode gzip without extra code).
     #[default]
+    Auto,
+    /// Plain `.npy` members (readable by every client).
     None,
     /// `.npy.gz` members (webdataset decodes them transparently).
     Gzip,
     /// `.npy.zst` members (HF datasets decodes them; webdataset needs a one-line decoder).
     Zstd,
 }
+
+/// Array size (bytes of voxels) from which `compression = "auto"` compresses: 1 MiB, a 4D
+/// image of side 32 or a 3D image of side 102.
+pub const AUTO_COMPRESSION_THRESHOLD: u64 = 1 << 20;
 
 /// Deformation settings as written in the manifest's `[deform]` table.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -43,7 +43,10 @@ fn a_good_manifest_parses() {
     let m = parse(GOOD).unwrap();
     assert_eq!(m.dimension, Dim::Three);
     assert_eq!(m.mode.to_vec(), vec![Mode::Embed]);
-    assert_eq!(m.compression, Compression::None);
+    assert_eq!(m.compression, Compression::Auto);
+    assert_eq!(m.member_compression(), Compression::None);
+    let big = parse(&GOOD.replace("side = 24", "side = 128")).unwrap();
+    assert_eq!(big.member_compression(), Compression::Gzip);
 }
 
 #[test]

@@ -32,8 +32,8 @@ const GOLDEN: &[(&str, &str, &str)] = &[
     ),
     (
         "paper-figures.toml",
-        "bb43be13cb9875ec7e8b5b73e5c46c2dd0a6652e83da47d5b91851e45222ffd2",
-        "3c03f6610b9c53f21220a5c7a30f8432a55566a5e90c2d96c650a653b252b144",
+        "d70501597856eb02a72a5b63ecd1202512bdcd3d4132e1269d3ba75f7b65eb1c",
+        "38e0389b70ad2adbc6bfabd8c4431aaa4f0b793bccc231a9aa59e2cf786cabd9",
     ),
 ];
 
