@@ -5,20 +5,11 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn bettimill() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bettimill"))
-}
-
-fn run(args: &[&str]) -> Output {
-    bettimill().args(args).output().expect("bettimill runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+mod common;
+use common::{bettimill, build, children, run, shard_files, text};
 
 /// Every file under `dir`, by relative path, with its bytes.
 fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
@@ -67,17 +58,6 @@ fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32
     path
 }
 
-fn build(manifest: &Path, out: &Path, workers: u32) -> Output {
-    run(&[
-        "build",
-        manifest.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--workers",
-        &workers.to_string(),
-    ])
-}
-
 fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) -> Child {
     let mut command = bettimill();
     command
@@ -94,23 +74,6 @@ fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) 
         command.env(k, v);
     }
     command.spawn().unwrap()
-}
-
-/// The child processes of `pid` (from /proc; Linux only).
-fn children(pid: u32) -> Vec<u32> {
-    let mut out = Vec::new();
-    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
-        return out;
-    };
-    for task in tasks.flatten() {
-        if let Ok(list) = std::fs::read_to_string(task.path().join("children")) {
-            out.extend(
-                list.split_whitespace()
-                    .filter_map(|p| p.parse::<u32>().ok()),
-            );
-        }
-    }
-    out
 }
 
 fn alive(pid: u32) -> bool {
@@ -161,16 +124,6 @@ fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
         assert!(start.elapsed() < limit, "timed out waiting for {what}");
         std::thread::sleep(Duration::from_millis(20));
     }
-}
-
-fn shard_files(out: &Path) -> Vec<String> {
-    std::fs::read_dir(out.join("shards"))
-        .map(|rd| {
-            rd.flatten()
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .collect()
-        })
-        .unwrap_or_default()
 }
 
 fn finish(child: Child) -> (Option<i32>, String) {
