@@ -111,43 +111,97 @@ fn every_stored_label_matches_the_stored_voxels() {
         let out_dir = tmp.path().join(format!("out{dimension}"));
         let out = build(Some(&manifest), &out_dir);
         assert!(out.status.success(), "{}", stderr(&out));
-        let mut checked = 0;
-        for entry in std::fs::read_dir(out_dir.join("shards")).unwrap() {
-            let bytes = std::fs::read(entry.unwrap().path()).unwrap();
-            let members = bettimill_shard::read_tar(&bytes).unwrap();
-            let mut labels = BTreeMap::new();
-            let mut images = BTreeMap::new();
-            for m in members {
-                let (key, field) = m.name.split_once('.').unwrap();
-                match field {
-                    "json" => {
-                        let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
-                        labels.insert(key.to_string(), v);
-                    }
-                    "npy" => {
-                        let img = bettimill_grid::npy::read_bytes(&m.data, true).unwrap();
-                        images.insert(key.to_string(), img.image);
-                    }
-                    _ => {}
+        let checked = stored_labels_match_voxels(&out_dir, dimension as usize);
+        assert_eq!(checked.len(), 12);
+    }
+}
+
+/// Recomputes every stored sample's topology from its stored voxels, checks it against
+/// the stored label, and returns the labels checked (key -> label).
+fn stored_labels_match_voxels(
+    out_dir: &Path,
+    dimension: usize,
+) -> BTreeMap<String, serde_json::Value> {
+    let mut checked = BTreeMap::new();
+    for entry in std::fs::read_dir(out_dir.join("shards")).unwrap() {
+        let bytes = std::fs::read(entry.unwrap().path()).unwrap();
+        let members = bettimill_shard::read_tar(&bytes).unwrap();
+        let mut labels = BTreeMap::new();
+        let mut images = BTreeMap::new();
+        for m in members {
+            let (key, field) = m.name.split_once('.').unwrap();
+            match field {
+                "json" => {
+                    let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+                    labels.insert(key.to_string(), v);
                 }
-            }
-            assert_eq!(labels.len(), images.len());
-            for (key, label) in labels {
-                let image = &images[&key];
-                let topology = bettimill_homology::topology(image);
-                let stored: Vec<u64> = serde_json::from_value(label["betti"].clone()).unwrap();
-                assert_eq!(stored, topology.betti, "{key}");
-                assert_eq!(label["euler"].as_i64().unwrap(), topology.euler, "{key}");
-                assert_eq!(
-                    label["hypervolume"].as_u64().unwrap(),
-                    image.count_foreground()
-                );
-                assert_eq!(image.dim().get(), dimension as usize);
-                checked += 1;
+                "npy" => {
+                    let img = bettimill_grid::npy::read_bytes(&m.data, true).unwrap();
+                    images.insert(key.to_string(), img.image);
+                }
+                _ => {}
             }
         }
-        assert_eq!(checked, 12);
+        assert_eq!(labels.len(), images.len());
+        for (key, label) in labels {
+            let image = &images[&key];
+            let topology = bettimill_homology::topology(image);
+            let stored: Vec<u64> = serde_json::from_value(label["betti"].clone()).unwrap();
+            assert_eq!(stored, topology.betti, "{key}");
+            assert_eq!(label["euler"].as_i64().unwrap(), topology.euler, "{key}");
+            assert_eq!(
+                label["hypervolume"].as_u64().unwrap(),
+                image.count_foreground()
+            );
+            assert_eq!(image.dim().get(), dimension);
+            checked.insert(key, label);
+        }
     }
+    checked
+}
+
+#[test]
+fn betti_vector_classes_build_with_exactly_their_label() {
+    let tmp = tempfile::tempdir().unwrap();
+    let manifest = tmp.path().join("betti.toml");
+    std::fs::write(
+        &manifest,
+        "schema_version = 1\nname = \"betti3d\"\ndimension = 3\nside = 40\n\
+         mode = [\"embed\", \"carve\"]\nsamples = 12\nshard_size = 6\nseed = 5\n\n\
+         [[classes]]\nbetti = [[1, 2], 1, [0, 1]]\n",
+    )
+    .unwrap();
+    let out_dir = tmp.path().join("out");
+    let out = build(Some(&manifest), &out_dir);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let labels = stored_labels_match_voxels(&out_dir, 3);
+    assert_eq!(labels.len(), 12);
+    let mut classes = std::collections::BTreeSet::new();
+    for label in labels.values() {
+        // The class names the vector; the stored (and recomputed) label is that vector.
+        let family = label["family"].as_str().unwrap();
+        let wanted: Vec<u64> = family
+            .trim_start_matches("betti(")
+            .trim_end_matches(')')
+            .split(',')
+            .map(|b| b.parse().unwrap())
+            .collect();
+        assert_eq!(label["betti"], serde_json::json!(wanted), "{label}");
+        assert_eq!(label["construction"]["class"], family);
+        classes.insert(label["class_label"].as_str().unwrap().to_string());
+    }
+    // Strata: [1,1,0], [2,1,0] and [2,1,1] (a shell and a solid torus) embedded, [1,1,1]
+    // carved (a solid-torus cavity). A carved cube always has b2 >= 1, and one component
+    // cannot be both the shell that makes b2 = 1 and a solid torus.
+    assert!(classes.contains("betti(1,1,1)/carve"), "{classes:?}");
+    assert!(classes.contains("betti(1,1,0)/embed"), "{classes:?}");
+    let plan = bettimill(&["plan", manifest.to_str().unwrap()]);
+    assert!(
+        stdout(&plan)
+            .contains("betti(1,1,0)/carve: betti(1,1,0) is not available in 3D carve mode"),
+        "{}",
+        stdout(&plan)
+    );
 }
 
 fn only_shard(dir: &Path, n: usize) -> PathBuf {

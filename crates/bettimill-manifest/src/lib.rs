@@ -613,7 +613,7 @@ impl Manifest {
             }
             // A class must be buildable in at least one combination of the other axes;
             // combinations that cannot be built are left out of the plan with a reason.
-            let mut last_error = None;
+            let mut errors: Vec<String> = Vec::new();
             let mut feasible = false;
             for &mode in &modes {
                 for &c in &copies {
@@ -623,16 +623,22 @@ impl Manifest {
                         .and_then(|_| family.check_fits(self.dimension, self.side as usize, mode))
                     {
                         Ok(()) => feasible = true,
-                        Err(err) => last_error = Some(err),
+                        Err(err) => {
+                            let err = err.to_string();
+                            if !errors.contains(&err) {
+                                errors.push(err);
+                            }
+                        }
                     }
                 }
             }
             if !feasible {
-                let err = last_error.expect("at least one combination was tried");
+                // Every reason, so that a class refused in two modes for two different
+                // reasons (too big here, impossible there) says both.
                 return Err(ManifestError::invalid(
                     source,
                     "classes",
-                    format!("class {} ({}): {err}", i + 1, class.label()),
+                    format!("class {} ({}): {}", i + 1, class.label(), errors.join("; ")),
                 ));
             }
         }

@@ -176,6 +176,13 @@ fn embed_betti(family: &Family, dim: Dim) -> Result<Betti, ShapeError> {
             }
             return embed_betti(object, dim);
         }
+        Family::Betti { .. } => {
+            return Err(invalid(
+                family,
+                "a class given by its Betti vector stands alone: it cannot be a scene object, \
+                 carry tentacles or be repeated by `components` (write the whole vector instead)",
+            ))
+        }
         Family::Scene { objects } => {
             if objects.is_empty() || objects.len() > 64 {
                 return Err(invalid(family, "a scene holds 1 to 64 objects"));
@@ -291,6 +298,22 @@ fn tunnel_betti(
 }
 
 pub(crate) fn expected(family: &Family, dim: Dim, mode: Mode) -> Result<Betti, ShapeError> {
+    if let Family::Betti { betti } = family {
+        let realised = crate::betti_class::realise(betti, dim, mode)?;
+        let label =
+            expected(&realised, dim, mode).map_err(|err| realised_as(err, family, &realised))?;
+        if label.0 != *betti {
+            return Err(invalid(
+                family,
+                &format!(
+                    "realised as {} whose label is {:?} (a bug: please report)",
+                    realised.label(),
+                    label.0
+                ),
+            ));
+        }
+        return Ok(label);
+    }
     if let Family::Tunnel { intervals, .. } = family {
         return match mode {
             Mode::Carve => Ok((
@@ -305,6 +328,38 @@ pub(crate) fn expected(family: &Family, dim: Dim, mode: Mode) -> Result<Betti, S
         Mode::Embed => (z2, q),
         Mode::Carve => (dual(&z2), q.map(|q| dual(&q))),
     })
+}
+
+/// An error about the construction of a Betti class, told in terms of the class.
+fn realised_as(err: ShapeError, class: &Family, realised: &Family) -> ShapeError {
+    let name = format!("{} (realised as {})", class.label(), realised.label());
+    match err {
+        ShapeError::Unsupported {
+            dim, mode, reason, ..
+        } => ShapeError::Unsupported {
+            family: name,
+            dim,
+            mode,
+            reason,
+        },
+        ShapeError::InvalidParameters { reason, .. } => ShapeError::InvalidParameters {
+            family: name,
+            reason,
+        },
+        ShapeError::DoesNotFit {
+            dim,
+            side,
+            mode,
+            reason,
+            ..
+        } => ShapeError::DoesNotFit {
+            family: name,
+            dim,
+            side,
+            mode,
+            reason,
+        },
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -643,7 +698,9 @@ fn make(family: &Family, dim: usize, tube: f64, grow: f64, shares: &Shares) -> O
         Family::Link { link } => curves::link_solid(*link, dim, tube, grow)?,
         Family::SpunKnot { knot } => curves::spun_knot_solid(*knot, tube, grow)?,
         Family::SpunLink { link } => curves::spun_link_solid(*link, tube, grow)?,
-        Family::Tentacled { .. } | Family::Scene { .. } => return None,
+        // Composite families are built from their parts, and a Betti class from its
+        // realisation, never by this function.
+        Family::Tentacled { .. } | Family::Scene { .. } | Family::Betti { .. } => return None,
     })
 }
 
@@ -747,6 +804,11 @@ fn check_sizes(
     packing: bool,
 ) -> Result<(), ShapeError> {
     expected(family, dim, mode)?;
+    if let Family::Betti { betti } = family {
+        let realised = crate::betti_class::realise(betti, dim, mode)?;
+        return check_sizes(&realised, dim, side, mode, packing)
+            .map_err(|err| realised_as(err, family, &realised));
+    }
     let d = dim.get();
     let does_not_fit = |reason: String| ShapeError::DoesNotFit {
         family: family.label(),
@@ -889,6 +951,17 @@ pub(crate) fn generate(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
+    if let Family::Betti { betti } = family {
+        // The realisation is generated as itself; its record says which class it serves.
+        let realised = crate::betti_class::realise(betti, dim, mode)?;
+        let mut generated = generate(&realised, dim, side, mode, rng)
+            .map_err(|err| realised_as(err, family, &realised))?;
+        if let Value::Object(map) = &mut generated.construction {
+            map.insert("class".into(), json!(family.label()));
+        }
+        generated.construction = sort_keys(generated.construction);
+        return Ok(generated);
+    }
     check_sizes(family, dim, side, mode, false)?;
     let (betti, betti_rational) = expected(family, dim, mode)?;
     let d = dim.get();

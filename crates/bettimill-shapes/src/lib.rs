@@ -19,6 +19,7 @@
 //! at least two background voxels to each other, to the border and (carve mode) to the
 //! cube's boundary.
 
+mod betti_class;
 mod curves;
 mod families;
 mod geometry;
@@ -222,6 +223,13 @@ pub enum Family {
         /// The objects to place.
         objects: Vec<Family>,
     },
+    /// A class given by its label: Betti numbers b_0..b_{d-1} of the image, realised by a
+    /// canonical construction (one object or a scene; see the `betti_class` module) whose
+    /// analytic label is exactly this vector in the requested mode.
+    Betti {
+        /// b_0..b_{d-1} of the image (of the carved cube in carve mode).
+        betti: Vec<u64>,
+    },
 }
 
 /// Why a shape could not be generated.
@@ -350,6 +358,10 @@ impl Family {
             Family::Scene { objects } => {
                 let inner: Vec<String> = objects.iter().map(Family::label).collect();
                 format!("scene({})", inner.join(","))
+            }
+            Family::Betti { betti } => {
+                let inner: Vec<String> = betti.iter().map(u64::to_string).collect();
+                format!("betti({})", inner.join(","))
             }
         }
     }

@@ -524,3 +524,46 @@ fn crowded_scenes() {
         }
     }
 }
+
+/// Classes given by their Betti vector: the realised construction's image has exactly the
+/// requested Betti numbers (computed), and its record names the class.
+#[test]
+fn betti_classes_match_the_homology_crate() {
+    let cases: [(usize, usize, Mode, &[&[u64]]); 6] = [
+        (2, 48, Mode::Embed, &[&[1, 0], &[1, 3], &[2, 1], &[3, 3]]),
+        (2, 48, Mode::Carve, &[&[1, 1], &[2, 2], &[1, 3]]),
+        (3, 48, Mode::Embed, &[&[1, 2, 0], &[2, 1, 1], &[3, 0, 2]]),
+        (3, 48, Mode::Carve, &[&[1, 0, 1], &[1, 2, 2], &[2, 1, 2]]),
+        (
+            4,
+            20,
+            Mode::Embed,
+            &[&[1, 1, 0, 0], &[1, 0, 0, 1], &[1, 0, 1, 0]],
+        ),
+        (
+            4,
+            20,
+            Mode::Carve,
+            &[&[1, 0, 0, 1], &[1, 1, 0, 1], &[1, 0, 1, 1]],
+        ),
+    ];
+    for (d, side, mode, vectors) in cases {
+        let dim = Dim::new(d).unwrap();
+        for betti in vectors {
+            let class = Family::Betti {
+                betti: betti.to_vec(),
+            };
+            class
+                .check_fits(dim, side, mode)
+                .unwrap_or_else(|e| panic!("{class} {d}D side {side} {mode}: {e}"));
+            for seed in 0..2 {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                let g = generate(&class, dim, side, mode, &mut rng).unwrap();
+                assert_eq!(g.betti, betti.to_vec(), "{class} {mode}");
+                assert_eq!(g.construction["class"], class.label());
+                let t = bettimill_homology::topology(&g.image);
+                assert_eq!(t.betti, betti.to_vec(), "{class} {d}D {mode} seed {seed}");
+            }
+        }
+    }
+}
