@@ -261,9 +261,26 @@ fn json_outputs_parse_and_carry_their_keys() {
             "hypervolume_histogram",
             "regeneration",
             "record_regenerations",
-            "build_seconds",
+            "build_time",
         ],
     );
+    // The build time comes from file modification times, never from the dataset's bytes.
+    let build_time = &stats["build_time"];
+    check_keys(
+        build_time,
+        &[
+            "start_unix",
+            "end_unix",
+            "wall_seconds",
+            "samples_per_second",
+            "finished",
+            "source",
+        ],
+    );
+    assert!(build_time["wall_seconds"].as_f64().unwrap() >= 0.0);
+    assert!(build_time["start_unix"].as_f64().unwrap() > 0.0);
+    assert_eq!(build_time["finished"], true);
+    assert_eq!(build_time["source"], "file modification times");
     assert_eq!(stats["samples"], 8);
     assert_eq!(stats["splits"]["train"], 4);
     assert_eq!(stats["splits"]["val"], 4);
@@ -381,7 +398,8 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
         "per knot/link type",
         "hypervolume",
         "regenerations per class",
-        "build time",
+        "build time: ",
+        "from file modification times (build.json to index.json)",
     ] {
         assert!(report.contains(section), "no {section:?} in\n{report}");
     }
@@ -395,6 +413,68 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
     assert_eq!(stats["samples"], 8);
     assert_eq!(stats["splits"]["train"], 4);
     assert_eq!(stats["splits"]["val"], 4);
+    // Its build time so far ends at the newest completion record.
+    assert_eq!(stats["build_time"]["finished"], false);
+    assert!(stats["build_time"]["wall_seconds"].as_f64().unwrap() >= 0.0);
+    let out = bettimill_in(dir, &["stats", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("build time so far (not finished)"));
+
+    // Without build.json there is no start: the field is null and the text says so.
+    std::fs::remove_file(out_dir.join("build.json")).unwrap();
+    let stats = json(&bettimill_in(
+        dir,
+        &["stats", out_dir.to_str().unwrap(), "--json"],
+    ));
+    assert!(stats["build_time"].is_null(), "{}", stats["build_time"]);
+    let out = bettimill_in(dir, &["stats", out_dir.to_str().unwrap()]);
+    assert!(text(&out.stdout).contains("build time: not available"));
+}
+
+/// stderr of a command whose stderr is a pipe: indicatif must draw nothing there, so no
+/// bar, no carriage return and no escape sequence.
+fn check_no_progress(args: &[&str], stderr: &str) {
+    for garbage in ["\r", "\x1b", "[=", "=>", "ETA", "/s "] {
+        assert!(
+            !stderr.contains(garbage),
+            "{args:?} drew progress ({garbage:?}) on a stderr that is not a terminal:\n{stderr:?}"
+        );
+    }
+}
+
+#[test]
+fn verify_and_audit_draw_no_progress_when_stderr_is_not_a_terminal() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let out_dir = build_small(dir, 2, 16);
+    let out_str = out_dir.to_str().unwrap();
+    let runs: [&[&str]; 6] = [
+        &["verify", out_str],
+        &["verify", out_str, "--json"],
+        &["audit", out_str, "--rebuild", "1", "--relabel"],
+        &["audit", out_str, "--rebuild", "1", "--relabel", "--json"],
+        &["audit", out_str, "--shards", "0", "--quiet"],
+        &["stats", out_str, "--json"],
+    ];
+    for args in runs {
+        let out = bettimill_in(dir, args);
+        let stderr = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {stderr}");
+        check_no_progress(args, &stderr);
+        assert!(stderr.is_empty(), "{args:?} wrote to stderr: {stderr:?}");
+        if args.contains(&"--json") {
+            json(&out);
+        }
+    }
+    let audit = json(&bettimill_in(
+        dir,
+        &["audit", out_str, "--rebuild", "1", "--relabel", "--json"],
+    ));
+    assert_eq!(audit["relabelled_samples"], 8);
+    assert_eq!(audit["rebuilt"].as_array().unwrap().len(), 2);
+    assert_eq!(audit["findings"].as_array().unwrap().len(), 0);
+    let verify = text(&bettimill_in(dir, &["verify", out_str]).stdout);
+    assert!(verify.starts_with("ok: 2 shards match"), "{verify}");
 }
 
 #[test]

@@ -186,6 +186,16 @@ pub fn select(dataset: &Dataset, selection: &Selection) -> Result<Vec<ShardPlan>
 
 /// Rebuilds `shards` of the dataset in `dir` and compares them byte for byte.
 pub fn rebuild(dir: &Path, shards: &[ShardPlan]) -> Result<AuditReport, AuditError> {
+    rebuild_with_progress(dir, shards, &|| {})
+}
+
+/// [`rebuild`], calling `progress` once per sample rebuilt (from the threads that make
+/// the samples).
+pub fn rebuild_with_progress(
+    dir: &Path,
+    shards: &[ShardPlan],
+    progress: &(dyn Fn() + Sync),
+) -> Result<AuditReport, AuditError> {
     let stored = Dataset::open(dir)?;
     let scratch = dir.join(format!(".audit-{}", std::process::id()));
     let io = |source| AuditError::Io {
@@ -199,7 +209,7 @@ pub fn rebuild(dir: &Path, shards: &[ShardPlan]) -> Result<AuditReport, AuditErr
         let fresh = Dataset::create(&scratch, &stored.manifest_text, stored.manifest.clone())?;
         let mut report = AuditReport::default();
         for shard in shards {
-            fresh.write_shard(shard)?;
+            fresh.write_shard_with_progress(shard, &|_| progress())?;
             let rebuilt =
                 std::fs::read(fresh.tar_path(shard)).map_err(|source| AuditError::Io {
                     path: fresh.tar_path(shard),
@@ -249,10 +259,20 @@ fn first_difference(a: &[u8], b: &[u8]) -> Option<u64> {
 /// Recomputes the Betti numbers of every sample (and downscaled copy) in `shards` from the
 /// stored arrays and compares them with the stored labels.
 pub fn relabel(dir: &Path, shards: &[ShardPlan]) -> Result<AuditReport, AuditError> {
+    relabel_with_progress(dir, shards, &|| {})
+}
+
+/// [`relabel`], calling `progress` once per sample as its check starts (from several
+/// threads).
+pub fn relabel_with_progress(
+    dir: &Path,
+    shards: &[ShardPlan],
+    progress: &(dyn Fn() + Sync),
+) -> Result<AuditReport, AuditError> {
     let dataset = Dataset::open(dir)?;
     let per_shard: Vec<(u64, Vec<Finding>)> = shards
         .par_iter()
-        .map(|shard| relabel_shard(&dataset, shard))
+        .map(|shard| relabel_shard(&dataset, shard, progress))
         .collect::<Result<_, _>>()?;
     let mut report = AuditReport::default();
     for (samples, findings) in per_shard {
@@ -265,7 +285,11 @@ pub fn relabel(dir: &Path, shards: &[ShardPlan]) -> Result<AuditReport, AuditErr
 /// A sample's fields (`json`, `npy`, ...) with their bytes, in tar order.
 type Fields = Vec<(String, Vec<u8>)>;
 
-fn relabel_shard(dataset: &Dataset, shard: &ShardPlan) -> Result<(u64, Vec<Finding>), AuditError> {
+fn relabel_shard(
+    dataset: &Dataset,
+    shard: &ShardPlan,
+    progress: &(dyn Fn() + Sync),
+) -> Result<(u64, Vec<Finding>), AuditError> {
     let path = dataset.tar_path(shard);
     let mut findings = Vec::new();
     let Ok(bytes) = std::fs::read(&path) else {
@@ -300,6 +324,7 @@ fn relabel_shard(dataset: &Dataset, shard: &ShardPlan) -> Result<(u64, Vec<Findi
     }
     let limit = 1 << 34;
     for (key, fields) in &samples {
+        progress();
         let Some((_, json)) = fields.iter().find(|f| f.0 == "json") else {
             findings.push(undecodable(key, "no json label".into()));
             continue;

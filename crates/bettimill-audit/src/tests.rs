@@ -44,12 +44,19 @@ fn a_clean_dataset_rebuilds_identically_and_relabels_cleanly() {
     )
     .unwrap();
     assert_eq!(all.len(), 3);
-    let report = rebuild(&dir, &all).unwrap();
+    let ticks = std::sync::atomic::AtomicU64::new(0);
+    let tick = || {
+        ticks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    };
+    let report = rebuild_with_progress(&dir, &all, &tick).unwrap();
     assert_eq!(report.rebuilt.len(), 3);
     assert!(report.findings.is_empty(), "{:?}", report.findings);
-    let report = relabel(&dir, &all).unwrap();
+    assert_eq!(ticks.load(std::sync::atomic::Ordering::Relaxed), 12);
+    let report = relabel_with_progress(&dir, &all, &tick).unwrap();
     assert_eq!(report.relabelled_samples, 12);
     assert!(report.findings.is_empty(), "{:?}", report.findings);
+    assert_eq!(ticks.load(std::sync::atomic::Ordering::Relaxed), 24);
+    assert_eq!(relabel(&dir, &all).unwrap(), report);
     assert!(!dir.join(format!(".audit-{}", std::process::id())).exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -29,8 +29,8 @@ pub struct AuditArgs {
     json: bool,
 }
 
-/// Runs an audit.
-pub fn run(args: &AuditArgs) -> anyhow::Result<Status> {
+/// Runs an audit, with a progress bar per sample on stderr (see `crate::progress`).
+pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<Status> {
     let dataset = Dataset::open(&args.dir)?;
     let selection = match (&args.rebuild, &args.shards) {
         (Some(fraction), _) => Some(Selection::Fraction {
@@ -48,15 +48,25 @@ pub fn run(args: &AuditArgs) -> anyhow::Result<Status> {
         None => dataset.plan.shards.clone(),
     };
     drop(dataset);
+    // One bar over both passes: every chosen sample once per pass.
+    let samples: u64 = chosen.iter().map(|shard| shard.samples).sum();
+    let passes = u64::from(selection.is_some()) + u64::from(args.relabel);
+    let bar = crate::progress::bar(samples * passes, "samples", "", quiet);
+    let tick = || bar.inc(1);
     let mut report = AuditReport::default();
     if selection.is_some() {
-        report = bettimill_audit::rebuild(&args.dir, &chosen)?;
+        bar.set_message("rebuilding");
+        report = bettimill_audit::rebuild_with_progress(&args.dir, &chosen, &tick)
+            .inspect_err(|_| bar.finish_and_clear())?;
     }
     if args.relabel {
-        let relabelled = bettimill_audit::relabel(&args.dir, &chosen)?;
+        bar.set_message("relabelling");
+        let relabelled = bettimill_audit::relabel_with_progress(&args.dir, &chosen, &tick)
+            .inspect_err(|_| bar.finish_and_clear())?;
         report.relabelled_samples = relabelled.relabelled_samples;
         report.findings.extend(relabelled.findings);
     }
+    bar.finish_and_clear();
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -13,7 +13,7 @@ use bettimill_executor::cluster::{self, KubernetesOptions, SlurmOptions};
 use bettimill_executor::coordinator::{self, BuildControl, BuildEvent, BuildOptions};
 use bettimill_executor::worker::{self, WorkerError};
 use bettimill_executor::Dataset;
-use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
@@ -139,14 +139,8 @@ struct Display {
 
 impl Display {
     fn new(quiet: bool) -> Display {
-        // indicatif draws nothing when stderr is not a terminal.
-        let target = if quiet {
-            ProgressDrawTarget::hidden()
-        } else {
-            ProgressDrawTarget::stderr()
-        };
         Display {
-            multi: MultiProgress::with_draw_target(target),
+            multi: MultiProgress::with_draw_target(crate::progress::target(quiet)),
             overall: None,
             slots: Vec::new(),
             regenerations: 0,
@@ -178,13 +172,7 @@ impl Display {
                         .println(format!("{skipped} of {shards} shards already complete"));
                 }
                 let overall = self.multi.add(ProgressBar::new(samples));
-                overall.set_style(
-                    ProgressStyle::with_template(
-                        "{elapsed_precise} [{bar:30}] {pos}/{len} samples {per_sec} ETA {eta} {msg}",
-                    )
-                    .expect("the template is valid")
-                    .progress_chars("=> "),
-                );
+                overall.set_style(crate::progress::style("samples"));
                 overall.set_message(self.message());
                 self.overall = Some(overall);
                 for slot in 0..workers {

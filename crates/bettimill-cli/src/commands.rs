@@ -129,7 +129,8 @@ enum Command {
     /// Count a dataset's samples per Betti vector, class, split and more.
     ///
     /// Also per component count, knot or link type and hypervolume (bins and a histogram),
-    /// the regeneration rate of each class, and the build time when it was recorded.
+    /// the regeneration rate of each class, and the build's wall time and samples per second
+    /// taken from file modification times (build.json to index.json).
     ///
     /// Example: bettimill stats demo-out --plot stats.png
     Stats {
@@ -197,8 +198,8 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
         Command::K8s(args) => crate::cluster::kubernetes(args),
         Command::Finalize { dir } => crate::cluster::finalize(&dir, cli.quiet),
         Command::Status { dir, json } => crate::cluster::status(&dir, json),
-        Command::Audit(args) => crate::audit::run(&args),
-        Command::Verify { dir, json } => verify(&dir, json),
+        Command::Audit(args) => crate::audit::run(&args, cli.quiet),
+        Command::Verify { dir, json } => verify(&dir, json, cli.quiet),
         Command::Deform(args) => crate::deform::run(&args),
         Command::Betti {
             image,
@@ -239,8 +240,17 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
     }
 }
 
-fn verify(dir: &Path, json: bool) -> anyhow::Result<Status> {
-    let report = bettimill_shard::verify(dir)?;
+fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<Status> {
+    // The bar appears once the index is read and the number of shards known.
+    let mut bar = None;
+    let report = bettimill_shard::verify_with_progress(dir, &mut |done, total| {
+        bar.get_or_insert_with(|| crate::progress::bar(total, "shards", "verifying", quiet))
+            .set_position(done);
+    });
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    let report = report?;
     if json {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else if report.problems.is_empty() {

@@ -24,6 +24,7 @@ mod completions;
 mod deform;
 mod plan;
 mod preview;
+mod progress;
 mod stats;
 
 use clap::Parser;

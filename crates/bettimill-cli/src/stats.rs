@@ -1,11 +1,12 @@
 //! `bettimill stats`: counts per Betti vector, class, split, component count, knot type and
-//! hypervolume; regeneration rates; build time; an optional histogram PNG.
+//! hypervolume; regeneration rates; build time (from file modification times); an optional
+//! histogram PNG.
 
 use crate::commands::Status;
 use anyhow::{bail, Context};
-use bettimill_preview::{labels_in_tar, plot, RecordStats, Stats};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use bettimill_preview::{labels_in_tar, plot, BuildTime, RecordStats, Stats};
 use std::path::{Path, PathBuf};
+use std::time::UNIX_EPOCH;
 
 /// Runs `bettimill stats`.
 pub fn run(
@@ -21,16 +22,7 @@ pub fn run(
         );
     }
     let shards = crate::preview::dataset_shards(dir)?;
-    // indicatif draws nothing when stderr is not a terminal; --quiet hides the bar too.
-    let target = if quiet {
-        ProgressDrawTarget::hidden()
-    } else {
-        ProgressDrawTarget::stderr()
-    };
-    let bar = ProgressBar::with_draw_target(Some(shards.len() as u64), target).with_style(
-        ProgressStyle::with_template("reading labels {bar:30} {pos}/{len} shards")
-            .expect("the template is valid"),
-    );
+    let bar = crate::progress::bar(shards.len() as u64, "shards", "reading labels", quiet);
     let mut labels = Vec::new();
     for (split, shard) in &shards {
         bar.inc(1);
@@ -57,7 +49,8 @@ pub fn run(
         records.push(record);
     }
     bar.finish_and_clear();
-    let stats = Stats::collect(&labels, &records, shards.len() as u64);
+    let mut stats = Stats::collect(&labels, &records, shards.len() as u64);
+    stats.build_time = build_time(dir, &record_paths, stats.samples);
     let output = if json {
         serde_json::to_string_pretty(&stats)? + "\n"
     } else {
@@ -73,6 +66,29 @@ pub fn run(
         }
     }
     Ok(Status::Success)
+}
+
+/// The build's wall-clock span from file modification times: from `DIR/build.json` (written
+/// once, when the directory is created) to `DIR/index.json` (written last), or to the newest
+/// completion record when the build is unfinished. The dataset itself stores no timings, so
+/// that a rebuild is byte-identical. `None` when a time cannot be read.
+fn build_time(dir: &Path, record_paths: &[PathBuf], samples: u64) -> Option<BuildTime> {
+    let mtime = |path: &Path| -> Option<f64> {
+        let modified = std::fs::metadata(path).ok()?.modified().ok()?;
+        Some(modified.duration_since(UNIX_EPOCH).ok()?.as_secs_f64())
+    };
+    let start = mtime(&dir.join("build.json"))?;
+    let index = dir.join("index.json");
+    let (end, finished) = if index.exists() {
+        (mtime(&index)?, true)
+    } else {
+        let newest = record_paths
+            .iter()
+            .filter_map(|path| mtime(path))
+            .max_by(f64::total_cmp)?;
+        (newest, false)
+    };
+    BuildTime::from_file_times(start, end, finished, samples)
 }
 
 /// Writes data to stdout. A reader that stops early (`bettimill stats DIR | head`) closes

@@ -21,9 +21,77 @@ pub struct RecordStats {
     /// Rejected attempts per stratum label.
     #[serde(default)]
     pub regenerations: Vec<(String, u64)>,
-    /// Seconds spent building the shard, when the build recorded it.
-    #[serde(default)]
-    pub seconds: Option<f64>,
+}
+
+/// The value of [`BuildTime::source`].
+pub const BUILD_TIME_SOURCE: &str = "file modification times";
+
+/// The wall-clock span of a build, derived from file modification times: a dataset stores
+/// no timings, so that a rebuild is byte-identical. It starts at `build.json` (written
+/// once, when the directory is created) and ends at `index.json` (written last), or at the
+/// newest completion record while the build is unfinished. A paused or resumed build
+/// includes the pause; finalizing again moves the end; copying the directory without
+/// keeping times loses it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BuildTime {
+    /// Modification time of `build.json`, in seconds since the Unix epoch.
+    pub start_unix: f64,
+    /// Modification time of `index.json` (or of the newest completion record), in seconds
+    /// since the Unix epoch.
+    pub end_unix: f64,
+    /// `end_unix - start_unix`.
+    pub wall_seconds: f64,
+    /// Samples counted divided by `wall_seconds` (`None` when the span is zero).
+    pub samples_per_second: Option<f64>,
+    /// True when the end is `index.json`, false when it is the newest completion record.
+    pub finished: bool,
+    /// Always [`BUILD_TIME_SOURCE`], so a reader of the JSON knows what the times are.
+    pub source: String,
+}
+
+impl BuildTime {
+    /// The span from `start_unix` to `end_unix` for `samples` samples; `None` when the end
+    /// comes before the start (the files were copied or touched since).
+    pub fn from_file_times(
+        start_unix: f64,
+        end_unix: f64,
+        finished: bool,
+        samples: u64,
+    ) -> Option<BuildTime> {
+        let wall_seconds = end_unix - start_unix;
+        if wall_seconds.is_nan() || wall_seconds < 0.0 {
+            return None;
+        }
+        Some(BuildTime {
+            start_unix,
+            end_unix,
+            wall_seconds,
+            samples_per_second: (wall_seconds > 0.0).then(|| samples as f64 / wall_seconds),
+            finished,
+            source: BUILD_TIME_SOURCE.to_string(),
+        })
+    }
+
+    /// One line for the text report, saying where the times come from.
+    pub fn to_text(&self) -> String {
+        let rate = match self.samples_per_second {
+            Some(rate) => format!("{rate:.2} samples/s"),
+            None => "samples/s unknown".to_string(),
+        };
+        let (what, end) = if self.finished {
+            ("build time", "index.json")
+        } else {
+            (
+                "build time so far (not finished)",
+                "the newest completion record",
+            )
+        };
+        format!(
+            "{what}: {:.1} s wall, {rate}\n  from file modification times (build.json to {end}): \
+             a paused or resumed build includes the pause; a copied directory loses it\n",
+            self.wall_seconds
+        )
+    }
 }
 
 /// Regeneration counts of one class.
@@ -84,8 +152,9 @@ pub struct Stats {
     pub regeneration: BTreeMap<String, Regeneration>,
     /// Rejected attempts per class label, from the completion records.
     pub record_regenerations: BTreeMap<String, u64>,
-    /// Seconds of build time summed over the records that recorded it (`None` when none did).
-    pub build_seconds: Option<f64>,
+    /// The build's wall-clock span from file modification times (`None` when the times
+    /// are not available); set by the caller, which does the file I/O.
+    pub build_time: Option<BuildTime>,
 }
 
 impl Stats {
@@ -124,9 +193,6 @@ impl Stats {
         for record in records {
             for (class, n) in &record.regenerations {
                 *stats.record_regenerations.entry(class.clone()).or_default() += n;
-            }
-            if let Some(seconds) = record.seconds {
-                *stats.build_seconds.get_or_insert(0.0) += seconds;
             }
         }
         let volumes: Vec<u64> = labels.iter().map(|(_, l)| l.hypervolume).collect();
@@ -209,9 +275,12 @@ impl Stats {
         out.push_str(&format!(
             "\nrejected attempts in completion records: {total}\n"
         ));
-        match self.build_seconds {
-            Some(seconds) => out.push_str(&format!("build time: {seconds:.1} s\n")),
-            None => out.push_str("build time: not recorded\n"),
+        match &self.build_time {
+            Some(time) => out.push_str(&time.to_text()),
+            None => out.push_str(
+                "build time: not available (from file modification times: needs build.json and \
+                 index.json or a completion record, the end not before the start)\n",
+            ),
         }
         out
     }
@@ -334,7 +403,6 @@ mod tests {
         ];
         let records = vec![RecordStats {
             regenerations: vec![("ball".to_string(), 2)],
-            seconds: None,
         }];
         let stats = Stats::collect(&labels, &records, 1);
         assert_eq!(stats.samples, 3);
@@ -344,7 +412,8 @@ mod tests {
         assert_eq!(stats.regeneration["ball"].rejected_attempts, 2);
         assert_eq!(stats.regeneration["ball"].rate, 0.5);
         assert_eq!(stats.record_regenerations["ball"], 2);
-        assert_eq!(stats.build_seconds, None);
+        assert_eq!(stats.build_time, None);
+        assert!(stats.to_text().contains("build time: not available"));
         let h = &stats.hypervolume_histogram;
         assert_eq!(h.counts.iter().sum::<u64>(), 3);
         assert_eq!(h.edges[0], 10);
@@ -353,6 +422,25 @@ mod tests {
         assert!(stats.to_text().contains("1/2 (50.0%), 2 rejected"));
         let png = plot(&stats).unwrap().to_png();
         assert_eq!(png, plot(&stats).unwrap().to_png());
+    }
+
+    #[test]
+    fn build_time_from_file_times() {
+        let time = BuildTime::from_file_times(100.0, 104.0, true, 8).unwrap();
+        assert_eq!(time.wall_seconds, 4.0);
+        assert_eq!(time.samples_per_second, Some(2.0));
+        assert_eq!(time.source, BUILD_TIME_SOURCE);
+        let text = time.to_text();
+        assert!(
+            text.starts_with("build time: 4.0 s wall, 2.00 samples/s"),
+            "{text}"
+        );
+        assert!(text.contains("file modification times"), "{text}");
+        let unfinished = BuildTime::from_file_times(100.0, 100.0, false, 8).unwrap();
+        assert_eq!(unfinished.samples_per_second, None);
+        assert!(unfinished.to_text().contains("not finished"));
+        assert_eq!(BuildTime::from_file_times(100.0, 99.0, true, 8), None);
+        assert_eq!(BuildTime::from_file_times(f64::NAN, 99.0, true, 8), None);
     }
 
     #[test]

@@ -35,4 +35,4 @@ pub use index::{
 pub use ustar::{
     read_tar, read_tar_with_limit, split_key, tar_bytes, tar_entries, Member, TarEntry,
 };
-pub use verify::{verify, Problem, Region, VerifyReport};
+pub use verify::{verify, verify_with_progress, Problem, Region, VerifyReport};

@@ -264,7 +264,18 @@ impl VerifyReport {
 /// Checks every shard of `dir` against `dir/index.json` (see the module documentation).
 /// Returns `Err` only when the index itself cannot be read or is invalid.
 pub fn verify(dir: &Path) -> Result<VerifyReport, ShardError> {
+    verify_with_progress(dir, &mut |_, _| {})
+}
+
+/// [`verify`], calling `progress` with (shards checked, shards in the index): once with
+/// zero checked after the index is read, then after each shard.
+pub fn verify_with_progress(
+    dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<VerifyReport, ShardError> {
     let index = Index::read(&dir.join("index.json"))?;
+    let total = index.shards.len() as u64;
+    progress(0, total);
     let mut report = VerifyReport::default();
     for record in &index.shards {
         report.shards_checked += 1;
@@ -286,6 +297,7 @@ pub fn verify(dir: &Path) -> Result<VerifyReport, ShardError> {
                 error: e.to_string(),
             }),
         }
+        progress(report.shards_checked, total);
     }
     let listed: BTreeSet<&str> = index.shards.iter().map(|s| s.name.as_str()).collect();
     let mut found = Vec::new();

@@ -3,8 +3,8 @@
 
 use bettimill_shard::ustar::{header_block, tar_len};
 use bettimill_shard::{
-    build_shard, compress, read_tar, read_tar_with_limit, tar_bytes, verify, write_atomic,
-    Compression, Index, Member, Problem, Region, ShardError, ShardRecord,
+    build_shard, compress, read_tar, read_tar_with_limit, tar_bytes, verify, verify_with_progress,
+    write_atomic, Compression, Index, Member, Problem, Region, ShardError, ShardRecord,
 };
 use proptest::prelude::*;
 use std::path::Path;
@@ -40,6 +40,16 @@ fn dataset() -> (tempfile::TempDir, Vec<ShardRecord>) {
     let index = Index::new("0.1.0", "manifest", "plan", records.clone());
     write_atomic(&dir.path().join("index.json"), &index.to_json_bytes()).unwrap();
     (dir, records)
+}
+
+#[test]
+fn verify_reports_progress_per_shard() {
+    let (dir, _) = dataset();
+    let mut calls = Vec::new();
+    let report =
+        verify_with_progress(dir.path(), &mut |done, total| calls.push((done, total))).unwrap();
+    assert!(report.is_ok());
+    assert_eq!(calls, vec![(0, 2), (1, 2), (2, 2)]);
 }
 
 fn shard_path(dir: &Path, record: &ShardRecord) -> std::path::PathBuf {
