@@ -75,22 +75,33 @@ impl KeyLayout {
             .sum()
     }
 
+    /// The 3^d key offsets (wrapping) from a voxel's key to the cells of its closure, the
+    /// voxel itself included: `key.wrapping_add(delta)` for each delta. Computed once, so
+    /// the closure of a voxel is 3^d additions.
+    pub(crate) fn voxel_face_deltas(&self) -> Vec<u64> {
+        let n = 3usize.pow(self.d as u32);
+        (0..n)
+            .map(|k| {
+                let mut rest = k;
+                let mut delta = 0u64;
+                for axis in 0..self.d {
+                    match rest % 3 {
+                        0 => delta = delta.wrapping_sub(self.stride[axis]),
+                        2 => delta = delta.wrapping_add(self.stride[axis]),
+                        _ => {}
+                    }
+                    rest /= 3;
+                }
+                delta
+            })
+            .collect()
+    }
+
     /// Calls `f` for each of the 3^d cells in the closure of the cell `key` whose
     /// coordinates are all odd (a voxel), the voxel itself included.
     pub(crate) fn for_each_face_of_voxel(&self, key: u64, mut f: impl FnMut(u64)) {
-        let n = 3usize.pow(self.d as u32);
-        for k in 0..n {
-            let mut rest = k;
-            let mut cell = key;
-            for axis in 0..self.d {
-                match rest % 3 {
-                    0 => cell -= self.stride[axis],
-                    2 => cell += self.stride[axis],
-                    _ => {}
-                }
-                rest /= 3;
-            }
-            f(cell);
+        for delta in self.voxel_face_deltas() {
+            f(key.wrapping_add(delta));
         }
     }
 

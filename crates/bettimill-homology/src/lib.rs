@@ -15,6 +15,12 @@
 //!   simple-point deletion in raster sweeps (same homotopy type; about 1% of a blob's
 //!   voxels survive), and the remnant's cubical complex is shrunk by collapses and
 //!   coreductions (module `complex`) until a few cells are left for an explicit Z/2 rank.
+//! - When the background is much smaller than the object (a solid cube with cavities), 4D
+//!   thinning would leave a 3-dimensional shell around every cavity. Instead the background
+//!   is thinned (its simple voxels are given to the object) down to thin cores of the
+//!   cavities, and duality (labels note) turns the cores' homology in the other
+//!   construction into the object's. A carved 128^4 cube takes seconds and well under
+//!   1 GB instead of ~50 s and ~7 GB.
 //!
 //! Memory: the padded copy (one byte per voxel) plus the remnant's complex; a 128^4 blob
 //! peaked below 1 GB including the caller's copy of the image.
@@ -32,6 +38,7 @@ mod thin;
 use bettimill_grid::{BinaryImage, Dim};
 use complex::{CellComplex, KeyLayout};
 use serde::{Deserialize, Serialize};
+use thin::Phase;
 
 /// The homology of one image: Betti numbers b_0..b_{d-1} over Z/2 and the Euler
 /// characteristic (their alternating sum, stored because it is a cheap cross-check).
@@ -59,7 +66,18 @@ pub fn topology(image: &BinaryImage) -> Topology {
     let padded = image.padded(1);
     match image.dim() {
         Dim::Two | Dim::Three => topology_from_counts(&padded),
-        Dim::Four => topology_by_thinning(padded),
+        Dim::Four => {
+            // Thin whichever phase is smaller: the object, or (by duality) its background,
+            // which for a solid cube with cavities is a few percent of the image.
+            let total = padded.len() as u64;
+            let object = padded.count_foreground();
+            let frame = total - image.len() as u64;
+            if 2 * (total - frame - object) < object {
+                topology_by_background(padded)
+            } else {
+                topology_by_thinning(padded)
+            }
+        }
     }
 }
 
@@ -86,16 +104,138 @@ fn topology_from_counts(padded: &BinaryImage) -> Topology {
 fn topology_by_thinning(mut padded: BinaryImage) -> Topology {
     let d = padded.dim().get();
     let tester = simple::SimpleTester::new(padded.dim());
-    let remaining = thin::thin(&mut padded, &tester);
+    let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
     let layout = KeyLayout::new(padded.shape());
-    let mut cells = Vec::new();
+    let deltas = layout.voxel_face_deltas();
+    let mut cells = Vec::with_capacity(remaining.len() * deltas.len());
     for index in remaining {
         let c = padded.coords(index);
-        layout.for_each_face_of_voxel(layout.voxel(&c[..d]), |cell| cells.push(cell));
+        let key = layout.voxel(&c[..d]);
+        cells.extend(deltas.iter().map(|&delta| key.wrapping_add(delta)));
     }
     let mut betti = CellComplex::from_cells(layout, cells).betti_by_reduction();
     betti.truncate(d);
     Topology::from_betti(betti)
+}
+
+/// Any dimension, through the background: the object's Betti numbers are those of the
+/// padded background in the other construction (voxel centres as vertices, 2d-adjacency),
+/// re-indexed (labels note: b_0 = b_{d-1}(bg), b_k = b_{d-1-k}(bg), b_{d-1} = b_0(bg) - 1).
+///
+/// The background is thinned first by giving its simple voxels to the object (no topology
+/// changes on either side), with the outer layer of `padded` locked. What is left is that
+/// layer (the frame) and thin cores of the inner background components. If no core touches
+/// the frame through a face, the frame is a component of its own with the homology of a
+/// (d-1)-sphere, and only the cores need an explicit complex: small, where thinning the
+/// object would leave a shell around every cavity. Otherwise the grown object (same
+/// topology) goes through [`topology_by_thinning`].
+fn topology_by_background(padded: BinaryImage) -> Topology {
+    match background_cores(padded) {
+        Ok(topology) => topology,
+        Err(grown) => topology_by_thinning(grown),
+    }
+}
+
+/// [`topology_by_background`] up to the fallback: Err holds the grown object (same
+/// topology as the input) when a core of the background touches the frame.
+fn background_cores(mut padded: BinaryImage) -> Result<Topology, BinaryImage> {
+    let d = padded.dim().get();
+    let shape = padded.shape().to_vec();
+    // Complement, and lock the outer layer (value 5).
+    for v in padded.data_mut().iter_mut() {
+        *v ^= 1;
+    }
+    lock_border(&mut padded);
+    let tester = simple::SimpleTester::new(padded.dim());
+    let cores = thin::thin(&mut padded, &tester, Phase::Background);
+    let strides = padded.strides().to_vec();
+    let data = padded.data();
+    let touches_frame = cores.iter().any(|&i| {
+        strides
+            .iter()
+            .any(|&s| data[i - s] & 4 != 0 || data[i + s] & 4 != 0)
+    });
+    if touches_frame {
+        for v in padded.data_mut().iter_mut() {
+            *v = (*v & 1 == 0) as u8;
+        }
+        return Err(padded);
+    }
+    // The cores' cubical complex in the other construction: a cell (the unit cube spanned
+    // by voxel centres v + {0,1}^S for a set S of axes) is present when all its corners
+    // are. Key coordinates: 2 v_a, or 2 v_a + 1 along the axes of S.
+    let layout = KeyLayout::new(&shape);
+    let axis_steps: Vec<u64> = (0..d)
+        .map(|axis| layout.key(&(0..d).map(|a| (a == axis) as u64).collect::<Vec<_>>()))
+        .collect();
+    let mut cells = Vec::new();
+    for &i in &cores {
+        let c = padded.coords(i);
+        let base: Vec<u64> = (0..d).map(|a| 2 * c[a] as u64).collect();
+        let vertex = layout.key(&base);
+        'cubes: for subset in 0usize..1 << d {
+            let mut key = vertex;
+            for (a, step) in axis_steps.iter().enumerate() {
+                if subset >> a & 1 == 1 {
+                    key += step;
+                }
+            }
+            // Every corner v + sum of a subset T of S.
+            let mut t = subset;
+            loop {
+                let offset: usize = (0..d)
+                    .filter(|&a| t >> a & 1 == 1)
+                    .map(|a| strides[a])
+                    .sum();
+                if data[i + offset] & 1 == 0 {
+                    continue 'cubes;
+                }
+                if t == 0 {
+                    break;
+                }
+                t = (t - 1) & subset;
+            }
+            cells.push(key);
+        }
+    }
+    let inner = CellComplex::from_cells(layout, cells).betti_by_reduction();
+    // The background: the frame (a (d-1)-sphere) plus the cores.
+    let mut background = inner;
+    background[0] += 1;
+    background[d - 1] += 1;
+    let mut betti = vec![0u64; d];
+    betti[0] = background[d - 1];
+    for k in 1..d - 1 {
+        betti[k] = background[d - 1 - k];
+    }
+    betti[d - 1] = background[0] - 1;
+    Ok(Topology::from_betti(betti))
+}
+
+/// Sets every voxel of the outer layer to 5 (locked, background phase).
+fn lock_border(image: &mut BinaryImage) {
+    let shape = image.shape().to_vec();
+    let d = shape.len();
+    let last = shape[d - 1];
+    let rows = image.len() / last;
+    let data = image.data_mut();
+    for row in 0..rows {
+        // The coordinates of the row's first d - 1 axes.
+        let mut rest = row;
+        let mut on_border = false;
+        for a in (0..d - 1).rev() {
+            let x = rest % shape[a];
+            rest /= shape[a];
+            on_border |= x == 0 || x + 1 == shape[a];
+        }
+        let line = &mut data[row * last..(row + 1) * last];
+        if on_border {
+            line.fill(5);
+        } else {
+            line[0] = 5;
+            line[last - 1] = 5;
+        }
+    }
 }
 
 #[cfg(test)]

@@ -389,3 +389,77 @@ fn structured_4d_images_agree_with_reference() {
         );
     }
 }
+
+/// Both 4D routes, forced, against the reference: thinning the object, and thinning its
+/// background (duality), on random images from sparse to nearly full (where the background
+/// route is the one `topology` picks), the adversarial images and their complements,
+/// carved cubes with cavities of every Table I type, and cavities that reach the border
+/// (the background route must fall back).
+#[test]
+fn both_4d_routes_agree_with_reference() {
+    let mut rng = ChaCha8Rng::seed_from_u64(80);
+    let mut images: Vec<(String, BinaryImage)> = Vec::new();
+    for trial in 0..300 {
+        let side = [3, 4, 5, 6][trial % 4];
+        let density = [0.2, 0.5, 0.7, 0.85, 0.95][trial % 5];
+        let image = random_image(&mut rng, &[side; 4], density);
+        images.push((format!("random {side}^4 density {density} #{trial}"), image));
+    }
+    for (name, image) in adversarial(4) {
+        images.push((format!("{name} complemented"), image.complement()));
+        images.push((name.to_string(), image));
+    }
+    // A full image: its background is only the padding (and the cavity reaches it).
+    let mut full = BinaryImage::cube(Dim::Four, 6).unwrap();
+    full.data_mut().fill(1);
+    images.push(("full".into(), full.clone()));
+    let mut notch = full.clone();
+    notch.set(&[0, 2, 3, 3], false);
+    notch.set(&[1, 2, 3, 3], false);
+    images.push(("notch from the border".into(), notch));
+    for (name, object) in [
+        ("ball", shape(4, 10, |p| norm(p) <= 2.6)),
+        ("S1xB3", shape(4, 12, |p| circle_distance(2.5, p) <= 1.6)),
+        (
+            "S2xB2",
+            shape(4, 12, |p| {
+                let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 2.5;
+                r * r + p[3] * p[3] <= 1.6 * 1.6
+            }),
+        ),
+        ("two balls", {
+            let mut two = shape(4, 12, |p| norm(&[p[0] - 2.5, p[1], p[2], p[3]]) <= 1.6);
+            let other = shape(4, 12, |p| norm(&[p[0] + 2.5, p[1], p[2], p[3]]) <= 1.6);
+            for (a, &b) in two.data_mut().iter_mut().zip(other.data()) {
+                *a |= b;
+            }
+            two
+        }),
+    ] {
+        images.push((format!("carved {name}"), cavity(&object)));
+    }
+    let mut by_cores = 0;
+    for (name, image) in images {
+        let expected = reference::topology(&image);
+        if let Ok(found) = background_cores(image.padded(1)) {
+            assert_eq!(found, expected, "{name}: background cores");
+            by_cores += 1;
+        } else {
+            assert!(!name.starts_with("carved"), "{name} fell back");
+        }
+        assert_eq!(
+            topology_by_thinning(image.padded(1)),
+            expected,
+            "{name}: object route"
+        );
+        assert_eq!(
+            topology_by_background(image.padded(1)),
+            expected,
+            "{name}: background route"
+        );
+        assert_eq!(topology(&image), expected, "{name}");
+    }
+    // Most random images keep a core away from the frame; the full image and the notch
+    // do not.
+    assert!(by_cores > 100, "{by_cores}");
+}

@@ -62,6 +62,7 @@ fn sweep(
     range: std::ops::Range<usize>,
     global_offset: usize,
     survivors: &mut Vec<usize>,
+    phase: Phase,
 ) {
     let mut cache = SimpleCache::new(16);
     let window = Window::new(strides);
@@ -69,8 +70,10 @@ fn sweep(
     // only write is the deletion of the voxel itself, whose centre bit is cleared.
     let mut block = 0u128;
     let mut previous = usize::MAX;
+    let neighbours = window.all_bits & !window.centre_bit;
     for i in range {
-        if data[i] == 0 {
+        // Skips the other phase, and locked voxels (bit 2), which are never flipped.
+        if data[i] & 5 != 1 {
             continue;
         }
         block = if previous.wrapping_add(1) == i {
@@ -81,8 +84,19 @@ fn sweep(
         previous = i;
         // A voxel whose face neighbours are all foreground is never simple (the background
         // part of its neighbourhood is empty); that check is much cheaper than the test.
-        let exposed = block & window.face_bits != window.face_bits;
-        if exposed && cache.is_simple(tester, tester.configuration_of_block(block)) {
+        let (exposed, config) = match phase {
+            Phase::Foreground => (
+                block & window.face_bits != window.face_bits,
+                tester.configuration_of_block(block),
+            ),
+            // Adding a background voxel to the object needs an object voxel among its
+            // neighbours; the object's configuration is the complement.
+            Phase::Background => (
+                block & neighbours != neighbours,
+                tester.configuration_of_block(!block & neighbours),
+            ),
+        };
+        if exposed && cache.is_simple(tester, config) {
             data[i] = 0;
             block &= !window.centre_bit;
         } else {
@@ -103,6 +117,8 @@ struct Window {
     /// The bits of the 2d face neighbours.
     face_bits: u128,
     centre_bit: u128,
+    /// Every bit of the 3^d block.
+    all_bits: u128,
 }
 
 impl Window {
@@ -126,11 +142,13 @@ impl Window {
             face_bits |= 1u128 << (3 * (middle_row - apart) + 1);
             face_bits |= 1u128 << (3 * (middle_row + apart) + 1);
         }
+        let all_bits = (1u128 << (3 * n_rows)) - 1;
         Window {
             rows,
             low_two,
             face_bits,
             centre_bit,
+            all_bits,
         }
     }
 
@@ -156,9 +174,24 @@ impl Window {
     }
 }
 
-/// Deletes simple foreground voxels of `image` until none is simple and returns the
-/// survivors' indices in increasing order. `image` must have a background border, so every
-/// foreground voxel has all its neighbours inside.
+/// Which phase [`thin`] shrinks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Phase {
+    /// Delete simple voxels of value 1 (the object).
+    Foreground,
+    /// The image holds the complement of an object (1 = background of the object) and
+    /// simple voxels of value 1 are given to the object: the object grows and its
+    /// background shrinks, with the topology of both unchanged (a voxel is simple for a
+    /// set exactly when it is simple for the complement). Voxels with bit 2 set (value
+    /// 5) are locked: part of the phase, never flipped.
+    Background,
+}
+
+/// Flips simple voxels of value 1 of `image` (deletes them from the object, or gives them
+/// to the object: see [`Phase`]) until none is simple, and returns the survivors' indices
+/// in increasing order (locked voxels are not listed). Every voxel that may be flipped
+/// must have all its neighbours inside the image: in the foreground phase the border must
+/// be background, in the background phase locked.
 ///
 /// The first sweep, which does almost all the work, runs on two threads: the image is cut
 /// across its first axis into slabs A (planes below k) and B (planes from k + 2 on) with
@@ -166,14 +199,24 @@ impl Window {
 /// apart, so neither ever reads what the other writes: the outcome is exactly that of
 /// sweeping A and then B sequentially, whatever the thread timing. The seam planes are
 /// swept with the survivors afterwards.
-pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize> {
-    debug_assert!(image.border_is_background());
-    let face_steps: Vec<isize> = flat_offsets(image, tester.offsets())
-        .into_iter()
-        .zip(tester.offsets())
-        .filter(|(_, off)| off.iter().map(|o| o.abs()).sum::<i8>() == 1)
-        .map(|(s, _)| s)
-        .collect();
+pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase) -> Vec<usize> {
+    debug_assert!(match phase {
+        Phase::Foreground => image.border_is_background(),
+        Phase::Background => border_is_locked(image),
+    });
+    let steps = flat_offsets(image, tester.offsets());
+    // The neighbours whose membership decides whether a flip can be simple at all: the
+    // face neighbours (a foreground voxel with none in the background is never simple),
+    // or every neighbour (a background voxel needs an object voxel next to it).
+    let exposure_steps: Vec<isize> = match phase {
+        Phase::Foreground => steps
+            .iter()
+            .zip(tester.offsets())
+            .filter(|(_, off)| off.iter().map(|o| o.abs()).sum::<i8>() == 1)
+            .map(|(&s, _)| s)
+            .collect(),
+        Phase::Background => steps.clone(),
+    };
     let strides = image.strides().to_vec();
     let planes = image.shape()[0];
     let plane = strides[0];
@@ -184,7 +227,17 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
         let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
         let (mut survivors_a, mut survivors_b) = (Vec::new(), Vec::new());
         rayon::join(
-            || sweep(tester, slab_a, &strides, 0..k * plane, 0, &mut survivors_a),
+            || {
+                sweep(
+                    tester,
+                    slab_a,
+                    &strides,
+                    0..k * plane,
+                    0,
+                    &mut survivors_a,
+                    phase,
+                )
+            },
             || {
                 let n_b = slab_b.len();
                 sweep(
@@ -194,6 +247,7 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
                     plane..n_b,
                     (k + 1) * plane,
                     &mut survivors_b,
+                    phase,
                 )
             },
         );
@@ -209,15 +263,16 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
             0..len,
             0,
             &mut remaining,
+            phase,
         );
     }
-    // Later sweeps: a voxel can only have become simple if a neighbour was deleted since
-    // its last test, so each deletion flags its foreground neighbours (bit 1 of their
+    // Later sweeps: a voxel can only have become simple if a neighbour was flipped since
+    // its last test, so each flip flags its neighbours of the same phase (bit 1 of their
     // byte, which configurations and the exposure check ignore) and a sweep after the
     // first retests only flagged voxels, clearing the flag as it does. Skipping a voxel
-    // never deletes anything, so it cannot affect correctness, and when a sweep deletes
+    // never flips anything, so it cannot affect correctness, and when a sweep flips
     // nothing no flag is left: no survivor is simple, as with full sweeps.
-    let steps = flat_offsets(image, tester.offsets());
+    let n_neighbours = steps.len();
     let mut cache = SimpleCache::new(16);
     let mut every = true;
     loop {
@@ -227,16 +282,23 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
             if !every && data[i] & 2 == 0 {
                 return true;
             }
-            data[i] = 1;
-            let exposed = face_steps
+            data[i] &= !2;
+            let exposed = exposure_steps
                 .iter()
-                .any(|&s| data[(i as isize + s) as usize] == 0);
-            if exposed && cache.is_simple(tester, tester.configuration_in(data, &strides, i)) {
+                .any(|&s| data[(i as isize + s) as usize] & 1 == 0);
+            if !exposed {
+                return true;
+            }
+            let mut config = tester.configuration_in(data, &strides, i);
+            if phase == Phase::Background {
+                config = !config & ((1u128 << n_neighbours) - 1);
+            }
+            if cache.is_simple(tester, config) {
                 data[i] = 0;
                 for &s in &steps {
                     let j = (i as isize + s) as usize;
-                    if data[j] != 0 {
-                        data[j] = 3;
+                    if data[j] & 1 != 0 {
+                        data[j] |= 2;
                     }
                 }
                 false
@@ -253,7 +315,24 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester) -> Vec<usize>
     for &i in &remaining {
         data[i] = 1;
     }
+    // Flags set on locked voxels are cleared too.
+    if phase == Phase::Background {
+        for v in data.iter_mut() {
+            *v &= !2;
+        }
+    }
     remaining
+}
+
+/// Whether every voxel of the outer layer is locked (value 5).
+fn border_is_locked(image: &BinaryImage) -> bool {
+    let d = image.dim().get();
+    let shape = image.shape().to_vec();
+    (0..image.len()).all(|index| {
+        let c = image.coords(index);
+        let on_border = (0..d).any(|a| c[a] == 0 || c[a] + 1 == shape[a]);
+        !on_border || image.data()[index] == 5
+    })
 }
 
 #[cfg(test)]
@@ -279,10 +358,10 @@ mod tests {
             }
             let tester = SimpleTester::new(dim);
             let n_ring = ring.count_foreground() as usize;
-            let survivors = thin(&mut ball, &tester);
+            let survivors = thin(&mut ball, &tester, Phase::Foreground);
             assert_eq!(survivors.len(), 1, "{d}D ball");
             assert_eq!(ball.count_foreground(), 1);
-            let survivors = thin(&mut ring, &tester);
+            let survivors = thin(&mut ring, &tester, Phase::Foreground);
             // A loop cannot shrink to a point, but it does get thinner.
             assert!(
                 survivors.len() >= 4 && survivors.len() < n_ring,
@@ -329,6 +408,7 @@ mod tests {
                     0..len,
                     0,
                     &mut survivors,
+                    Phase::Foreground,
                 );
                 assert_eq!(image.data(), fresh.data(), "{d}D trial {trial}");
                 let expected: Vec<usize> = (0..len).filter(|&i| fresh.data()[i] == 1).collect();
