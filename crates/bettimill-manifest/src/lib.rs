@@ -275,6 +275,15 @@ pub enum DeformMethod {
     Erode,
 }
 
+/// `path:line`, or just `path` when no line is at fault (a missing field).
+fn at_line(path: &std::path::Path, line: usize) -> String {
+    if line == 0 {
+        path.display().to_string()
+    } else {
+        format!("{}:{line}", path.display())
+    }
+}
+
 /// Why a manifest was refused. Every variant names the file; parse and value errors also name
 /// the line and the field.
 #[derive(Debug, thiserror::Error)]
@@ -288,7 +297,7 @@ pub enum ManifestError {
         source: std::io::Error,
     },
     /// A field is missing, unknown, mistyped or has an impossible value.
-    #[error("{path}:{line}: field `{field}`: {reason}")]
+    #[error("{}: field `{field}`: {reason}", at_line(path, *line))]
     Invalid {
         /// The manifest path (or `<embedded demo>`).
         path: PathBuf,
