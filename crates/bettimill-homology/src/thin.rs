@@ -20,8 +20,9 @@ use crate::simple::SimpleTester;
 use bettimill_grid::neighbourhood::flat_offsets;
 use bettimill_grid::BinaryImage;
 
-/// Direct-mapped memo of `is_simple_configuration`. Entries store the configuration (at
-/// most 80 bits) with bit 126 marking the slot used and bit 127 the answer.
+/// Direct-mapped memo of the simple-point test, keyed by `SimpleTester::memo_key` (in 4D
+/// the attachment set, at most 80 face bits) with bit 126 marking the slot used and bit 127
+/// the answer.
 struct SimpleCache {
     entries: Vec<u128>,
     shift: u32,
@@ -38,15 +39,18 @@ impl SimpleCache {
         }
     }
 
+    /// Whether the voxel with configuration `config` is simple; memoised on the tester's
+    /// memo key (a pure function of the configuration).
     #[inline]
     fn is_simple(&mut self, tester: &SimpleTester, config: u128) -> bool {
+        let config = tester.memo_key(config);
         let folded = (config as u64) ^ ((config >> 64) as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93);
         let slot = (folded.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
         let entry = self.entries[slot];
         if entry & !Self::ANSWER == config | Self::USED {
             return entry & Self::ANSWER != 0;
         }
-        let answer = tester.is_simple_configuration(config);
+        let answer = tester.is_simple_key(config);
         self.entries[slot] = config | Self::USED | if answer { Self::ANSWER } else { 0 };
         answer
     }
