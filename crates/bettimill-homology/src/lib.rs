@@ -15,7 +15,7 @@
 //!   simple-point deletion in raster sweeps (same homotopy type; about 1% of a blob's
 //!   voxels survive), and the remnant's cubical complex is shrunk by collapses and
 //!   coreductions (module `complex`) until a few cells are left for an explicit Z/2 rank.
-//! - When the background is much smaller than the object (a solid cube with cavities), 4D
+//! - For a solid cube with cavities (a foreground wall encloses all inner background), 4D
 //!   thinning would leave a 3-dimensional shell around every cavity. Instead the background
 //!   is thinned (its simple voxels are given to the object) down to thin cores of the
 //!   cavities, and duality (labels note) turns the cores' homology in the other
@@ -67,12 +67,13 @@ pub fn topology(image: &BinaryImage) -> Topology {
     match image.dim() {
         Dim::Two | Dim::Three => topology_from_counts(&padded),
         Dim::Four => {
-            // Thin whichever phase is smaller: the object, or (by duality) its background,
-            // which for a solid cube with cavities is a few percent of the image.
-            let total = padded.len() as u64;
-            let object = padded.count_foreground();
-            let frame = total - image.len() as u64;
-            if 2 * (total - frame - object) < object {
+            // A solid cube with cavities (a foreground wall around everything that is
+            // background inside it) goes through its background: the cavities thin to
+            // thin cores, where thinning the object would leave a 3-dimensional shell
+            // around every cavity. Anything else (objects in empty space, blobs) thins
+            // the object; its background stays attached to the border, where the
+            // background route would fall back and pay twice.
+            if has_foreground_wall(image) {
                 topology_by_background(padded)
             } else {
                 topology_by_thinning(padded)
@@ -210,6 +211,47 @@ fn background_cores(mut padded: BinaryImage) -> Result<Topology, BinaryImage> {
     }
     betti[d - 1] = background[0] - 1;
     Ok(Topology::from_betti(betti))
+}
+
+/// Whether the surface of some box nested in the image, at most a quarter of the side in
+/// from the border, is all foreground: then the background inside it is cut off from the
+/// border. Boxes that fail usually fail at their first voxels, and the one that succeeds
+/// costs its surface (side^3 voxels per pair of faces), so this is cheap next to
+/// homology.
+fn has_foreground_wall(image: &BinaryImage) -> bool {
+    let shape = image.shape();
+    let d = shape.len();
+    let last = shape[d - 1];
+    let depth = shape.iter().min().copied().unwrap_or(0) / 4;
+    let data = image.data();
+    (0..depth).any(|t| {
+        let inside = |x: usize, n: usize| (t..n - t).contains(&x);
+        let on_surface = |x: usize, n: usize| x == t || x + 1 == n - t;
+        // Rows along the last axis: a row on a face of the box must be foreground from t
+        // to last - 1 - t; any other row of the box only at its two ends.
+        let rows = image.len() / last;
+        let per_plane = rows / shape[0];
+        (t * per_plane..(shape[0] - t) * per_plane).all(|row| {
+            let mut rest = row;
+            let mut within = true;
+            let mut face = false;
+            for a in (0..d - 1).rev() {
+                let x = rest % shape[a];
+                rest /= shape[a];
+                within &= inside(x, shape[a]);
+                face |= on_surface(x, shape[a]);
+            }
+            if !within {
+                return true;
+            }
+            let line = &data[row * last + t..row * last + last - t];
+            if face {
+                line.iter().all(|&v| v != 0)
+            } else {
+                line[0] != 0 && line[line.len() - 1] != 0
+            }
+        })
+    })
 }
 
 /// Sets every voxel of the outer layer to 5 (locked, background phase).
