@@ -17,12 +17,13 @@
 //! the decisions of a subfield are made in parallel against the same image and then
 //! applied, with the same outcome as applying them one by one, on any number of threads.
 
-use crate::field::{FastFractal, NoiseCache};
+use crate::field::NoiseCache;
 use crate::simple_memo::FastSimple;
 use crate::{DeformError, DeformReport};
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::BinaryImage;
 use bettimill_homology::simple::SimpleTester;
+use bettimill_noise::Fractal;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -180,7 +181,7 @@ pub(crate) fn target(
     }
     let grow = start < lo;
     let goal = if grow { lo } else { hi };
-    let fractal = FastFractal::new(
+    let fractal = Fractal::new(
         image.dim(),
         seed,
         DEFAULT_TARGET_FREQUENCY,
@@ -349,7 +350,7 @@ impl BitSet {
 /// value depends only on its coordinate), rather than cached for the whole image.
 fn sort_by_target_noise(
     candidates: &[usize],
-    fractal: &FastFractal,
+    fractal: &Fractal,
     layout: &Layout,
     grow: bool,
 ) -> Vec<usize> {

@@ -133,18 +133,38 @@ fn gradient_index4(hash: u8) -> u8 {
     hash & 31
 }
 
+/// The 32 gradients of 4D Improved Noise as coordinate factors (+1, -1, and 0 on the zero
+/// axis), so that a gradient dot product has no data-dependent branch.
+const GRADIENTS4: [[f64; 4]; 32] = {
+    let mut table = [[0.0f64; 4]; 32];
+    let mut g = 0;
+    while g < 32 {
+        let zero_axis = g >> 3;
+        let mut bit = 0;
+        let mut axis = 0;
+        while axis < 4 {
+            if axis != zero_axis {
+                table[g][axis] = if (g >> bit) & 1 == 0 { 1.0 } else { -1.0 };
+                bit += 1;
+            }
+            axis += 1;
+        }
+        g += 1;
+    }
+    table
+};
+
+/// The dot product of the corner offset `p` with gradient `hash & 31`: the three non-zero
+/// terms +-c summed from +0.0 in axis order, and on the zero axis c * 0.0 = +-0.0 in its
+/// place. Adding +-0.0 changes no non-zero sum, and a running sum started at +0.0 is never
+/// -0.0, so this is bit for bit the sum of the three terms alone (the golden values pin
+/// it), without the branches that made the 4D noise several times slower.
 #[inline]
 fn grad4(hash: u8, p: [f64; 4]) -> f64 {
-    let g = gradient_index4(hash);
-    let zero_axis = (g >> 3) as usize;
+    let g = &GRADIENTS4[gradient_index4(hash) as usize];
     let mut sum = 0.0;
-    let mut bit = 0;
-    for (axis, &c) in p.iter().enumerate() {
-        if axis == zero_axis {
-            continue;
-        }
-        sum += if g >> bit & 1 == 0 { c } else { -c };
-        bit += 1;
+    for axis in 0..4 {
+        sum += p[axis] * g[axis];
     }
     sum
 }
