@@ -19,7 +19,7 @@
 use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
 use crate::{BuildError, Dataset, DirLock, LockError};
 use bettimill_sample::TOOL_VERSION;
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::ffi::OsString;
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -194,6 +194,8 @@ struct Scheduler {
     failures: BTreeMap<usize, Vec<String>>,
     given_up: Vec<FailedShard>,
     built: u64,
+    /// Names of the shards built in this run.
+    built_names: Vec<String>,
     samples: u64,
     regenerations: u64,
     retries: u64,
@@ -223,14 +225,17 @@ pub fn run(
 ) -> Result<BuildReport, CoordinatorError> {
     let _lock = DirLock::acquire(&dataset.dir)?;
     dataset.remove_temporaries()?;
-    let missing: Vec<usize> = dataset
-        .plan
-        .shards
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| dataset.completed(s).is_none())
-        .map(|(i, _)| i)
-        .collect();
+    let mut missing = Vec::new();
+    // Shards hashed here, or by the worker that writes them below: finalize need not read
+    // them back.
+    let mut checked = BTreeSet::new();
+    for (i, shard) in dataset.plan.shards.iter().enumerate() {
+        if dataset.completed(shard).is_some() {
+            checked.insert(shard.name.clone());
+        } else {
+            missing.push(i);
+        }
+    }
     let shards = dataset.plan.shards.len() as u64;
     let mut report = BuildReport {
         skipped: shards - missing.len() as u64,
@@ -252,6 +257,7 @@ pub fn run(
         failures: BTreeMap::new(),
         given_up: Vec::new(),
         built: 0,
+        built_names: Vec::new(),
         samples: 0,
         regenerations: 0,
         retries: 0,
@@ -282,8 +288,9 @@ pub fn run(
     report.retries = scheduler.retries;
     report.failed = scheduler.given_up.clone();
     report.complete = report.skipped + report.built;
+    checked.extend(scheduler.built_names.iter().cloned());
     if report.complete == shards && !report.interrupted {
-        dataset.finalize()?;
+        dataset.finalize_checked(&checked)?;
         report.finalized = true;
     }
     Ok(report)
@@ -485,6 +492,7 @@ async fn run_slot(
             Attempt::Done { regenerations } => {
                 let mut scheduler = context.lock();
                 scheduler.built += 1;
+                scheduler.built_names.push(name.clone());
                 scheduler.samples += samples;
                 scheduler.regenerations += regenerations;
                 drop(scheduler);

@@ -6,6 +6,7 @@ use bettimill_sample::{make_sample, SampleError, TOOL_VERSION};
 use bettimill_shard::{self as shard, Index, Member, ShardError, ShardRecord};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Why a build step failed.
@@ -196,6 +197,14 @@ impl Dataset {
             .join(format!("{}.json", shard.name))
     }
 
+    /// The shard's completion record if the tar on disk has the record's size (no hash).
+    fn recorded(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
+        let bytes = std::fs::read(self.record_path(shard)).ok()?;
+        let record: CompletionRecord = serde_json::from_slice(&bytes).ok()?;
+        let size = std::fs::metadata(self.tar_path(shard)).ok()?.len();
+        (size == record.shard.bytes).then_some(record)
+    }
+
     /// The shard's completion record if the shard on disk matches it, else `None`.
     pub fn completed(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
         let bytes = std::fs::read(self.record_path(shard)).ok()?;
@@ -292,6 +301,7 @@ impl Dataset {
     ) -> Result<BuildSummary, BuildError> {
         let mut summary = BuildSummary::default();
         let total = self.plan.shards.len() as u64;
+        let mut checked = BTreeSet::new();
         for (done, shard) in self.plan.shards.iter().enumerate() {
             if self.completed(shard).is_some() {
                 summary.skipped += 1;
@@ -300,10 +310,11 @@ impl Dataset {
                 summary.built += 1;
                 summary.regenerations += record.regenerations.iter().map(|r| r.1).sum::<u64>();
             }
+            checked.insert(shard.name.clone());
             progress(done as u64 + 1, total);
         }
         summary.samples = self.plan.samples;
-        self.finalize()?;
+        self.finalize_checked(&checked)?;
         Ok(summary)
     }
 
@@ -405,11 +416,26 @@ impl Dataset {
             .collect()
     }
 
-    /// Writes index.json from the completion records once every shard is complete.
+    /// Writes index.json from the completion records once every shard is complete, checking
+    /// every shard against its record (size and blake3).
     pub fn finalize(&self) -> Result<Index, BuildError> {
+        self.finalize_checked(&BTreeSet::new())
+    }
+
+    /// [`Dataset::finalize`] for a build that has already checked some shards itself: the
+    /// shards named in `checked` (hashed by the process that wrote them, or by
+    /// [`Dataset::completed`] earlier in the same build) are only checked for their record
+    /// and size, so a build does not read back every byte it has just written; every other
+    /// shard is hashed as in [`Dataset::finalize`].
+    pub fn finalize_checked(&self, checked: &BTreeSet<String>) -> Result<Index, BuildError> {
         let mut shards = Vec::with_capacity(self.plan.shards.len());
         for plan in &self.plan.shards {
-            let record = self.completed(plan).ok_or_else(|| BuildError::Corrupt {
+            let record = if checked.contains(&plan.name) {
+                self.recorded(plan)
+            } else {
+                self.completed(plan)
+            };
+            let record = record.ok_or_else(|| BuildError::Corrupt {
                 path: self.tar_path(plan),
                 reason: "shard is missing or does not match its record; run the build again".into(),
             })?;
