@@ -704,8 +704,13 @@ fn make(family: &Family, dim: usize, tube: f64, grow: f64, shares: &Shares) -> O
     })
 }
 
+/// Room a tentacle needs beyond its host's extent: the gap and two steps past the host's
+/// tube (`curves::add_tentacles`) plus its own radius, each tentacle radius at most
+/// TUBE_MIN + 0.5.
+const TENTACLE_ROOM: f64 = 2.0 * (TUBE_MIN + 0.5) + INNER_GAP + 0.5 + 2.5;
+
 /// The smallest bounding radius of one object of the family (tentacles need none extra:
-/// they are added only where space remains).
+/// they are added only where space remains; see [`draw_target`]).
 fn min_extent(family: &Family, dim: usize) -> Option<f64> {
     let family = match family {
         Family::Tentacled { object, .. } => object,
@@ -716,13 +721,28 @@ fn min_extent(family: &Family, dim: usize) -> Option<f64> {
     make(family, dim, tube, 0.0, &shares).map(|s| s.extent())
 }
 
+/// A random bounding radius for `object` between `minimum` and `upper`. A tentacled
+/// object draws from `minimum + TENTACLE_ROOM` up when there is that much room, so that its
+/// host leaves space for tentacles (draws near the minimum used to place none in most
+/// samples); where there is not, it keeps the plain range and places what fits.
+fn draw_target(object: &Family, minimum: f64, upper: f64, rng: &mut ChaCha8Rng) -> f64 {
+    let lo = match object {
+        Family::Tentacled { .. } if minimum + TENTACLE_ROOM <= upper => minimum + TENTACLE_ROOM,
+        _ => minimum,
+    };
+    uniform(rng, lo, upper)
+}
+
 /// A random instance with bounding radius at most `target` (which must be at least the
 /// minimum). Returns the solid and its parameters.
 fn build(family: &Family, dim: usize, target: f64, rng: &mut ChaCha8Rng) -> Option<(Solid, Value)> {
     if let Family::Tentacled { object, tentacles } = family {
-        // The host takes a random part of the room; tentacles reach into the rest.
+        // The host takes a random part of the room; tentacles reach into the rest. A
+        // tentacle must leave the host by a gap and a few steps before it counts, so the
+        // host leaves that much room when the target allows it (see `draw_target`).
         let minimum = min_extent(object, dim)?;
-        let host_target = uniform(rng, minimum, minimum.max(0.75 * target));
+        let host_cap = (0.75 * target).min(target - TENTACLE_ROOM);
+        let host_target = uniform(rng, minimum, minimum.max(host_cap));
         let (solid, params) = build(object, dim, host_target, rng)?;
         let (solid, placed) = curves::add_tentacles(solid, dim, *tentacles, target, rng);
         return Some((
@@ -1178,7 +1198,7 @@ fn place_random(
             let target = if at_minimum {
                 minimum
             } else {
-                uniform(rng, minimum, upper)
+                draw_target(object, minimum, upper, rng)
             };
             let Some((solid, params)) = build(object, dim, target, rng) else {
                 continue;
@@ -1299,7 +1319,7 @@ fn place_objects(
             rest /= per_axis;
         }
         let (lo, hi) = grid_cell(region, per_axis, cell, dim);
-        let target = uniform(rng, minimum, cell_budget.max(minimum));
+        let target = draw_target(object, minimum, cell_budget.max(minimum), rng);
         let (solid, params) = build(object, dim, target, rng)
             .or_else(|| build(object, dim, minimum, rng))
             .ok_or_else(|| ShapeError::DoesNotFit {
