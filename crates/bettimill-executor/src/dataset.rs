@@ -238,47 +238,56 @@ impl Dataset {
         progress: &(dyn Fn(u32) + Sync),
     ) -> Result<CompletionRecord, BuildError> {
         let tasks = self.plan.shard_tasks(shard);
-        let samples: Vec<_> = tasks
-            .par_iter()
-            .map(|task| {
-                let sample = make_sample(&self.manifest, &self.plan, task)?;
-                progress(sample.label.attempt);
-                Ok(sample)
-            })
-            .collect::<Result<_, _>>()
-            .map_err(|source| BuildError::Sample {
-                shard: shard.name.clone(),
-                source,
-            })?;
         let compression = match self.manifest.member_compression() {
             Compression::None | Compression::Auto => shard::Compression::None,
             Compression::Gzip => shard::Compression::Gzip,
             Compression::Zstd => shard::Compression::Zstd,
         };
+        // Each sample becomes its (compressed) members as soon as it is verified, so a
+        // worker holds a shard's compressed bytes, not every uncompressed image of the shard
+        // (150 samples of 56^4 held 1.5 GB that way).
+        let samples: Vec<(Vec<Member>, String, u32)> = tasks
+            .par_iter()
+            .map(|task| {
+                let sample = make_sample(&self.manifest, &self.plan, task)?;
+                progress(sample.label.attempt);
+                let key = &sample.label.key;
+                let mut fields = Vec::new();
+                for (field, bytes) in sample.fields() {
+                    // Arrays are compressed per member; labels and classes stay readable.
+                    if field.ends_with("npy") && compression != shard::Compression::None {
+                        let compressed =
+                            shard::compress(&bytes, compression).map_err(SampleOrShard::Shard)?;
+                        fields.push(Member {
+                            name: format!("{key}.{field}{}", compression.suffix()),
+                            data: compressed,
+                        });
+                    } else {
+                        fields.push(Member {
+                            name: format!("{key}.{field}"),
+                            data: bytes,
+                        });
+                    }
+                }
+                Ok((
+                    fields,
+                    sample.label.class_label.clone(),
+                    sample.label.attempt,
+                ))
+            })
+            .collect::<Result<_, SampleOrShard>>()
+            .map_err(|err| match err {
+                SampleOrShard::Sample(source) => BuildError::Sample {
+                    shard: shard.name.clone(),
+                    source,
+                },
+                SampleOrShard::Shard(err) => err.into(),
+            })?;
         let mut members = Vec::with_capacity(samples.len());
         let mut regenerations = std::collections::BTreeMap::<String, u64>::new();
-        for sample in &samples {
-            let key = &sample.label.key;
-            let mut fields = Vec::new();
-            for (field, bytes) in sample.fields() {
-                // Arrays are compressed per member; labels and classes stay readable.
-                if field.ends_with("npy") && compression != shard::Compression::None {
-                    let compressed = shard::compress(&bytes, compression)?;
-                    fields.push(Member {
-                        name: format!("{key}.{field}{}", compression.suffix()),
-                        data: compressed,
-                    });
-                } else {
-                    fields.push(Member {
-                        name: format!("{key}.{field}"),
-                        data: bytes,
-                    });
-                }
-            }
+        for (fields, class_label, attempt) in samples {
             members.push(fields);
-            *regenerations
-                .entry(sample.label.class_label.clone())
-                .or_default() += sample.label.attempt as u64;
+            *regenerations.entry(class_label).or_default() += attempt as u64;
         }
         let relative = format!("shards/{}.tar", shard.name);
         let (bytes, record) = shard::build_shard(&relative, &shard.split, &members)?;
@@ -553,4 +562,16 @@ fn read_build_info(path: &Path) -> Result<BuildInfo, BuildError> {
         path: path.to_path_buf(),
         reason: format!("not a bettimill build record: {err}"),
     })
+}
+
+/// A sample's failure while its members are made: generating it, or compressing it.
+enum SampleOrShard {
+    Sample(SampleError),
+    Shard(ShardError),
+}
+
+impl From<SampleError> for SampleOrShard {
+    fn from(err: SampleError) -> Self {
+        SampleOrShard::Sample(err)
+    }
 }
