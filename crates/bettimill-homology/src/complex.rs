@@ -67,6 +67,14 @@ impl KeyLayout {
             .sum()
     }
 
+    /// The (wrapping) key offset of a step of `steps[a]` (each -1, 0 or 1, as u64 two's
+    /// complement) along every axis a.
+    pub(crate) fn key_offset(&self, steps: &[u64]) -> u64 {
+        (0..self.d).fold(0u64, |sum, axis| {
+            sum.wrapping_add(steps[axis].wrapping_mul(self.stride[axis]))
+        })
+    }
+
     /// The key of the cell with Khalimsky coordinates `coords`.
     #[inline]
     pub(crate) fn key(&self, coords: &[u64]) -> u64 {

@@ -529,6 +529,29 @@ impl SimpleTester {
         self.is_simple_configuration(self.configuration(image, index))
     }
 
+    /// The attachment set A(x) of a configuration: the boundary faces of the voxel that
+    /// it shares with its foreground neighbours, as a mask indexed like the neighbours.
+    #[inline]
+    pub(crate) fn attachment_of(&self, config: u128) -> u128 {
+        let tables = &*self.tables;
+        tables.attachment(config & ((1u128 << tables.n_neighbours) - 1))
+    }
+
+    /// For each boundary face k of a voxel (indexed like the neighbours), the faces one
+    /// dimension up whose closure contains it, with bit `offsets().len()` standing for the
+    /// voxel itself (the coface of its (d-1)-faces).
+    pub(crate) fn cofaces_with_cell(&self) -> Vec<u128> {
+        let tables = &*self.tables;
+        let d = tables.dim.get();
+        let cell = 1u128 << tables.n_neighbours;
+        (0..tables.n_neighbours)
+            .map(|k| {
+                let nonzero = tables.offsets[k][..d].iter().filter(|&&o| o != 0).count();
+                tables.cofaces[k] | if nonzero == 1 { cell } else { 0 }
+            })
+            .collect()
+    }
+
     /// The offsets of the neighbours, in configuration bit order.
     pub fn offsets(&self) -> &[[i8; 4]] {
         &self.tables.offsets
