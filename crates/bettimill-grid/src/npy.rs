@@ -147,6 +147,19 @@ pub fn read_bytes(bytes: &[u8], strict: bool) -> Result<NpyImage, NpyError> {
     }
     let raw = &bytes[data_start..];
     let mut voxels = Vec::with_capacity(n_voxels as usize);
+    if dtype.size == 1 {
+        // One byte per element (bool, u1, i1): zero is zero whatever the kind, so the bytes
+        // are read directly, which is most of the time of reading a large image otherwise.
+        if strict {
+            if let Some(index) = raw.iter().position(|&b| b > 1) {
+                let value = element_value(&raw[index..index + 1], dtype);
+                return Err(NpyError::NotBinary { index, value });
+            }
+        }
+        voxels.extend(raw.iter().map(|&b| (b != 0) as u8));
+        let image = BinaryImage::from_vec(&shape, voxels)?;
+        return Ok(NpyImage { image, dtype });
+    }
     for (index, chunk) in raw.chunks_exact(dtype.size).enumerate() {
         let value = element_value(chunk, dtype);
         if strict && value != 0 && value != 1 {
