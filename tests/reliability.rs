@@ -18,57 +18,13 @@
 //! - Resources: the coordinator's peak memory for 2000 samples is less than twice that for
 //!   200; a worker's peak for a 32^4 sample stays within the documented per-voxel bound.
 
-use std::collections::BTreeMap;
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{bettimill, build, children, run, shard_files, text};
-
-/// Every file under `dir`, by relative path, with its bytes.
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                stack.push(path);
-            } else {
-                let rel = path.strip_prefix(dir).unwrap().to_path_buf();
-                out.insert(rel, std::fs::read(&path).unwrap_or_default());
-            }
-        }
-    }
-    out
-}
-
-/// Every finished file (the lock and temporaries aside) is the same in both directories.
-fn assert_same(a: &Path, b: &Path) {
-    let finished = |dir: &Path| -> BTreeMap<PathBuf, Vec<u8>> {
-        snapshot(dir)
-            .into_iter()
-            .filter(|(p, _)| {
-                let name = p.file_name().unwrap().to_string_lossy();
-                !name.starts_with('.')
-            })
-            .collect()
-    };
-    let (sa, sb) = (finished(a), finished(b));
-    assert!(sa.contains_key(Path::new("index.json")), "{}", a.display());
-    assert_eq!(
-        sa.keys().collect::<Vec<_>>(),
-        sb.keys().collect::<Vec<_>>(),
-        "{} and {} hold different files",
-        a.display(),
-        b.display()
-    );
-    for (name, bytes) in &sa {
-        assert!(bytes == &sb[name], "{} differs", name.display());
-    }
-}
+use common::{assert_same, bettimill, build, children, run, shard_files, snapshot, text};
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("r{dimension}d-{side}-{samples}-{shard_size}.toml"));

@@ -3,46 +3,12 @@
 //! temporary file and its rename), a second concurrent build, a shard that keeps failing,
 //! and SIGTERM. Every finished directory must be byte-identical to a clean build.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{bettimill, build, children, run, shard_files, text};
-
-/// Every file under `dir`, by relative path, with its bytes.
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                stack.push(path);
-            } else {
-                let rel = path.strip_prefix(dir).unwrap().to_path_buf();
-                out.insert(rel, std::fs::read(&path).unwrap());
-            }
-        }
-    }
-    out
-}
-
-fn assert_same(a: &Path, b: &Path) {
-    let (sa, sb) = (snapshot(a), snapshot(b));
-    assert!(sa.contains_key(Path::new("index.json")), "{}", a.display());
-    assert_eq!(
-        sa.keys().collect::<Vec<_>>(),
-        sb.keys().collect::<Vec<_>>(),
-        "{} and {} hold different files",
-        a.display(),
-        b.display()
-    );
-    for (name, bytes) in &sa {
-        assert!(bytes == &sb[name], "{} differs", name.display());
-    }
-}
+use common::{assert_same, bettimill, build, children, run, shard_files, text};
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("m{dimension}d-{side}-{samples}-{shard_size}.toml"));

@@ -1,10 +1,12 @@
-//! Helpers shared by the process-level test files (`workers.rs`, `reliability.rs`): run the
-//! real `bettimill` binary and look at its child processes and output directory.
+//! Helpers shared by the process-level test files (`workers.rs`, `reliability.rs`,
+//! `end_to_end.rs`): run the real `bettimill` binary and look at its child processes and
+//! output directory.
 //!
 //! Each test binary uses a different subset, so unused ones are expected.
 #![allow(dead_code)]
 
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 pub fn bettimill() -> Command {
@@ -55,4 +57,46 @@ pub fn shard_files(out: &Path) -> Vec<String> {
                 .collect()
         })
         .unwrap_or_default()
+}
+
+/// Every file under `dir`, by relative path, with its bytes (a file that vanishes while the
+/// directory is walked, such as a temporary being renamed, reads as empty).
+pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path.strip_prefix(dir).unwrap().to_path_buf();
+                out.insert(rel, std::fs::read(&path).unwrap_or_default());
+            }
+        }
+    }
+    out
+}
+
+/// Every finished file (the lock and temporaries, whose names start with a dot, aside) is
+/// the same in both directories, and `a` is a finished dataset.
+pub fn assert_same(a: &Path, b: &Path) {
+    let finished = |dir: &Path| -> BTreeMap<PathBuf, Vec<u8>> {
+        snapshot(dir)
+            .into_iter()
+            .filter(|(p, _)| !p.file_name().unwrap().to_string_lossy().starts_with('.'))
+            .collect()
+    };
+    let (sa, sb) = (finished(a), finished(b));
+    assert!(sa.contains_key(Path::new("index.json")), "{}", a.display());
+    assert_eq!(
+        sa.keys().collect::<Vec<_>>(),
+        sb.keys().collect::<Vec<_>>(),
+        "{} and {} hold different files",
+        a.display(),
+        b.display()
+    );
+    for (name, bytes) in &sa {
+        assert!(bytes == &sb[name], "{} differs", name.display());
+    }
 }
