@@ -20,11 +20,14 @@
 
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
-use common::{assert_same, bettimill, build, children, run, shard_files, snapshot, text};
+use common::{
+    alive, assert_same, bettimill, build, children, run, shard_files, snapshot, spawn_build, text,
+    wait_until,
+};
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("r{dimension}d-{side}-{samples}-{shard_size}.toml"));
@@ -38,32 +41,6 @@ fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32
     )
     .unwrap();
     path
-}
-
-fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) -> Child {
-    let mut command = bettimill();
-    command
-        .args(["build", manifest.to_str().unwrap(), "--out"])
-        .arg(out)
-        .args(["--workers", &workers.to_string()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped());
-    for (k, v) in env {
-        command.env(k, v);
-    }
-    command.spawn().unwrap()
-}
-
-fn alive(pid: u32) -> bool {
-    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
-        Ok(stat) => !matches!(
-            stat.rsplit(')')
-                .next()
-                .and_then(|s| s.split_whitespace().next()),
-            Some("Z") | Some("X")
-        ),
-        Err(_) => false,
-    }
 }
 
 /// Live processes whose command line is `bettimill worker --dir <out>` (any parent).
@@ -107,14 +84,6 @@ fn kill(signal: &str, pid: u32) -> bool {
         .status()
         .map(|s| s.success())
         .unwrap_or(false)
-}
-
-fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
-    let start = Instant::now();
-    while !check() {
-        assert!(start.elapsed() < limit, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(10));
-    }
 }
 
 /// Every visible tar is a complete shard: `status` lists none as invalid.

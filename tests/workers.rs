@@ -4,11 +4,13 @@
 //! and SIGTERM. Every finished directory must be byte-identical to a clean build.
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::{Child, Command};
+use std::time::Duration;
 
 mod common;
-use common::{assert_same, bettimill, build, children, run, shard_files, text};
+use common::{
+    alive, assert_same, build, children, run, shard_files, spawn_build, text, wait_until,
+};
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("m{dimension}d-{side}-{samples}-{shard_size}.toml"));
@@ -22,37 +24,6 @@ fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32
     )
     .unwrap();
     path
-}
-
-fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) -> Child {
-    let mut command = bettimill();
-    command
-        .args([
-            "build",
-            manifest.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .args(["--workers", &workers.to_string()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped());
-    for (k, v) in env {
-        command.env(k, v);
-    }
-    command.spawn().unwrap()
-}
-
-fn alive(pid: u32) -> bool {
-    // A zombie is dead for our purposes.
-    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
-        Ok(stat) => !matches!(
-            stat.rsplit(')')
-                .next()
-                .and_then(|s| s.split_whitespace().next()),
-            Some("Z") | Some("X")
-        ),
-        Err(_) => false,
-    }
 }
 
 /// User plus system CPU time of a process in clock ticks (usually 1/100 s).
@@ -82,14 +53,6 @@ fn kill(signal: &str, pid: u32) {
         .status()
         .unwrap();
     assert!(status.success(), "kill {signal} {pid}");
-}
-
-fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
-    let start = Instant::now();
-    while !check() {
-        assert!(start.elapsed() < limit, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 fn finish(child: Child) -> (Option<i32>, String) {

@@ -7,7 +7,8 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 pub fn bettimill() -> Command {
     Command::new(env!("CARGO_BIN_EXE_bettimill"))
@@ -98,5 +99,43 @@ pub fn assert_same(a: &Path, b: &Path) {
     );
     for (name, bytes) in &sa {
         assert!(bytes == &sb[name], "{} differs", name.display());
+    }
+}
+
+/// `bettimill build MANIFEST --out OUT --workers N` started in the background, with extra
+/// environment variables; stdout discarded, stderr captured.
+pub fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) -> Child {
+    let mut command = bettimill();
+    command
+        .args(["build", manifest.to_str().unwrap(), "--out"])
+        .arg(out)
+        .args(["--workers", &workers.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    for (k, v) in env {
+        command.env(k, v);
+    }
+    command.spawn().unwrap()
+}
+
+/// Whether process `pid` is running (a zombie is dead for our purposes).
+pub fn alive(pid: u32) -> bool {
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        Ok(stat) => !matches!(
+            stat.rsplit(')')
+                .next()
+                .and_then(|s| s.split_whitespace().next()),
+            Some("Z") | Some("X")
+        ),
+        Err(_) => false,
+    }
+}
+
+/// Polls `check` every 10 ms until it holds; fails the test after `limit`.
+pub fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) {
+    let start = Instant::now();
+    while !check() {
+        assert!(start.elapsed() < limit, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(10));
     }
 }
