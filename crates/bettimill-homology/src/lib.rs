@@ -30,13 +30,14 @@
 
 mod complex;
 mod components;
+mod dense;
 mod euler;
 pub mod reference;
 pub mod simple;
 mod thin;
 
 use bettimill_grid::{BinaryImage, Dim};
-use complex::{CellComplex, KeyLayout};
+use dense::DenseComplex;
 use serde::{Deserialize, Serialize};
 use thin::Phase;
 
@@ -106,47 +107,34 @@ fn topology_by_thinning(mut padded: BinaryImage) -> Topology {
     let d = padded.dim().get();
     let tester = simple::SimpleTester::new(padded.dim());
     let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
-    let layout = KeyLayout::new(padded.shape());
-    let cells = remnant_cells(&padded, &remaining, &layout, &tester);
-    let mut betti = CellComplex::from_cells(layout, cells).betti_by_reduction();
+    let mut betti = remnant_complex(&padded, &remaining, &tester).betti();
     betti.truncate(d);
     Topology::from_betti(betti)
 }
 
-/// The cells of the union of the closed voxels `remaining` (the only foreground of
+/// The complex of the union of the closed voxels `remaining` (the only foreground of
 /// `padded`), minus what collapses inside single voxels. A cell of voxel v that no other
 /// voxel of the union contains (a private cell) has all its cofaces in v too, so free-face
 /// collapses among v's private cells are collapses of the whole complex; they are done per
 /// voxel on 81-bit masks (the voxel and its 80 boundary faces, the shared ones, v's
-/// attachment set, held fixed), and only the shared cells and the private survivors become
-/// explicit cells. A voxel on a thin loop or sheet keeps a handful of private cells
-/// instead of tens.
-fn remnant_cells(
+/// attachment set, held fixed), and only the shared cells and the private survivors enter
+/// the complex. A voxel on a thin loop or sheet keeps a handful of private cells instead
+/// of tens.
+fn remnant_complex(
     padded: &BinaryImage,
     remaining: &[usize],
-    layout: &KeyLayout,
     tester: &simple::SimpleTester,
-) -> Vec<u64> {
-    let d = padded.dim().get();
+) -> DenseComplex {
     let offsets = tester.offsets();
     let n = offsets.len();
     let cell_bit = 1u128 << n;
     let every_face = cell_bit - 1;
     let cofaces = tester.cofaces_with_cell();
-    // Key offset of each boundary face from the voxel's key.
-    let steps: Vec<u64> = offsets
-        .iter()
-        .map(|off| {
-            let coords: Vec<u64> = (0..d).map(|a| off[a] as i64 as u64).collect();
-            layout.key_offset(&coords)
-        })
-        .collect();
+    let mut complex = DenseComplex::new(padded.shape());
+    let places = complex.face_places(offsets);
     let strides = padded.strides().to_vec();
     let data = padded.data();
-    let mut cells = Vec::with_capacity(remaining.len() * 24);
     for &index in remaining {
-        let c = padded.coords(index);
-        let key = layout.voxel(&c[..d]);
         let config = tester.configuration_in(data, &strides, index);
         let shared = tester.attachment_of(config);
         // Private cells: the voxel itself and the boundary faces no neighbour shares.
@@ -168,13 +156,14 @@ fn remnant_cells(
         while emit != 0 {
             let f = emit.trailing_zeros() as usize;
             emit &= emit - 1;
-            cells.push(key.wrapping_add(steps[f]));
+            let (delta, code) = places[f];
+            complex.insert((index as isize + delta) as usize, code);
         }
         if alive & cell_bit != 0 {
-            cells.push(key);
+            complex.insert(index, 0);
         }
     }
-    cells
+    complex
 }
 
 /// Any dimension, through the background: the object's Betti numbers are those of the
@@ -222,23 +211,11 @@ fn background_cores(mut padded: BinaryImage) -> Result<Topology, BinaryImage> {
     }
     // The cores' cubical complex in the other construction: a cell (the unit cube spanned
     // by voxel centres v + {0,1}^S for a set S of axes) is present when all its corners
-    // are. Key coordinates: 2 v_a, or 2 v_a + 1 along the axes of S.
-    let layout = KeyLayout::new(&shape);
-    let axis_steps: Vec<u64> = (0..d)
-        .map(|axis| layout.key(&(0..d).map(|a| (a == axis) as u64).collect::<Vec<_>>()))
-        .collect();
-    let mut cells = Vec::new();
+    // are. Its Khalimsky coordinates are 2 v_a + 1 along the axes of S and 2 v_a (even,
+    // owned one voxel back: see `dense`) along the others.
+    let mut complex = DenseComplex::new(&shape);
     for &i in &cores {
-        let c = padded.coords(i);
-        let base: Vec<u64> = (0..d).map(|a| 2 * c[a] as u64).collect();
-        let vertex = layout.key(&base);
         'cubes: for subset in 0usize..1 << d {
-            let mut key = vertex;
-            for (a, step) in axis_steps.iter().enumerate() {
-                if subset >> a & 1 == 1 {
-                    key += step;
-                }
-            }
             // Every corner v + sum of a subset T of S.
             let mut t = subset;
             loop {
@@ -254,10 +231,15 @@ fn background_cores(mut padded: BinaryImage) -> Result<Topology, BinaryImage> {
                 }
                 t = (t - 1) & subset;
             }
-            cells.push(key);
+            let even = !subset & ((1 << d) - 1);
+            let back: usize = (0..d)
+                .filter(|&a| even >> a & 1 == 1)
+                .map(|a| strides[a])
+                .sum();
+            complex.insert(i - back, even as u32);
         }
     }
-    let inner = CellComplex::from_cells(layout, cells).betti_by_reduction();
+    let inner = complex.betti();
     // The background: the frame (a (d-1)-sphere) plus the cores.
     let mut background = inner;
     background[0] += 1;
