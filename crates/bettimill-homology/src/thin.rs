@@ -60,20 +60,20 @@ impl SimpleCache {
 /// full image), deleting simple ones; pushes the foreground survivors, shifted by
 /// `global_offset`, to `survivors`.
 fn sweep(
-    tester: &SimpleTester,
+    thinner: &Thinner,
     data: &mut [u8],
-    strides: &[usize],
     range: std::ops::Range<usize>,
     global_offset: usize,
     survivors: &mut Vec<usize>,
-    phase: Phase,
+    cache: &mut SimpleCache,
 ) {
-    let mut cache = SimpleCache::new(16);
-    let window = Window::new(strides);
+    let (tester, phase) = (thinner.tester, thinner.phase);
+    let window = Window::new(&thinner.strides);
     // `block` is the 3^d block of voxel `previous`, kept current: between two voxels the
     // only write is the deletion of the voxel itself, whose centre bit is cleared.
     let mut block = 0u128;
     let mut previous = usize::MAX;
+    let mut columns = Columns::default();
     let neighbours = window.all_bits & !window.centre_bit;
     // The block of a voxel whose earlier neighbours (in raster order) are all gone and
     // later ones all present: its attachment set is a closed half of the voxel's boundary,
@@ -86,9 +86,9 @@ fn sweep(
             continue;
         }
         block = if previous.wrapping_add(1) == i {
-            window.advance(data, block, i)
+            window.advance(data, block, i, &mut columns)
         } else {
-            window.block(data, i)
+            window.block(data, i, &mut columns)
         };
         previous = i;
         // A voxel whose face neighbours are all foreground is never simple (the background
@@ -121,11 +121,20 @@ fn sweep(
 
 /// The 3^d block of a voxel as 3^(d-1) rows of three bits along the last axis (bit 3r + c,
 /// rows in lexicographic order of the other axes, c = 0, 1, 2 for offsets -1, 0, +1), read
-/// whole or slid by one voxel along the last axis (one new column of 3^(d-1) bytes instead
-/// of the whole block).
+/// whole or slid by one voxel along the last axis (one new column of 3^(d-1) voxels
+/// instead of the whole block).
+///
+/// Columns are read eight at a time ([`Window::load`]). That is exact because while a
+/// sweep crosses one line of the image, no other line changes: the lines around it are
+/// either swept already or not yet reached. In the line itself only voxels already visited
+/// change, and a column is only read at a voxel whose predecessor was not visited (the
+/// block of a visited one is kept current instead). So a column read ahead is the column
+/// it would have been read fresh, as long as it stays within its line.
 struct Window {
     /// Flat offset of each row's middle voxel.
     rows: Vec<isize>,
+    /// The number of voxels of a line along the last axis.
+    line: usize,
     /// Bits 0 and 1 of every row.
     low_two: u128,
     /// The bits of the 2d face neighbours.
@@ -133,6 +142,17 @@ struct Window {
     centre_bit: u128,
     /// Every bit of the 3^d block.
     all_bits: u128,
+    /// Bit r of a 9-bit value moved to bit 3r.
+    spread: Vec<u32>,
+}
+
+/// Columns read ahead: `bits[j]` is the column at flat index `base + j` (bit r = row r),
+/// valid for `base..end`.
+#[derive(Default)]
+struct Columns {
+    base: usize,
+    end: usize,
+    bits: [u32; 8],
 }
 
 impl Window {
@@ -157,34 +177,74 @@ impl Window {
             face_bits |= 1u128 << (3 * (middle_row + apart) + 1);
         }
         let all_bits = (1u128 << (3 * n_rows)) - 1;
+        let spread = (0..512u32)
+            .map(|v| (0..9).fold(0, |s, r| s | (v >> r & 1) << (3 * r)))
+            .collect();
         Window {
             rows,
+            line: strides[d - 2],
             low_two,
             face_bits,
             centre_bit,
             all_bits,
+            spread,
         }
     }
 
-    /// The column at flat index `at` (the rows' voxels shifted by `at`), at bits 3r.
-    #[inline]
-    fn column(&self, data: &[u8], at: usize) -> u128 {
-        let mut bits = 0u128;
+    /// Reads the columns at flat indices p..p + 8, cut at the end of p's line, into
+    /// `columns`. Each row contributes one 8-byte word (byte j = voxel p + j); masked to bit
+    /// 0 of every byte and shifted by r mod 8, the words of eight rows OR into one word
+    /// whose byte j holds those rows' bits of column j, with no carries between bytes.
+    fn load(&self, data: &[u8], p: usize, columns: &mut Columns) {
+        let mut packed = [0u64; 4];
         for (r, &o) in self.rows.iter().enumerate() {
-            bits |= ((data[(at as isize + o) as usize] & 1) as u128) << (3 * r);
+            let q = (p as isize + o) as usize;
+            let mut bytes = [0u8; 8];
+            match data.get(q..q + 8) {
+                Some(slice) => bytes.copy_from_slice(slice),
+                // Past the end of the data (the last line of a slab): those columns lie
+                // beyond the line and are never used.
+                None => {
+                    for (j, byte) in bytes.iter_mut().enumerate() {
+                        *byte = data.get(q + j).copied().unwrap_or(0);
+                    }
+                }
+            }
+            packed[r / 8] |= (u64::from_le_bytes(bytes) & 0x0101_0101_0101_0101) << (r % 8);
         }
-        bits
+        for (j, bits) in columns.bits.iter_mut().enumerate() {
+            *bits = packed.iter().enumerate().fold(0, |c, (g, &w)| {
+                c | (((w >> (8 * j)) & 0xFF) as u32) << (8 * g)
+            });
+        }
+        columns.base = p;
+        columns.end = (p + 8).min((p / self.line + 1) * self.line);
+    }
+
+    /// The column at flat index `at` at bits 3r, read ahead into `columns` when it is not
+    /// there.
+    #[inline]
+    fn column(&self, data: &[u8], at: usize, columns: &mut Columns) -> u128 {
+        if at.wrapping_sub(columns.base) >= columns.end - columns.base {
+            self.load(data, at, columns);
+        }
+        let c = columns.bits[at - columns.base] as usize;
+        self.spread[c & 511] as u128
+            | (self.spread[(c >> 9) & 511] as u128) << 27
+            | (self.spread[(c >> 18) & 511] as u128) << 54
     }
 
     #[inline]
-    fn block(&self, data: &[u8], i: usize) -> u128 {
-        self.column(data, i - 1) | self.column(data, i) << 1 | self.column(data, i + 1) << 2
+    fn block(&self, data: &[u8], i: usize, columns: &mut Columns) -> u128 {
+        self.column(data, i - 1, columns)
+            | self.column(data, i, columns) << 1
+            | self.column(data, i + 1, columns) << 2
     }
 
     /// The block of voxel i from the (current) block of voxel i - 1.
     #[inline]
-    fn advance(&self, data: &[u8], block: u128, i: usize) -> u128 {
-        ((block >> 1) & self.low_two) | self.column(data, i + 1) << 2
+    fn advance(&self, data: &[u8], block: u128, i: usize, columns: &mut Columns) -> u128 {
+        ((block >> 1) & self.low_two) | self.column(data, i + 1, columns) << 2
     }
 }
 
@@ -207,124 +267,79 @@ pub(crate) enum Phase {
 /// must have all its neighbours inside the image: in the foreground phase the border must
 /// be background, in the background phase locked.
 ///
-/// The first sweep, which does almost all the work, runs on two threads: the image is cut
-/// across its first axis into slabs A (planes below k) and B (planes from k + 2 on) with
-/// planes k and k + 1 left alone. A voxel of A and a voxel of B are at least three planes
-/// apart, so neither ever reads what the other writes: the outcome is exactly that of
-/// sweeping A and then B sequentially, whatever the thread timing. The seam planes are
-/// swept with the survivors afterwards.
+/// The work runs on two threads without depending on their timing: the image is cut across
+/// its first axis into slabs A (planes below k) and B (planes from k + 2 on) with the seam
+/// planes k and k + 1 between them. A voxel of A and a voxel of B are at least three planes
+/// apart, so neither ever reads what the other writes (flags included: A's reach plane k
+/// at most, B's plane k + 1), and sweeping A and B at once is exactly sweeping A and then
+/// B. The seam is swept after both. Later passes follow the same order: A and B at once,
+/// then the seam. Every flip is a simple-point flip of the image as it is at that moment,
+/// so the topology is kept, and the survivors are the same on every run.
 pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase) -> Vec<usize> {
     debug_assert!(match phase {
         Phase::Foreground => image.border_is_background(),
         Phase::Background => border_is_locked(image),
     });
-    let steps = flat_offsets(image, tester.offsets());
-    // The neighbours whose membership decides whether a flip can be simple at all: the
-    // face neighbours (a foreground voxel with none in the background is never simple),
-    // or every neighbour (a background voxel needs an object voxel next to it).
-    let exposure_steps: Vec<isize> = match phase {
-        Phase::Foreground => steps
-            .iter()
-            .zip(tester.offsets())
-            .filter(|(_, off)| off.iter().map(|o| o.abs()).sum::<i8>() == 1)
-            .map(|(&s, _)| s)
-            .collect(),
-        Phase::Background => steps.clone(),
-    };
+    let thinner = Thinner::new(image, tester, phase);
     let strides = image.strides().to_vec();
     let planes = image.shape()[0];
     let plane = strides[0];
     let len = image.len();
-    let mut remaining = Vec::new();
-    if planes >= 8 {
-        let k = planes / 2;
-        let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
-        let (mut survivors_a, mut survivors_b) = (Vec::new(), Vec::new());
-        rayon::join(
-            || {
-                sweep(
-                    tester,
-                    slab_a,
-                    &strides,
-                    0..k * plane,
-                    0,
-                    &mut survivors_a,
-                    phase,
-                )
-            },
-            || {
-                let n_b = slab_b.len();
-                sweep(
-                    tester,
-                    slab_b,
-                    &strides,
-                    plane..n_b,
-                    (k + 1) * plane,
-                    &mut survivors_b,
-                    phase,
-                )
-            },
-        );
-        remaining = survivors_a;
-        let data = image.data();
-        remaining.extend((k * plane..(k + 2) * plane).filter(|&i| data[i] == 1));
-        remaining.extend(survivors_b);
-    } else {
-        sweep(
-            tester,
-            image.data_mut(),
-            &strides,
-            0..len,
-            0,
-            &mut remaining,
-            phase,
-        );
+    let (mut cache_a, mut cache_b) = (SimpleCache::new(16), SimpleCache::new(16));
+    let (mut part_a, mut seam, mut part_b) = (Vec::new(), Vec::new(), Vec::new());
+    // Slab A is planes 0..=k of the data (it flags plane k), slab B the rest.
+    let split = (planes >= 8).then_some(planes / 2);
+    match split {
+        Some(k) => {
+            let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
+            rayon::join(
+                || {
+                    let range = 0..k * plane;
+                    sweep(&thinner, slab_a, range, 0, &mut part_a, &mut cache_a)
+                },
+                || {
+                    let range = plane..slab_b.len();
+                    let offset = (k + 1) * plane;
+                    sweep(&thinner, slab_b, range, offset, &mut part_b, &mut cache_b)
+                },
+            );
+            let range = k * plane..(k + 2) * plane;
+            let data = image.data_mut();
+            sweep(&thinner, data, range, 0, &mut seam, &mut cache_a);
+        }
+        None => {
+            let data = image.data_mut();
+            sweep(&thinner, data, 0..len, 0, &mut part_a, &mut cache_a);
+        }
     }
-    // Later sweeps: a voxel can only have become simple if a neighbour was flipped since
+    // Later passes: a voxel can only have become simple if a neighbour was flipped since
     // its last test, so each flip flags its neighbours of the same phase (bit 1 of their
-    // byte, which configurations and the exposure check ignore) and a sweep after the
+    // byte, which configurations and the exposure check ignore) and a pass after the
     // first retests only flagged voxels, clearing the flag as it does. Skipping a voxel
-    // never flips anything, so it cannot affect correctness, and when a sweep flips
-    // nothing no flag is left: no survivor is simple, as with full sweeps.
-    let n_neighbours = steps.len();
-    let mut cache = SimpleCache::new(16);
+    // never flips anything, so it cannot affect correctness, and when a round of passes
+    // flips nothing no flag is left: no survivor is simple, as with full sweeps.
     let mut every = true;
     loop {
-        let before = remaining.len();
-        let data = image.data_mut();
-        remaining.retain(|&i| {
-            if !every && data[i] & 2 == 0 {
-                return true;
+        let flipped = match split {
+            Some(k) => {
+                let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
+                let (a, b) = rayon::join(
+                    || thinner.pass(slab_a, 0, &mut part_a, every, &mut cache_a),
+                    || thinner.pass(slab_b, (k + 1) * plane, &mut part_b, every, &mut cache_b),
+                );
+                let s = thinner.pass(image.data_mut(), 0, &mut seam, every, &mut cache_a);
+                a | b | s
             }
-            data[i] &= !2;
-            let exposed = exposure_steps
-                .iter()
-                .any(|&s| data[(i as isize + s) as usize] & 1 == 0);
-            if !exposed {
-                return true;
-            }
-            let mut config = tester.configuration_in(data, &strides, i);
-            if phase == Phase::Background {
-                config = !config & ((1u128 << n_neighbours) - 1);
-            }
-            if cache.is_simple(tester, config) {
-                data[i] = 0;
-                for &s in &steps {
-                    let j = (i as isize + s) as usize;
-                    if data[j] & 1 != 0 {
-                        data[j] |= 2;
-                    }
-                }
-                false
-            } else {
-                true
-            }
-        });
+            None => thinner.pass(image.data_mut(), 0, &mut part_a, every, &mut cache_a),
+        };
         every = false;
-        if remaining.len() == before {
+        if !flipped {
             break;
         }
     }
+    let mut remaining = part_a;
+    remaining.extend(seam);
+    remaining.extend(part_b);
     let data = image.data_mut();
     for &i in &remaining {
         data[i] = 1;
@@ -336,6 +351,89 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
         }
     }
     remaining
+}
+
+/// What the sweeps and passes of [`thin`] need besides the data.
+struct Thinner<'a> {
+    tester: &'a SimpleTester,
+    strides: Vec<usize>,
+    /// Flat offsets of all neighbours, and of those that decide exposure.
+    steps: Vec<isize>,
+    exposure_steps: Vec<isize>,
+    phase: Phase,
+}
+
+impl<'a> Thinner<'a> {
+    fn new(image: &BinaryImage, tester: &'a SimpleTester, phase: Phase) -> Thinner<'a> {
+        let steps = flat_offsets(image, tester.offsets());
+        // The neighbours whose membership decides whether a flip can be simple at all: the
+        // face neighbours (a foreground voxel with none in the background is never
+        // simple), or every neighbour (a background voxel needs an object voxel next to
+        // it).
+        let exposure_steps: Vec<isize> = match phase {
+            Phase::Foreground => steps
+                .iter()
+                .zip(tester.offsets())
+                .filter(|(_, off)| off.iter().map(|o| o.abs()).sum::<i8>() == 1)
+                .map(|(&s, _)| s)
+                .collect(),
+            Phase::Background => steps.clone(),
+        };
+        Thinner {
+            tester,
+            strides: image.strides().to_vec(),
+            steps,
+            exposure_steps,
+            phase,
+        }
+    }
+
+    /// Thinners the voxels of `list` (global indices, in increasing order; `data` holds the
+    /// image from global index `offset` on) that are flagged, or all of them with `every`,
+    /// flipping the simple ones and flagging their neighbours. Returns whether any voxel
+    /// was flipped.
+    fn pass(
+        &self,
+        data: &mut [u8],
+        offset: usize,
+        list: &mut Vec<usize>,
+        every: bool,
+        cache: &mut SimpleCache,
+    ) -> bool {
+        let before = list.len();
+        let all = (1u128 << self.steps.len()) - 1;
+        list.retain(|&global| {
+            let i = global - offset;
+            if !every && data[i] & 2 == 0 {
+                return true;
+            }
+            data[i] &= !2;
+            let exposed = self
+                .exposure_steps
+                .iter()
+                .any(|&s| data[(i as isize + s) as usize] & 1 == 0);
+            if !exposed {
+                return true;
+            }
+            let mut config = self.tester.configuration_in(data, &self.strides, i);
+            if self.phase == Phase::Background {
+                config = !config & all;
+            }
+            if cache.is_simple(self.tester, config) {
+                data[i] = 0;
+                for &s in &self.steps {
+                    let j = (i as isize + s) as usize;
+                    if data[j] & 1 != 0 {
+                        data[j] |= 2;
+                    }
+                }
+                false
+            } else {
+                true
+            }
+        });
+        list.len() != before
+    }
 }
 
 /// Whether every voxel of the outer layer is locked (value 5).
@@ -412,8 +510,10 @@ mod tests {
             let d = dim.get();
             let tester = SimpleTester::new(dim);
             for trial in 0..30 {
+                // Lines shorter and longer than the eight columns read at a time.
                 let side = [9, 7, 6][d - 2];
-                let shape: Vec<usize> = (0..d).map(|a| side + a % 2).collect();
+                let mut shape: Vec<usize> = (0..d).map(|a| side + a % 2).collect();
+                shape[d - 1] = [7, 10, 19, 26][trial % 4];
                 let mut image = BinaryImage::zeros(&shape).unwrap();
                 let density: f64 = rng.gen_range(0.2..0.95);
                 for index in 0..image.len() {
@@ -429,17 +529,17 @@ mod tests {
                         fresh.data_mut()[i] = 0;
                     }
                 }
-                let strides = image.strides().to_vec();
                 let len = image.len();
                 let mut survivors = Vec::new();
+                let thinner = Thinner::new(&image, &tester, Phase::Foreground);
+                let mut cache = SimpleCache::new(16);
                 sweep(
-                    &tester,
+                    &thinner,
                     image.data_mut(),
-                    &strides,
                     0..len,
                     0,
                     &mut survivors,
-                    Phase::Foreground,
+                    &mut cache,
                 );
                 assert_eq!(image.data(), fresh.data(), "{d}D trial {trial}");
                 let expected: Vec<usize> = (0..len).filter(|&i| fresh.data()[i] == 1).collect();
