@@ -77,3 +77,33 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
     }
     count
 }
+
+/// The number of components of `voxels` (flat indices into `data` of voxels whose byte is
+/// exactly 1, none on the border), two voxels being joined when they are `steps` apart.
+/// Cheap next to a flood fill of the whole image when `voxels` is a thin remnant; bit 1 of
+/// the bytes marks the voxels reached and is cleared again before returning.
+pub(crate) fn count_components_of(data: &mut [u8], voxels: &[usize], steps: &[isize]) -> u64 {
+    let mut count = 0;
+    let mut stack = Vec::new();
+    for &start in voxels {
+        if data[start] != 1 {
+            continue;
+        }
+        count += 1;
+        data[start] = 3;
+        stack.push(start);
+        while let Some(v) = stack.pop() {
+            for &s in steps {
+                let w = (v as isize + s) as usize;
+                if data[w] == 1 {
+                    data[w] = 3;
+                    stack.push(w);
+                }
+            }
+        }
+    }
+    for &v in voxels {
+        data[v] = 1;
+    }
+    count
+}

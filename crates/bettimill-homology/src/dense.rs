@@ -7,13 +7,18 @@
 //! `masks[o]` is the owned cell with e_a = 1 exactly on its even axes, so its dimension is
 //! d - popcount(e), bit 0 is the voxel itself and bit 2^d - 1 a vertex. A cell's facets
 //! and cofacets are then owned by o itself or by the next voxel along one axis:
-//! - along an odd axis a (e_a = 0) the facets are (o, e + 2^a) and (o - stride_a, e + 2^a);
-//! - along an even axis (e_a = 1) the cofacets are (o, e - 2^a) and (o + stride_a, e - 2^a).
+//! - along an odd axis a (e_a = 0) the facets are (o, e + 2^a) and (o - 1_a, e + 2^a);
+//! - along an even axis (e_a = 1) the cofacets are (o, e - 2^a) and (o + 1_a, e - 2^a),
+//!   where o ± 1_a is the voxel one step along a.
 //!
 //! So the complex needs no sorting, no deduplication and no neighbour table, and every step
-//! of the reduction is a few loads from an array laid out like the image (two bytes per
-//! voxel; pages no cell touches are never written). A cell is named by one `u64`,
-//! `o << 4 | e`.
+//! of the reduction is a few loads from one array (two bytes per voxel; pages no cell
+//! touches are never written). The array is laid out in bricks of 4^d voxels, so that most
+//! steps along any axis stay within the same 512 bytes (in 4D) instead of jumping a whole
+//! hyperplane of the image: the reduction wanders through the complex in waves, and with
+//! the image's own layout nearly every step along the first axes missed the caches. A
+//! voxel's place is `brick << 2d | local`, with two bits of local coordinate per axis. A
+//! cell is named by one `u64`, `place << 4 | e`.
 //!
 //! The reduction removes pairs (a, b), b a facet of a, that are either a free-face collapse
 //! (a is the only alive cofacet of b) or a coreduction (b is the only alive facet of a).
@@ -24,8 +29,8 @@
 //! the pair (X, V) with V the removed vertices. For k >= 2 the long exact sequence of (X, V)
 //! gives H_k(X, V) = H_k(X), and in low degrees dim H_0(X, V) = b_0 - c and
 //! dim H_1(X, V) = b_1 + m - c, where m = |V| and c is the number of components V meets.
-//! b_0 comes from a search over the edges before anything is removed, so b_1 follows (each
-//! removed vertex either lowers dim H_0 by one or raises dim H_1 by one). The Euler
+//! b_0 is counted by the caller on its voxels before anything is removed, so b_1 follows
+//! (each removed vertex either lowers dim H_0 by one or raises dim H_1 by one). The Euler
 //! characteristic (alternating cell count of the whole complex) checks the bookkeeping; a
 //! mismatch panics rather than returning a wrong answer. The few cells left are reduced
 //! explicitly (boundary matrices, top dimension first, with clearing).
@@ -43,36 +48,77 @@ use std::collections::VecDeque;
 /// reduction looks up is owned by a voxel inside the grid.
 pub(crate) struct DenseComplex {
     d: usize,
-    strides: [usize; 4],
-    /// Presence bits of the cells each voxel owns.
+    /// Per axis: the shift of its two local bits, and the step from one brick to the next.
+    shift: [u32; 4],
+    brick_step: [usize; 4],
+    /// Presence bits of the cells each voxel owns, by place.
     masks: Vec<u16>,
-    /// Every voxel that has owned a cell, in the order of the first insertion.
+    /// The place of every voxel that has owned a cell, in the order of the first insertion.
     owners: Vec<usize>,
 }
 
 impl DenseComplex {
-    /// An empty complex in the grid of an image of `shape` (2 to 4 axes, C order).
+    /// An empty complex in the grid of an image of `shape` (1 to 4 axes, C order).
     pub(crate) fn new(shape: &[usize]) -> DenseComplex {
         let d = shape.len();
         assert!(
             (1..=4).contains(&d),
             "{d} axes: dense complexes have 1 to 4"
         );
-        let mut strides = [0usize; 4];
-        let mut stride = 1;
+        let mut shift = [0u32; 4];
+        let mut brick_step = [0usize; 4];
+        let mut bricks = 1;
         for axis in (0..d).rev() {
-            strides[axis] = stride;
-            stride *= shape[axis];
+            shift[axis] = 2 * (d - 1 - axis) as u32;
+            brick_step[axis] = bricks << (2 * d);
+            bricks *= shape[axis].div_ceil(4);
         }
         DenseComplex {
             d,
-            strides,
-            masks: vec![0; stride],
+            shift,
+            brick_step,
+            masks: vec![0; bricks << (2 * d)],
             owners: Vec::new(),
         }
     }
 
-    /// Adds the cell with local code `code` owned by voxel `owner` (a flat index).
+    /// The place of the voxel at `coords`.
+    pub(crate) fn place(&self, coords: &[usize]) -> usize {
+        (0..self.d)
+            .map(|a| (coords[a] / 4) * self.brick_step[a] + ((coords[a] % 4) << self.shift[a]))
+            .sum()
+    }
+
+    /// The place one voxel further along `axis`.
+    #[inline]
+    fn forward(&self, place: usize, axis: usize) -> usize {
+        let shift = self.shift[axis];
+        let local = (place >> shift & 3) + 1;
+        ((place & !(3 << shift)) | (local & 3) << shift) + (local >> 2) * self.brick_step[axis]
+    }
+
+    /// The place one voxel back along `axis`.
+    #[inline]
+    fn back(&self, place: usize, axis: usize) -> usize {
+        let shift = self.shift[axis];
+        let local = place >> shift & 3;
+        let borrow = (local == 0) as usize;
+        ((place & !(3 << shift)) | (local.wrapping_sub(1) & 3) << shift)
+            .wrapping_sub(borrow * self.brick_step[axis])
+    }
+
+    /// The owners of the cells of the voxel at `place`: entry s is the voxel one step back
+    /// along every axis in the set s (bit a = axis a), entry 0 the voxel itself.
+    pub(crate) fn owners_around(&self, place: usize) -> [usize; 16] {
+        let mut around = [place; 16];
+        for s in 1..1usize << self.d {
+            let axis = s.trailing_zeros() as usize;
+            around[s] = self.back(around[s & (s - 1)], axis);
+        }
+        around
+    }
+
+    /// Adds the cell with local code `code` owned by the voxel at `owner` (a place).
     #[inline]
     pub(crate) fn insert(&mut self, owner: usize, code: u32) {
         let mask = &mut self.masks[owner];
@@ -83,24 +129,24 @@ impl DenseComplex {
     }
 
     /// For each boundary face of a voxel, named by the offset of the neighbour that shares
-    /// it (each component -1, 0 or 1), the owner's flat offset from the voxel and the local
-    /// code: a -1 moves the owner one voxel back along that axis, and every nonzero
-    /// component is an even axis.
-    pub(crate) fn face_places(&self, offsets: &[[i8; 4]]) -> Vec<(isize, u32)> {
+    /// it (each component -1, 0 or 1), its owner as an entry of
+    /// [`DenseComplex::owners_around`] (the axes where the offset is -1) and its local code
+    /// (every nonzero component is an even axis).
+    pub(crate) fn face_places(&self, offsets: &[[i8; 4]]) -> Vec<(usize, u32)> {
         offsets
             .iter()
             .map(|offset| {
-                let mut delta = 0isize;
+                let mut back = 0usize;
                 let mut code = 0u32;
                 for (axis, &t) in offset[..self.d].iter().enumerate() {
                     if t == -1 {
-                        delta -= self.strides[axis] as isize;
+                        back |= 1 << axis;
                     }
                     if t != 0 {
                         code |= 1 << axis;
                     }
                 }
-                (delta, code)
+                (back, code)
             })
             .collect()
     }
@@ -114,9 +160,10 @@ impl DenseComplex {
         let places = complex.face_places(&offsets);
         for (index, &v) in image.data().iter().enumerate() {
             if v != 0 {
-                complex.insert(index, 0);
-                for &(delta, code) in &places {
-                    complex.insert((index as isize + delta) as usize, code);
+                let around = complex.owners_around(complex.place(&image.coords(index)));
+                complex.insert(around[0], 0);
+                for &(back, code) in &places {
+                    complex.insert(around[back], code);
                 }
             }
         }
@@ -135,7 +182,7 @@ impl DenseComplex {
         for axis in 0..self.d {
             if code >> axis & 1 == 1 {
                 let c = code ^ 1 << axis;
-                for o in [owner, owner + self.strides[axis]] {
+                for o in [owner, self.forward(owner, axis)] {
                     if self.has(o, c) {
                         count += 1;
                         last = cell(o, c);
@@ -153,7 +200,7 @@ impl DenseComplex {
         for axis in 0..self.d {
             if code >> axis & 1 == 0 {
                 let c = code | 1 << axis;
-                for o in [owner, owner - self.strides[axis]] {
+                for o in [owner, self.back(owner, axis)] {
                     if self.has(o, c) {
                         count += 1;
                         last = cell(o, c);
@@ -169,9 +216,9 @@ impl DenseComplex {
         for axis in 0..self.d {
             let c = code ^ 1 << axis;
             let other = if code >> axis & 1 == 1 {
-                owner + self.strides[axis]
+                self.forward(owner, axis)
             } else {
-                owner - self.strides[axis]
+                self.back(owner, axis)
             };
             for o in [owner, other] {
                 if self.has(o, c) {
@@ -181,41 +228,11 @@ impl DenseComplex {
         }
     }
 
-    /// The number of connected components: a search over vertices joined by edges (the
-    /// vertex owned by o and the one owned by o - stride_a share the edge (o, top - 2^a)).
-    fn components(&self) -> u64 {
-        let top = (1u32 << self.d) - 1;
-        let mut seen = vec![0u64; self.masks.len().div_ceil(64)];
-        let mut stack = Vec::new();
-        let mut count = 0;
-        for &start in &self.owners {
-            if !self.has(start, top) || seen[start / 64] >> (start % 64) & 1 == 1 {
-                continue;
-            }
-            count += 1;
-            seen[start / 64] |= 1 << (start % 64);
-            stack.push(start);
-            while let Some(v) = stack.pop() {
-                for axis in 0..self.d {
-                    let edge = top ^ 1 << axis;
-                    let step = self.strides[axis];
-                    let back = self.has(v, edge).then(|| v - step);
-                    let forward = self.has(v + step, edge).then(|| v + step);
-                    for w in [back, forward].into_iter().flatten() {
-                        if seen[w / 64] >> (w % 64) & 1 == 0 {
-                            seen[w / 64] |= 1 << (w % 64);
-                            stack.push(w);
-                        }
-                    }
-                }
-            }
-        }
-        count
-    }
-
-    /// Betti numbers b_0..b_d over Z/2 (module docs for the method). Consumes the complex:
-    /// the reduction deletes cells as it goes.
-    pub(crate) fn betti(mut self) -> Vec<u64> {
+    /// Betti numbers b_0..b_d over Z/2 (module docs for the method), given b_0, the
+    /// number of connected components, which the caller counts on its voxels (far fewer
+    /// than the complex's vertices). Consumes the complex: the reduction deletes cells as it
+    /// goes.
+    pub(crate) fn betti(mut self, b0: u64) -> Vec<u64> {
         let d = self.d;
         let top = (1u32 << d) - 1;
         // Local codes of even dimension: dimension d - popcount(code).
@@ -233,7 +250,6 @@ impl DenseComplex {
         if self.owners.is_empty() {
             return vec![0; d + 1];
         }
-        let b0 = self.components();
         // Free faces start the collapses; first in, first out, so that coreductions spread
         // from a removed vertex in waves, which leaves far fewer cells stuck than
         // depth-first order does.
@@ -314,7 +330,7 @@ impl DenseComplex {
                     for axis in 0..d {
                         if code >> axis & 1 == 0 {
                             let f = code | 1 << axis;
-                            for fo in [o, o - self.strides[axis]] {
+                            for fo in [o, self.back(o, axis)] {
                                 if self.has(fo, f) {
                                     let row = rows
                                         .binary_search(&cell(fo, f))
@@ -397,9 +413,9 @@ mod tests {
             CellComplex::of_image(&image).betti_by_boundaries(),
             vec![1, 1, 0, 0]
         );
-        assert_eq!(DenseComplex::of_image(&image).betti(), vec![1, 1, 0, 0]);
+        assert_eq!(DenseComplex::of_image(&image).betti(1), vec![1, 1, 0, 0]);
         let empty = BinaryImage::zeros(&[4, 4, 4, 4]).unwrap();
-        assert_eq!(DenseComplex::of_image(&empty).betti(), vec![0; 5]);
+        assert_eq!(DenseComplex::of_image(&empty).betti(0), vec![0; 5]);
     }
 
     /// Every cell has one owner: a voxel's closure is 3^d distinct cells, and the closures
@@ -449,8 +465,9 @@ mod tests {
                     };
                     image.data_mut()[index] = on as u8;
                 }
+                let b0 = crate::components::count_components(&image, 1);
                 assert_eq!(
-                    DenseComplex::of_image(&image).betti(),
+                    DenseComplex::of_image(&image).betti(b0),
                     CellComplex::of_image(&image).betti_by_boundaries(),
                     "{d}D trial {trial}, density {density:.2}"
                 );

@@ -36,6 +36,7 @@ pub mod reference;
 pub mod simple;
 mod thin;
 
+use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::{BinaryImage, Dim};
 use dense::DenseComplex;
 use serde::{Deserialize, Serialize};
@@ -107,7 +108,9 @@ fn topology_by_thinning(mut padded: BinaryImage) -> Topology {
     let d = padded.dim().get();
     let tester = simple::SimpleTester::new(padded.dim());
     let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
-    let mut betti = remnant_complex(&padded, &remaining, &tester).betti();
+    let steps = flat_offsets(&padded, tester.offsets());
+    let b0 = components::count_components_of(padded.data_mut(), &remaining, &steps);
+    let mut betti = remnant_complex(&padded, &remaining, &tester).betti(b0);
     betti.truncate(d);
     Topology::from_betti(betti)
 }
@@ -135,6 +138,7 @@ fn remnant_complex(
     let strides = padded.strides().to_vec();
     let data = padded.data();
     for &index in remaining {
+        let around = complex.owners_around(complex.place(&padded.coords(index)));
         let config = tester.configuration_in(data, &strides, index);
         let shared = tester.attachment_of(config);
         // Private cells: the voxel itself and the boundary faces no neighbour shares.
@@ -156,11 +160,11 @@ fn remnant_complex(
         while emit != 0 {
             let f = emit.trailing_zeros() as usize;
             emit &= emit - 1;
-            let (delta, code) = places[f];
-            complex.insert((index as isize + delta) as usize, code);
+            let (back, code) = places[f];
+            complex.insert(around[back], code);
         }
         if alive & cell_bit != 0 {
-            complex.insert(index, 0);
+            complex.insert(around[0], 0);
         }
     }
     complex
@@ -215,6 +219,7 @@ fn background_cores(mut padded: BinaryImage) -> Result<Topology, BinaryImage> {
     // owned one voxel back: see `dense`) along the others.
     let mut complex = DenseComplex::new(&shape);
     for &i in &cores {
+        let around = complex.owners_around(complex.place(&padded.coords(i)));
         'cubes: for subset in 0usize..1 << d {
             // Every corner v + sum of a subset T of S.
             let mut t = subset;
@@ -232,14 +237,13 @@ fn background_cores(mut padded: BinaryImage) -> Result<Topology, BinaryImage> {
                 t = (t - 1) & subset;
             }
             let even = !subset & ((1 << d) - 1);
-            let back: usize = (0..d)
-                .filter(|&a| even >> a & 1 == 1)
-                .map(|a| strides[a])
-                .sum();
-            complex.insert(i - back, even as u32);
+            complex.insert(around[even], even as u32);
         }
     }
-    let inner = complex.betti();
+    // Vertices are the cores' voxels and edges join face neighbours.
+    let face_steps = flat_offsets(&padded, &face_offsets(padded.dim()));
+    let b0 = components::count_components_of(padded.data_mut(), &cores, &face_steps);
+    let inner = complex.betti(b0);
     // The background: the frame (a (d-1)-sphere) plus the cores.
     let mut background = inner;
     background[0] += 1;
