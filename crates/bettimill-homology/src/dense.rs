@@ -51,6 +51,11 @@ pub(crate) struct DenseComplex {
     /// Per axis: the shift of its two local bits, and the step from one brick to the next.
     shift: [u32; 4],
     brick_step: [usize; 4],
+    /// Per local code: the codes of its cofacets (facets) held by the same owner.
+    up_same: [u16; 16],
+    down_same: [u16; 16],
+    /// The local codes' bits: 2^d - 1.
+    all_codes: u32,
     /// Presence bits of the cells each voxel owns, by place.
     masks: Vec<u16>,
     /// The place of every voxel that has owned a cell, in the order of the first insertion.
@@ -73,10 +78,25 @@ impl DenseComplex {
             brick_step[axis] = bricks << (2 * d);
             bricks *= shape[axis].div_ceil(4);
         }
+        let all_codes = (1u32 << d) - 1;
+        let mut up_same = [0u16; 16];
+        let mut down_same = [0u16; 16];
+        for code in 0..=all_codes {
+            for axis in 0..d {
+                if code >> axis & 1 == 1 {
+                    up_same[code as usize] |= 1 << (code ^ 1 << axis);
+                } else {
+                    down_same[code as usize] |= 1 << (code | 1 << axis);
+                }
+            }
+        }
         DenseComplex {
             d,
             shift,
             brick_step,
+            up_same,
+            down_same,
+            all_codes,
             masks: vec![0; bricks << (2 * d)],
             owners: Vec::new(),
         }
@@ -175,54 +195,83 @@ impl DenseComplex {
         self.masks[owner] >> code & 1 == 1
     }
 
-    /// The alive cofacets of (owner, code): their number and the last one found.
+    /// The number of alive cofacets of (owner, code): those the owner holds are one mask
+    /// test, the others one bit each from the next voxel along an even axis.
     #[inline]
-    fn cofacets(&self, owner: usize, code: u32) -> (u32, u64) {
-        let (mut count, mut last) = (0, 0);
-        for axis in 0..self.d {
-            if code >> axis & 1 == 1 {
-                let c = code ^ 1 << axis;
-                for o in [owner, self.forward(owner, axis)] {
-                    if self.has(o, c) {
-                        count += 1;
-                        last = cell(o, c);
-                    }
-                }
-            }
+    fn cofacet_count(&self, owner: usize, code: u32) -> u32 {
+        let mut count = (self.masks[owner] & self.up_same[code as usize]).count_ones();
+        let mut axes = code;
+        while axes != 0 {
+            let axis = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            count += self.has(self.forward(owner, axis), code ^ 1 << axis) as u32;
         }
-        (count, last)
+        count
     }
 
-    /// The alive facets of (owner, code): their number and the last one found.
+    /// The number of alive facets of (owner, code) (as [`DenseComplex::cofacet_count`],
+    /// one voxel back along the odd axes).
     #[inline]
-    fn facets(&self, owner: usize, code: u32) -> (u32, u64) {
-        let (mut count, mut last) = (0, 0);
-        for axis in 0..self.d {
-            if code >> axis & 1 == 0 {
-                let c = code | 1 << axis;
-                for o in [owner, self.back(owner, axis)] {
-                    if self.has(o, c) {
-                        count += 1;
-                        last = cell(o, c);
-                    }
-                }
-            }
+    fn facet_count(&self, owner: usize, code: u32) -> u32 {
+        let mut count = (self.masks[owner] & self.down_same[code as usize]).count_ones();
+        let mut axes = !code & self.all_codes;
+        while axes != 0 {
+            let axis = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            count += self.has(self.back(owner, axis), code | 1 << axis) as u32;
         }
-        (count, last)
+        count
     }
 
-    /// Queues the alive facets and cofacets of (owner, code).
-    fn queue_neighbours(&self, owner: usize, code: u32, queue: &mut VecDeque<u64>) {
+    /// An alive cofacet of (owner, code), the only one when the count is one.
+    fn some_cofacet(&self, owner: usize, code: u32) -> u64 {
+        let same = self.masks[owner] & self.up_same[code as usize];
+        if same != 0 {
+            return cell(owner, same.trailing_zeros());
+        }
+        (0..self.d)
+            .filter(|&axis| code >> axis & 1 == 1)
+            .map(|axis| (self.forward(owner, axis), code ^ 1 << axis))
+            .find(|&(o, c)| self.has(o, c))
+            .map_or(u64::MAX, |(o, c)| cell(o, c))
+    }
+
+    /// An alive facet of (owner, code), the only one when the count is one.
+    fn some_facet(&self, owner: usize, code: u32) -> u64 {
+        let same = self.masks[owner] & self.down_same[code as usize];
+        if same != 0 {
+            return cell(owner, same.trailing_zeros());
+        }
+        (0..self.d)
+            .filter(|&axis| code >> axis & 1 == 0)
+            .map(|axis| (self.back(owner, axis), code | 1 << axis))
+            .find(|&(o, c)| self.has(o, c))
+            .map_or(u64::MAX, |(o, c)| cell(o, c))
+    }
+
+    /// After (owner, code) was removed: queues its alive facets that are left with one
+    /// cofacet (free faces now) and its alive cofacets that are left with one facet
+    /// (coreducible now). A cell's counts only drop when a neighbour goes, so every cell
+    /// that becomes a candidate is queued at that moment.
+    fn queue_new_candidates(&self, owner: usize, code: u32, queue: &mut VecDeque<u64>) {
         for axis in 0..self.d {
             let c = code ^ 1 << axis;
-            let other = if code >> axis & 1 == 1 {
+            let upward = code >> axis & 1 == 1;
+            let other = if upward {
                 self.forward(owner, axis)
             } else {
                 self.back(owner, axis)
             };
             for o in [owner, other] {
                 if self.has(o, c) {
-                    queue.push_back(cell(o, c));
+                    let count = if upward {
+                        self.facet_count(o, c)
+                    } else {
+                        self.cofacet_count(o, c)
+                    };
+                    if count == 1 {
+                        queue.push_back(cell(o, c));
+                    }
                 }
             }
         }
@@ -259,7 +308,7 @@ impl DenseComplex {
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
-                if self.cofacets(o, code).0 == 1 {
+                if self.cofacet_count(o, code) == 1 {
                     queue.push_back(cell(o, code));
                 }
             }
@@ -274,21 +323,18 @@ impl DenseComplex {
                 }
                 // Free face: c is the facet and its only cofacet goes with it; coreduction:
                 // c is the cell and its only facet goes with it.
-                let (n_up, up) = self.cofacets(o, code);
-                let partner = if n_up == 1 {
-                    up
+                let partner = if self.cofacet_count(o, code) == 1 {
+                    self.some_cofacet(o, code)
+                } else if self.facet_count(o, code) == 1 {
+                    self.some_facet(o, code)
                 } else {
-                    let (n_down, down) = self.facets(o, code);
-                    if n_down != 1 {
-                        continue;
-                    }
-                    down
+                    continue;
                 };
                 let (po, pcode) = split(partner);
                 self.masks[o] &= !(1 << code);
                 self.masks[po] &= !(1 << pcode);
-                self.queue_neighbours(o, code, &mut queue);
-                self.queue_neighbours(po, pcode, &mut queue);
+                self.queue_new_candidates(o, code, &mut queue);
+                self.queue_new_candidates(po, pcode, &mut queue);
             }
             while next < self.owners.len() && !self.has(self.owners[next], top) {
                 next += 1;
@@ -298,7 +344,7 @@ impl DenseComplex {
             };
             removed_vertices += 1;
             self.masks[o] &= !(1 << top);
-            self.queue_neighbours(o, top, &mut queue);
+            self.queue_new_candidates(o, top, &mut queue);
         }
         // Explicit reduction of what is left, top dimension first; a k-cell that is the
         // lowest row of a reduced (k+1)-column has a boundary column reducing to zero.

@@ -143,18 +143,22 @@ fn remnant_complex(
         let shared = tester.attachment_of(config);
         // Private cells: the voxel itself and the boundary faces no neighbour shares.
         let mut alive = cell_bit | (every_face & !shared);
-        'collapse: loop {
+        // Passes over the private faces until one collapses nothing (a collapse only
+        // frees faces of the removed coface, so a pass carries on after each).
+        loop {
+            let before = alive;
             let mut rest = alive & every_face;
             while rest != 0 {
                 let f = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
                 let up = cofaces[f] & alive;
-                if up.count_ones() == 1 {
+                if alive >> f & 1 == 1 && up.count_ones() == 1 {
                     alive &= !(1u128 << f) & !up;
-                    continue 'collapse;
                 }
             }
-            break;
+            if alive == before {
+                break;
+            }
         }
         let mut emit = (shared | alive) & every_face;
         while emit != 0 {

@@ -124,12 +124,12 @@ fn sweep(
 /// whole or slid by one voxel along the last axis (one new column of 3^(d-1) voxels
 /// instead of the whole block).
 ///
-/// Columns are read eight at a time ([`Window::load`]). That is exact because while a
+/// Columns are read sixteen at a time ([`Window::load`]). That is exact because while a
 /// sweep crosses one line of the image, no other line changes: the lines around it are
-/// either swept already or not yet reached. In the line itself only voxels already visited
-/// change, and a column is only read at a voxel whose predecessor was not visited (the
-/// block of a visited one is kept current instead). So a column read ahead is the column
-/// it would have been read fresh, as long as it stays within its line.
+/// either swept already or not yet reached. In the line itself only voxels already visited change, and a column is only
+/// read at a voxel whose predecessor was not visited (the block of a visited one is kept
+/// current instead). So a column read ahead is the column it would have been read fresh,
+/// as long as it stays within its line.
 struct Window {
     /// Flat offset of each row's middle voxel.
     rows: Vec<isize>,
@@ -146,13 +146,14 @@ struct Window {
     spread: Vec<u32>,
 }
 
-/// Columns read ahead: `bits[j]` is the column at flat index `base + j` (bit r = row r),
-/// valid for `base..end`.
+/// Columns read ahead for flat indices `base..end` (at most sixteen): byte j of
+/// `packed[g]` (of `packed[4 + g]`) holds rows 8g..8g + 7 of the column at `base + j` (at
+/// `base + 8 + j`).
 #[derive(Default)]
 struct Columns {
     base: usize,
     end: usize,
-    bits: [u32; 8],
+    packed: [u64; 8],
 }
 
 impl Window {
@@ -191,34 +192,28 @@ impl Window {
         }
     }
 
-    /// Reads the columns at flat indices p..p + 8, cut at the end of p's line, into
-    /// `columns`. Each row contributes one 8-byte word (byte j = voxel p + j); masked to bit
-    /// 0 of every byte and shifted by r mod 8, the words of eight rows OR into one word
+    /// Reads the columns at flat indices p..p + 16, cut at the end of p's line, into
+    /// `columns`. Each row contributes two 8-byte words (byte j = voxel p + j); masked to
+    /// bit 0 of every byte and shifted by r mod 8, the words of eight rows OR into one word
     /// whose byte j holds those rows' bits of column j, with no carries between bytes.
     fn load(&self, data: &[u8], p: usize, columns: &mut Columns) {
-        let mut packed = [0u64; 4];
+        let mut packed = [0u64; 8];
         for (r, &o) in self.rows.iter().enumerate() {
             let q = (p as isize + o) as usize;
-            let mut bytes = [0u8; 8];
-            match data.get(q..q + 8) {
-                Some(slice) => bytes.copy_from_slice(slice),
-                // Past the end of the data (the last line of a slab): those columns lie
-                // beyond the line and are never used.
-                None => {
-                    for (j, byte) in bytes.iter_mut().enumerate() {
-                        *byte = data.get(q + j).copied().unwrap_or(0);
-                    }
-                }
-            }
-            packed[r / 8] |= (u64::from_le_bytes(bytes) & 0x0101_0101_0101_0101) << (r % 8);
+            let (low, high) = match data.get(q..q + 16) {
+                Some(slice) => (
+                    u64::from_le_bytes(slice[..8].try_into().expect("eight bytes")),
+                    u64::from_le_bytes(slice[8..].try_into().expect("eight bytes")),
+                ),
+                None => (word_at_end(data, q), word_at_end(data, q + 8)),
+            };
+            let (group, shift) = ((r >> 3) & 3, r & 7);
+            packed[group] |= (low & 0x0101_0101_0101_0101) << shift;
+            packed[4 + group] |= (high & 0x0101_0101_0101_0101) << shift;
         }
-        for (j, bits) in columns.bits.iter_mut().enumerate() {
-            *bits = packed.iter().enumerate().fold(0, |c, (g, &w)| {
-                c | (((w >> (8 * j)) & 0xFF) as u32) << (8 * g)
-            });
-        }
+        columns.packed = packed;
         columns.base = p;
-        columns.end = (p + 8).min((p / self.line + 1) * self.line);
+        columns.end = (p + 16).min((p / self.line + 1) * self.line);
     }
 
     /// The column at flat index `at` at bits 3r, read ahead into `columns` when it is not
@@ -228,7 +223,12 @@ impl Window {
         if at.wrapping_sub(columns.base) >= columns.end - columns.base {
             self.load(data, at, columns);
         }
-        let c = columns.bits[at - columns.base] as usize;
+        let j = at - columns.base;
+        let words = &columns.packed[(j >> 3) * 4..(j >> 3) * 4 + 4];
+        let shift = 8 * (j & 7);
+        let byte = |g: usize| (words[g] >> shift) as usize & 0xFF;
+        // Rows 0-8, 9-17 and 18-26, nine bits each.
+        let c = byte(0) | byte(1) << 8 | byte(2) << 16 | byte(3) << 24;
         self.spread[c & 511] as u128
             | (self.spread[(c >> 9) & 511] as u128) << 27
             | (self.spread[(c >> 18) & 511] as u128) << 54
@@ -246,6 +246,15 @@ impl Window {
     fn advance(&self, data: &[u8], block: u128, i: usize, columns: &mut Columns) -> u128 {
         ((block >> 1) & self.low_two) | self.column(data, i + 1, columns) << 2
     }
+}
+
+/// The eight bytes from flat index `q` as a little-endian word, zero past the end of the
+/// data (the last line of a slab: those columns lie beyond the line and are never used).
+#[cold]
+fn word_at_end(data: &[u8], q: usize) -> u64 {
+    (0..8).fold(0, |word, j| {
+        word | (data.get(q + j).copied().unwrap_or(0) as u64) << (8 * j)
+    })
 }
 
 /// Which phase [`thin`] shrinks.
@@ -510,7 +519,7 @@ mod tests {
             let d = dim.get();
             let tester = SimpleTester::new(dim);
             for trial in 0..30 {
-                // Lines shorter and longer than the eight columns read at a time.
+                // Lines shorter and longer than the sixteen columns read at a time.
                 let side = [9, 7, 6][d - 2];
                 let mut shape: Vec<usize> = (0..d).map(|a| side + a % 2).collect();
                 shape[d - 1] = [7, 10, 19, 26][trial % 4];
