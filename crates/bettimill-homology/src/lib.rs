@@ -14,7 +14,7 @@
 //! - In 4D b_1 and b_2 are tied by one equation only, so the image is thinned by sequential
 //!   simple-point deletion in raster sweeps (same homotopy type; about 1% of a blob's
 //!   voxels survive), and the remnant's cubical complex is shrunk by collapses and
-//!   coreductions (module `complex`) until a few cells are left for an explicit Z/2 rank.
+//!   coreductions (module `dense`) until a few cells are left for an explicit Z/2 rank.
 //! - For a solid cube with cavities (a foreground wall encloses all inner background), 4D
 //!   thinning would leave a 3-dimensional shell around every cavity. Instead the background
 //!   is thinned (its simple voxels are given to the object) down to thin cores of the
@@ -22,8 +22,9 @@
 //!   construction into the object's. A carved 128^4 cube takes seconds and well under
 //!   1 GB instead of ~50 s and ~7 GB.
 //!
-//! Memory: the padded copy (one byte per voxel) plus the remnant's complex; a 128^4 blob
-//! peaked below 1 GB including the caller's copy of the image.
+//! Memory: the padded copy (one byte per voxel) plus the remnant's complex (two bytes per
+//! voxel of address space, written only where the remnant is); a 128^4 blob peaked at
+//! about 620 MB including the caller's copy of the image.
 //!
 //! [`simple`] decides whether one voxel can be flipped without changing the topology; it is
 //! the kernel of both deformations and of the thinning.

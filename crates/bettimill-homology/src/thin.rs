@@ -7,12 +7,13 @@
 //!
 //! Simple points are not jointly deletable, so deletion is sequential: raster sweeps in
 //! index order, each voxel tested against the image as it is at that moment, until a sweep
-//! deletes nothing (the first sweep splits into two slabs too far apart to interact; see
-//! [`thin`]). Raster order is deterministic and needs no queue, and
-//! because the voxels before x are already gone when x is visited, the first sweep (over
-//! the whole image) deletes about 99% of a blob; later sweeps only revisit the survivors
-//! whose neighbourhood changed since their last test. The first sweep slides the 3^d block
-//! along the last axis, reading one new column per voxel instead of the whole block.
+//! deletes nothing (every sweep splits into two slabs too far apart to interact, swept on
+//! two threads, then the seam between them; see [`thin`]). Raster order is deterministic
+//! and needs no queue, and because the voxels before x are already gone when x is visited,
+//! the first sweep (over the whole image) deletes about 99% of a blob; later sweeps only
+//! revisit the survivors whose neighbourhood changed since their last test. The first
+//! sweep slides the 3^d block along the last axis, reading one new column per voxel
+//! instead of the whole block, and reads the columns sixteen at a time.
 //! The 4D test has no table, so its answers are memoised in a small direct-mapped cache
 //! (a pure function memoised: it cannot change a result).
 
