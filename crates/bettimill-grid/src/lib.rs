@@ -283,15 +283,24 @@ impl BinaryImage {
         let d = self.dim.get();
         let row = self.shape[d - 1];
         let rows = self.len() / row;
+        // The coordinates of the current row along the first d - 1 axes, counted up
+        // like an odometer (no divisions per row).
+        let mut c = [0usize; 4];
         for r in 0..rows {
             let src = r * row;
-            let c = self.coords(src);
-            let mut dst_coords = [0usize; 4];
-            for axis in 0..d {
+            let mut dst_coords = [width; 4];
+            for axis in 0..d - 1 {
                 dst_coords[axis] = c[axis] + width;
             }
             let dst = out.index(&dst_coords[..d]);
             out.data[dst..dst + row].copy_from_slice(&self.data[src..src + row]);
+            for axis in (0..d - 1).rev() {
+                c[axis] += 1;
+                if c[axis] < self.shape[axis] {
+                    break;
+                }
+                c[axis] = 0;
+            }
         }
         out
     }
@@ -364,6 +373,31 @@ mod tests {
         assert!(!img.border_is_background());
         assert_eq!(padded.count_foreground(), 3);
         assert_eq!(padded.cropped(2), img);
+    }
+
+    /// Every voxel lands `width` further along every axis, in every dimension and for
+    /// shapes whose axes all differ.
+    #[test]
+    fn padding_moves_every_voxel_by_the_width() {
+        for shape in [&[3usize, 5][..], &[2, 3, 4], &[2, 3, 4, 5], &[1, 1, 1, 6]] {
+            let mut img = BinaryImage::zeros(shape).unwrap();
+            for index in 0..img.len() {
+                img.data_mut()[index] = ((index * 7 + index / 3) % 3 == 0) as u8;
+            }
+            for width in [1, 2] {
+                let padded = img.padded(width);
+                assert_eq!(padded.count_foreground(), img.count_foreground());
+                for index in 0..img.len() {
+                    let c = img.coords(index);
+                    let moved: Vec<usize> = c[..shape.len()].iter().map(|&x| x + width).collect();
+                    assert_eq!(
+                        padded.get(&moved),
+                        img.data()[index] == 1,
+                        "{shape:?} {c:?}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
