@@ -43,7 +43,7 @@ struct Tables {
     /// Bit index of the centre in the 3^d lexicographic block (the bit dropped from it).
     centre: usize,
     offsets: Vec<[i8; 4]>,
-    /// closure[k]: the faces (as neighbour bits) in the closure of neighbour k's face.
+    /// `closure[k]`: the faces (as neighbour bits) in the closure of neighbour k's face.
     closure: Vec<u128>,
     /// closure_low/high[256 * j + b]: the union of the closures of the neighbours whose
     /// bits are set in byte value b at bits 8j..8j+8 (its bits 0-63 and 64-79), so A(x)
@@ -51,9 +51,9 @@ struct Tables {
     /// first-level cache, where one 128-bit table took 40 KiB and did not.
     closure_low: Vec<u64>,
     closure_high: Vec<u16>,
-    /// adjacency[k]: the other neighbours within one step of neighbour k in every axis.
+    /// `adjacency[k]`: the other neighbours within one step of neighbour k in every axis.
     adjacency: Vec<u128>,
-    /// cofaces[k]: faces of one dimension more whose closure contains face k.
+    /// `cofaces[k]`: faces of one dimension more whose closure contains face k.
     cofaces: Vec<u128>,
     even_faces: u128,
     odd_faces: u128,
