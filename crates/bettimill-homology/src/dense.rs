@@ -283,7 +283,8 @@ impl DenseComplex {
     /// goes.
     pub(crate) fn betti(mut self, b0: u64) -> Vec<u64> {
         let d = self.d;
-        let top = (1u32 << d) - 1;
+        // The vertex code: every axis even.
+        let top = self.all_codes;
         // Local codes of even dimension: dimension d - popcount(code).
         let even_codes = (0..=top)
             .filter(|&code| (d as u32 - code.count_ones()) % 2 == 0)

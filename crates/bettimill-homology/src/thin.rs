@@ -57,8 +57,8 @@ impl SimpleCache {
     }
 }
 
-/// One raster sweep over the voxels `range` of the slab `data` (C order, `strides` of the
-/// full image), deleting simple ones; pushes the foreground survivors, shifted by
+/// One raster sweep over the voxels `range` of the slab `data` (C order, laid out with the
+/// full image's strides), deleting simple ones; pushes the foreground survivors, shifted by
 /// `global_offset`, to `survivors`.
 fn sweep(
     thinner: &Thinner,
@@ -68,8 +68,7 @@ fn sweep(
     survivors: &mut Vec<usize>,
     cache: &mut SimpleCache,
 ) {
-    let (tester, phase) = (thinner.tester, thinner.phase);
-    let window = Window::new(&thinner.strides);
+    let (tester, phase, window) = (thinner.tester, thinner.phase, &thinner.window);
     // `block` is the 3^d block of voxel `previous`, kept current: between two voxels the
     // only write is the deletion of the voxel itself, whose centre bit is cleared.
     let mut block = 0u128;
@@ -291,9 +290,8 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
         Phase::Background => border_is_locked(image),
     });
     let thinner = Thinner::new(image, tester, phase);
-    let strides = image.strides().to_vec();
     let planes = image.shape()[0];
-    let plane = strides[0];
+    let plane = thinner.strides[0];
     let len = image.len();
     // 2^12 slots (64 KiB) stay in the core's own cache; 2^16 slots hit more often but
     // made a 32^4 blob about 20% slower (BENCHMARKS.md).
@@ -369,6 +367,8 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
 struct Thinner<'a> {
     tester: &'a SimpleTester,
     strides: Vec<usize>,
+    /// The sliding 3^d block the sweeps read.
+    window: Window,
     /// Flat offsets of all neighbours, and of those that decide exposure.
     steps: Vec<isize>,
     exposure_steps: Vec<isize>,
@@ -394,6 +394,7 @@ impl<'a> Thinner<'a> {
         Thinner {
             tester,
             strides: image.strides().to_vec(),
+            window: Window::new(image.strides()),
             steps,
             exposure_steps,
             phase,
