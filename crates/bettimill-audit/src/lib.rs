@@ -15,8 +15,9 @@
 //! the same file system, and is removed afterwards; nothing else in DIR is written.
 
 use bettimill_executor::{BuildError, Dataset};
+use bettimill_format::{Label, MemberName};
 use bettimill_plan::ShardPlan;
-use bettimill_shard::{Compression, ShardError};
+use bettimill_shard::ShardError;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rayon::prelude::*;
@@ -312,43 +313,42 @@ fn relabel_shard(
     // Group members by key, keeping the tar order.
     let mut samples: Vec<(String, Fields)> = Vec::new();
     for member in members {
-        let Some((key, field)) = member.name.split_once('.') else {
+        let Some(parsed) = MemberName::parse(&member.name) else {
             findings.push(undecodable(&member.name, "no field".into()));
             continue;
         };
+        let key = parsed.key;
         if samples.last().map(|s| s.0.as_str()) != Some(key) {
             samples.push((key.to_string(), Vec::new()));
         }
+        let field = member.name[key.len() + 1..].to_string();
         let last = samples.last_mut().expect("just pushed");
-        last.1.push((field.to_string(), member.data));
+        last.1.push((field, member.data));
     }
     let limit = 1 << 34;
     for (key, fields) in &samples {
         progress();
-        let Some((_, json)) = fields.iter().find(|f| f.0 == "json") else {
+        let Some((_, json)) = fields
+            .iter()
+            .find(|f| f.0 == bettimill_format::member::LABEL_FIELD)
+        else {
             findings.push(undecodable(key, "no json label".into()));
             continue;
         };
-        let label: serde_json::Value = match serde_json::from_slice(json) {
-            Ok(v) => v,
+        let label = match Label::from_json(json) {
+            Ok(label) => label,
             Err(err) => {
                 findings.push(undecodable(&format!("{key}.json"), err.to_string()));
                 continue;
             }
         };
         for (field, data) in fields {
-            let (base, compression) = if let Some(b) = field.strip_suffix(".gz") {
-                (b, Compression::Gzip)
-            } else if let Some(b) = field.strip_suffix(".zst") {
-                (b, Compression::Zstd)
-            } else {
-                (field.as_str(), Compression::None)
-            };
-            if !base.ends_with("npy") {
+            let member = format!("{key}.{field}");
+            let parsed = MemberName::parse(&member).expect("grouped members have a field");
+            if !parsed.is_array() {
                 continue;
             }
-            let member = format!("{key}.{field}");
-            let raw = match bettimill_shard::decompress(data, compression, limit) {
+            let raw = match bettimill_shard::decompress(data, parsed.compression, limit) {
                 Ok(raw) => raw,
                 Err(err) => {
                     findings.push(undecodable(&member, err.to_string()));
@@ -362,28 +362,19 @@ fn relabel_shard(
                     continue;
                 }
             };
-            let stored = if base == "npy" {
-                label.get("betti").cloned()
-            } else {
-                let side = image.shape()[0] as u64;
-                label.get("resolutions").and_then(|r| {
-                    r.as_array()?
-                        .iter()
-                        .find(|x| x["side"].as_u64() == Some(side))
-                        .map(|x| x["betti"].clone())
-                })
-            };
-            let stored: Vec<u64> = stored
-                .and_then(|v| serde_json::from_value(v).ok())
+            let side = (!parsed.is_image()).then(|| image.shape()[0] as u32);
+            let stored: Vec<u64> = label
+                .betti_at(side)
+                .map(<[u64]>::to_vec)
                 .unwrap_or_default();
             let computed = bettimill_homology::topology(&image).betti;
             if stored != computed {
                 findings.push(Finding::LabelDiffers {
                     shard: shard.name.clone(),
-                    key: if base == "npy" {
+                    key: if parsed.is_image() {
                         key.clone()
                     } else {
-                        format!("{key}@{}", base.trim_end_matches(".npy"))
+                        format!("{key}@{}", parsed.field.trim_end_matches(".npy"))
                     },
                     stored,
                     computed,

@@ -120,7 +120,7 @@ pub fn build(
             display.workers,
             report.regenerations,
             report.retries,
-            out.join("index.json").display()
+            dataset.layout().index_path().display()
         );
     }
     Ok(Status::Success)
@@ -529,12 +529,15 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
     }
     // Every shard is complete, so no writer has work left: leftovers of killed ones can go.
     dataset.remove_temporaries()?;
-    dataset.finalize()?;
+    // `status` has just hashed every shard: finalize checks their records and sizes only,
+    // so a standalone finalize reads every byte once, not twice.
+    let checked = status.complete.iter().cloned().collect();
+    dataset.finalize_checked(&checked)?;
     if !quiet {
         eprintln!(
             "{} shards complete; wrote {}",
             status.shards,
-            dir.join("index.json").display()
+            dataset.layout().index_path().display()
         );
     }
     Ok(Status::Success)
@@ -542,7 +545,7 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
 
 /// `bettimill status DIR`.
 pub fn status(dir: &Path, json: bool) -> anyhow::Result<Status> {
-    if !dir.join("build.json").exists() {
+    if !bettimill_format::DatasetDir::new(dir).has_build_info() {
         bail!(
             "{} holds no bettimill dataset (no build.json)",
             dir.display()

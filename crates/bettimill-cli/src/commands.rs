@@ -257,7 +257,9 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<Status> {
         outln!(
             "ok: {} shards match {}",
             report.shards_checked,
-            dir.join("index.json").display()
+            bettimill_format::DatasetDir::new(dir)
+                .index_path()
+                .display()
         );
     } else {
         for problem in &report.problems {

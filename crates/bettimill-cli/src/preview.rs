@@ -3,6 +3,7 @@
 
 use crate::commands::Status;
 use anyhow::{bail, Context};
+use bettimill_format::DatasetDir;
 use bettimill_preview::{caption, contact_sheet, render_sample, samples_in_tar, short_caption};
 use std::path::{Path, PathBuf};
 
@@ -24,39 +25,31 @@ pub struct Request<'a> {
 /// when the build is finished, otherwise every `shards/*.tar` by name, its split taken from
 /// its completion record (`unknown` without one).
 pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)>> {
-    let index_path = dir.join("index.json");
-    if index_path.exists() {
-        let index = bettimill_shard::Index::read(&index_path)?;
+    let layout = DatasetDir::new(dir);
+    if layout.is_finalized() {
+        let index = bettimill_shard::Index::read(&layout.index_path())?;
         return Ok(index
             .shards
             .iter()
             .map(|s| (s.split.clone(), dir.join(&s.name)))
             .collect());
     }
-    let shards_dir = dir.join("shards");
-    let mut shards: Vec<PathBuf> = match std::fs::read_dir(&shards_dir) {
-        Ok(entries) => entries
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "tar"))
-            .collect(),
-        Err(_) => Vec::new(),
-    };
-    if shards.is_empty() {
+    let names = layout.shard_names()?;
+    if names.is_empty() {
         bail!(
             "{} holds no shards: give a directory written by `bettimill build --out DIR`",
             dir.display()
         );
     }
-    shards.sort();
-    let split_of = |tar: &Path| -> Option<String> {
-        let stem = tar.file_stem()?.to_str()?;
-        let bytes = std::fs::read(dir.join("records").join(format!("{stem}.json"))).ok()?;
-        let record: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
-        Some(record["shard"]["split"].as_str()?.to_string())
-    };
-    Ok(shards
-        .into_iter()
-        .map(|p| (split_of(&p).unwrap_or_else(|| "unknown".to_string()), p))
+    Ok(names
+        .iter()
+        .map(|name| {
+            let split = match layout.read_record(name) {
+                Ok(Some(record)) => record.shard.split,
+                _ => "unknown".to_string(),
+            };
+            (split, layout.tar_path(name))
+        })
         .collect())
 }
 

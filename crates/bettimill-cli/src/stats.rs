@@ -4,9 +4,9 @@
 
 use crate::commands::Status;
 use anyhow::{bail, Context};
-use bettimill_preview::{labels_in_tar, plot, BuildTime, RecordStats, Stats};
-use std::path::{Path, PathBuf};
-use std::time::UNIX_EPOCH;
+use bettimill_format::DatasetDir;
+use bettimill_preview::{labels_in_tar, plot, BuildTime, Stats};
+use std::path::Path;
 
 /// Runs `bettimill stats`.
 pub fn run(
@@ -32,25 +32,18 @@ pub fn run(
             .with_context(|| format!("cannot read the labels of {}", shard.display()))?;
         labels.extend(shard_labels.into_iter().map(|l| (split.clone(), l)));
     }
-    let mut record_paths: Vec<PathBuf> = match std::fs::read_dir(dir.join("records")) {
-        Ok(entries) => entries
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "json"))
-            .collect(),
-        Err(_) => Vec::new(),
-    };
-    record_paths.sort();
+    let layout = DatasetDir::new(dir);
     let mut records = Vec::new();
-    for path in &record_paths {
-        let bytes =
-            std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-        let record: RecordStats = serde_json::from_slice(&bytes)
-            .with_context(|| format!("{} is not a completion record", path.display()))?;
-        records.push(record);
+    for name in layout.record_names()? {
+        if let Some(record) = layout.read_record(&name)? {
+            records.push(record);
+        }
     }
     bar.finish_and_clear();
     let mut stats = Stats::collect(&labels, &records, shards.len() as u64);
-    stats.build_time = build_time(dir, &record_paths, stats.samples);
+    stats.build_time = layout.file_times().and_then(|(start, end, finished)| {
+        BuildTime::from_file_times(start, end, finished, stats.samples)
+    });
     let output = if json {
         serde_json::to_string_pretty(&stats)? + "\n"
     } else {
@@ -66,29 +59,6 @@ pub fn run(
         }
     }
     Ok(Status::Success)
-}
-
-/// The build's wall-clock span from file modification times: from `DIR/build.json` (written
-/// once, when the directory is created) to `DIR/index.json` (written last), or to the newest
-/// completion record when the build is unfinished. The dataset itself stores no timings, so
-/// that a rebuild is byte-identical. `None` when a time cannot be read.
-fn build_time(dir: &Path, record_paths: &[PathBuf], samples: u64) -> Option<BuildTime> {
-    let mtime = |path: &Path| -> Option<f64> {
-        let modified = std::fs::metadata(path).ok()?.modified().ok()?;
-        Some(modified.duration_since(UNIX_EPOCH).ok()?.as_secs_f64())
-    };
-    let start = mtime(&dir.join("build.json"))?;
-    let index = dir.join("index.json");
-    let (end, finished) = if index.exists() {
-        (mtime(&index)?, true)
-    } else {
-        let newest = record_paths
-            .iter()
-            .filter_map(|path| mtime(path))
-            .max_by(f64::total_cmp)?;
-        (newest, false)
-    };
-    BuildTime::from_file_times(start, end, finished, samples)
 }
 
 /// Writes data to stdout. A reader that stops early (`bettimill stats DIR | head`) closes

@@ -68,7 +68,7 @@ pub fn status(dataset: &Dataset) -> StatusReport {
     let mut report = StatusReport {
         dir: dataset.dir.clone(),
         shards: dataset.plan.shards.len() as u64,
-        finalized: dataset.dir.join("index.json").exists(),
+        finalized: dataset.layout().is_finalized(),
         ..StatusReport::default()
     };
     for shard in &dataset.plan.shards {

@@ -1,11 +1,12 @@
 //! The output directory of one dataset and the operations on it.
 
+use bettimill_format::{member_name, DatasetDir, FormatError, TOOL_VERSION};
+pub use bettimill_format::{BuildInfo, CompletionRecord, ShardState};
 use bettimill_manifest::{Compression, Manifest, ManifestError};
 use bettimill_plan::{Plan, ShardPlan};
-use bettimill_sample::{make_sample, SampleError, TOOL_VERSION};
-use bettimill_shard::{self as shard, Index, Member, ShardError, ShardRecord};
+use bettimill_sample::{make_sample, SampleError};
+use bettimill_shard::{self as shard, Index, Member, ShardError};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -15,22 +16,9 @@ pub enum BuildError {
     /// The manifest is invalid.
     #[error(transparent)]
     Manifest(#[from] ManifestError),
-    /// The output directory holds something else.
-    #[error("{dir} is not empty and holds no bettimill dataset; choose an empty or new directory")]
-    ForeignDirectory {
-        /// The output directory.
-        dir: PathBuf,
-    },
-    /// The output directory holds a dataset of a different manifest.
-    #[error("{dir} holds a dataset built from a different manifest (hash {found}, this manifest is {expected}); use another --out directory")]
-    DifferentManifest {
-        /// The output directory.
-        dir: PathBuf,
-        /// This manifest's hash.
-        expected: String,
-        /// The hash recorded in the directory.
-        found: String,
-    },
+    /// The directory could not be read or bound (another manifest, version or plan).
+    #[error(transparent)]
+    Format(#[from] FormatError),
     /// A sample could not be made.
     #[error("shard {shard}: {source}")]
     Sample {
@@ -61,28 +49,6 @@ pub enum BuildError {
         /// What is wrong with it.
         reason: String,
     },
-}
-
-/// The identity of a dataset directory, written before anything else.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BuildInfo {
-    /// bettimill version that started the build.
-    pub tool_version: String,
-    /// The manifest's canonical hash.
-    pub manifest_hash: String,
-    /// The plan's hash.
-    pub plan_hash: String,
-}
-
-/// A shard's completion record: its storage record plus build statistics.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CompletionRecord {
-    /// The storage record that goes into index.json.
-    pub shard: ShardRecord,
-    /// Rejected attempts (regenerations) per stratum label, sorted by label.
-    pub regenerations: Vec<(String, u64)>,
 }
 
 /// What happened to one shard in a build.
@@ -117,6 +83,7 @@ pub struct Dataset {
     pub manifest: Manifest,
     /// Its plan.
     pub plan: Plan,
+    layout: DatasetDir,
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> BuildError + '_ {
@@ -135,92 +102,51 @@ impl Dataset {
         manifest: Manifest,
     ) -> Result<Dataset, BuildError> {
         let plan = Plan::new(&manifest)?;
-        let info = BuildInfo {
-            tool_version: TOOL_VERSION.to_string(),
-            manifest_hash: plan.manifest_hash.clone(),
-            plan_hash: plan.hash(),
-        };
-        let build_json = dir.join("build.json");
-        if build_json.exists() {
-            let found = read_build_info(&build_json)?;
-            if found.manifest_hash != info.manifest_hash {
-                return Err(BuildError::DifferentManifest {
-                    dir: dir.to_path_buf(),
-                    expected: info.manifest_hash,
-                    found: found.manifest_hash,
-                });
-            }
-        } else {
-            if dir.exists() {
-                let mut entries = std::fs::read_dir(dir).map_err(io(dir))?;
-                if entries.next().is_some() {
-                    return Err(BuildError::ForeignDirectory {
-                        dir: dir.to_path_buf(),
-                    });
-                }
-            }
-            std::fs::create_dir_all(dir).map_err(io(dir))?;
-            shard::write_atomic(&dir.join("manifest.toml"), manifest_text.as_bytes())?;
-            let mut bytes = serde_json::to_vec_pretty(&info).expect("build info serialises");
-            bytes.push(b'\n');
-            shard::write_atomic(&build_json, &bytes)?;
-        }
-        for sub in ["shards", "records"] {
-            let path = dir.join(sub);
-            std::fs::create_dir_all(&path).map_err(io(&path))?;
-        }
+        let info = BuildInfo::current(plan.manifest_hash.clone(), plan.hash());
+        let layout = DatasetDir::new(dir);
+        layout.bind(manifest_text, &info)?;
         Ok(Dataset {
             dir: dir.to_path_buf(),
             manifest_text: manifest_text.to_string(),
             manifest,
             plan,
+            layout,
         })
+    }
+
+    /// The directory's layout and records.
+    pub fn layout(&self) -> &DatasetDir {
+        &self.layout
     }
 
     /// Opens an existing dataset directory from its stored manifest.
     pub fn open(dir: &Path) -> Result<Dataset, BuildError> {
-        let path = dir.join("manifest.toml");
-        let text = std::fs::read_to_string(&path).map_err(io(&path))?;
+        let layout = DatasetDir::new(dir);
+        let path = layout.manifest_path();
+        let text = layout.read_manifest_text()?;
         let manifest = Manifest::parse(&text, &path)?;
         Dataset::create(dir, &text, manifest)
     }
 
     /// Path of a shard's tar file.
     pub fn tar_path(&self, shard: &ShardPlan) -> PathBuf {
-        self.dir.join("shards").join(format!("{}.tar", shard.name))
+        self.layout.tar_path(&shard.name)
     }
 
     /// Path of a shard's completion record.
     pub fn record_path(&self, shard: &ShardPlan) -> PathBuf {
-        self.dir
-            .join("records")
-            .join(format!("{}.json", shard.name))
+        self.layout.record_path(&shard.name)
     }
 
     /// The shard's completion record if the tar on disk has the record's size (no hash).
     fn recorded(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
-        let bytes = std::fs::read(self.record_path(shard)).ok()?;
-        let record: CompletionRecord = serde_json::from_slice(&bytes).ok()?;
-        let size = std::fs::metadata(self.tar_path(shard)).ok()?.len();
-        (size == record.shard.bytes).then_some(record)
+        self.layout.recorded(&shard.name)
     }
 
-    /// The shard's completion record if the shard on disk matches it, else `None`.
+    /// The shard's completion record if the shard on disk matches it (size, then the
+    /// blake3 streamed through a fixed buffer), else `None`.
     pub fn completed(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
-        let bytes = std::fs::read(self.record_path(shard)).ok()?;
-        let record: CompletionRecord = serde_json::from_slice(&bytes).ok()?;
-        // Size first (cheap), then the hash streamed through a fixed buffer: the coordinator
-        // checks every shard on start, resume and finalize, and must not hold a whole shard
-        // (hundreds of MB at 128^4) in memory to do it.
-        let path = self.tar_path(shard);
-        if std::fs::metadata(&path).ok()?.len() != record.shard.bytes {
-            return None;
-        }
-        let mut hasher = blake3::Hasher::new();
-        hasher
-            .update_reader(std::fs::File::open(&path).ok()?)
-            .ok()?;
-        (hasher.finalize().to_hex().as_str() == record.shard.blake3).then_some(record)
+        self.layout.completed(&shard.name)
     }
 
     /// Generates, verifies and writes one shard (tar first, then its record).
@@ -255,19 +181,15 @@ impl Dataset {
                 let mut fields = Vec::new();
                 for (field, bytes) in sample.fields() {
                     // Arrays are compressed per member; labels and classes stay readable.
-                    if field.ends_with("npy") && compression != shard::Compression::None {
-                        let compressed =
-                            shard::compress(&bytes, compression).map_err(SampleOrShard::Shard)?;
-                        fields.push(Member {
-                            name: format!("{key}.{field}{}", compression.suffix()),
-                            data: compressed,
-                        });
+                    let name = member_name(key, &field, compression);
+                    let data = if bettimill_format::member::is_array_field(&field)
+                        && compression != shard::Compression::None
+                    {
+                        shard::compress(&bytes, compression).map_err(SampleOrShard::Shard)?
                     } else {
-                        fields.push(Member {
-                            name: format!("{key}.{field}"),
-                            data: bytes,
-                        });
-                    }
+                        bytes
+                    };
+                    fields.push(Member { name, data });
                 }
                 Ok((
                     fields,
@@ -289,16 +211,14 @@ impl Dataset {
             members.push(fields);
             *regenerations.entry(class_label).or_default() += attempt as u64;
         }
-        let relative = format!("shards/{}.tar", shard.name);
+        let relative = DatasetDir::relative_tar_name(&shard.name);
         let (bytes, record) = shard::build_shard(&relative, &shard.split, &members)?;
         write_tar_atomically(&self.tar_path(shard), &bytes)?;
         let completion = CompletionRecord {
             shard: record,
             regenerations: regenerations.into_iter().collect(),
         };
-        let mut json = serde_json::to_vec_pretty(&completion).expect("records serialise");
-        json.push(b'\n');
-        shard::write_atomic(&self.record_path(shard), &json)?;
+        self.layout.write_record(&shard.name, &completion)?;
         Ok(completion)
     }
 
@@ -327,64 +247,10 @@ impl Dataset {
         Ok(summary)
     }
 
-    /// The state of one shard, judged from the directory alone.
+    /// The state of one shard, judged from the directory alone (see
+    /// [`DatasetDir::shard_state`]).
     pub fn shard_state(&self, shard: &ShardPlan) -> ShardState {
-        let record_path = self.record_path(shard);
-        let tar_path = self.tar_path(shard);
-        let record = match std::fs::read(&record_path) {
-            Ok(bytes) => bytes,
-            Err(err) if err.kind() == std::io::ErrorKind::NotFound => {
-                return if tar_path.exists() {
-                    ShardState::Invalid {
-                        reason: format!("{} has no completion record", tar_path.display()),
-                    }
-                } else {
-                    ShardState::Missing
-                };
-            }
-            Err(err) => {
-                return ShardState::Invalid {
-                    reason: format!("{}: {err}", record_path.display()),
-                }
-            }
-        };
-        let record: CompletionRecord = match serde_json::from_slice(&record) {
-            Ok(record) => record,
-            Err(err) => {
-                return ShardState::Invalid {
-                    reason: format!("{}: not a completion record: {err}", record_path.display()),
-                }
-            }
-        };
-        let tar = match std::fs::read(&tar_path) {
-            Ok(tar) => tar,
-            Err(err) => {
-                return ShardState::Invalid {
-                    reason: format!("{}: {err}", tar_path.display()),
-                }
-            }
-        };
-        if tar.len() as u64 != record.shard.bytes {
-            return ShardState::Invalid {
-                reason: format!(
-                    "{} has {} bytes, its record says {}",
-                    tar_path.display(),
-                    tar.len(),
-                    record.shard.bytes
-                ),
-            };
-        }
-        let found = blake3::hash(&tar).to_hex().to_string();
-        if found != record.shard.blake3 {
-            return ShardState::Invalid {
-                reason: format!(
-                    "{} has blake3 {found}, its record says {}",
-                    tar_path.display(),
-                    record.shard.blake3
-                ),
-            };
-        }
-        ShardState::Complete(record)
+        self.layout.shard_state(&shard.name)
     }
 
     /// Removes the temporary files that killed writers leave behind (`.NAME.tmp-PID` in the
@@ -394,8 +260,8 @@ impl Dataset {
         let mut removed = Vec::new();
         for dir in [
             self.dir.clone(),
-            self.dir.join("shards"),
-            self.dir.join("records"),
+            self.layout.shards_dir(),
+            self.layout.records_dir(),
         ] {
             let entries = match std::fs::read_dir(&dir) {
                 Ok(entries) => entries,
@@ -460,10 +326,10 @@ impl Dataset {
         // so its presence means the whole dataset is complete.
         for split in index.splits() {
             let bytes = shard::wids_index(&split, &index.split_shards(&split));
-            shard::write_atomic(&self.dir.join(format!("shardindex-{split}.json")), &bytes)?;
+            shard::write_atomic(&self.layout.wids_index_path(&split), &bytes)?;
         }
-        shard::write_atomic(&self.dir.join("README.md"), self.dataset_card().as_bytes())?;
-        shard::write_atomic(&self.dir.join("index.json"), &index.to_json_bytes())?;
+        shard::write_atomic(&self.layout.card_path(), self.dataset_card().as_bytes())?;
+        shard::write_atomic(&self.layout.index_path(), &index.to_json_bytes())?;
         Ok(index)
     }
 
@@ -540,28 +406,6 @@ fn write_tar_atomically(path: &Path, bytes: &[u8]) -> Result<(), BuildError> {
     std::thread::sleep(std::time::Duration::from_secs_f64(seconds));
     std::fs::rename(&temporary, path).map_err(io(path))?;
     Ok(())
-}
-
-/// What the directory says about one shard.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum ShardState {
-    /// Its record exists and the tar matches it.
-    Complete(CompletionRecord),
-    /// Neither tar nor record exists.
-    Missing,
-    /// Something exists but does not make a complete shard; it will be rebuilt.
-    Invalid {
-        /// What is wrong.
-        reason: String,
-    },
-}
-
-fn read_build_info(path: &Path) -> Result<BuildInfo, BuildError> {
-    let bytes = std::fs::read(path).map_err(io(path))?;
-    serde_json::from_slice(&bytes).map_err(|err| BuildError::Corrupt {
-        path: path.to_path_buf(),
-        reason: format!("not a bettimill build record: {err}"),
-    })
 }
 
 /// A sample's failure while its members are made: generating it, or compressing it.

@@ -12,8 +12,8 @@
 use crate::canvas::{Canvas, Plane, FRAME, INK, MUTED, PAGE};
 use crate::font;
 use crate::PreviewError;
+use bettimill_format::Label;
 use bettimill_grid::BinaryImage;
-use bettimill_sample::Label;
 
 const MARGIN: usize = 16;
 const GAP: usize = 8;

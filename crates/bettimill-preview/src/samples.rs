@@ -3,9 +3,9 @@
 //! (`KEY.rSIDE.npy`) and `KEY.cls` are ignored.
 
 use crate::PreviewError;
+use bettimill_format::{Label, MemberName};
 use bettimill_grid::{npy, BinaryImage};
-use bettimill_sample::Label;
-use bettimill_shard::{decompress, split_key, tar_entries, Compression};
+use bettimill_shard::{decompress, tar_entries};
 
 /// The largest decompressed array accepted: a 1024^3 image plus its header, with room.
 const MAX_ARRAY_BYTES: u64 = 1 << 31;
@@ -21,20 +21,11 @@ pub struct SampleView {
     pub image: BinaryImage,
 }
 
-fn array_compression(field: &str) -> Option<Compression> {
-    match field {
-        "npy" => Some(Compression::None),
-        "npy.gz" => Some(Compression::Gzip),
-        "npy.zst" => Some(Compression::Zstd),
-        _ => None,
-    }
-}
-
 /// The keys of a shard in tar order, each once.
 pub fn keys_in_tar(bytes: &[u8]) -> Result<Vec<String>, PreviewError> {
     let mut keys: Vec<String> = Vec::new();
     for entry in tar_entries(bytes, u64::MAX)? {
-        if let Some((key, _)) = split_key(&entry.name) {
+        if let Some(MemberName { key, .. }) = MemberName::parse(&entry.name) {
             if keys.last().map(String::as_str) != Some(key) {
                 keys.push(key.to_string());
             }
@@ -47,15 +38,16 @@ pub fn keys_in_tar(bytes: &[u8]) -> Result<Vec<String>, PreviewError> {
 pub fn labels_in_tar(bytes: &[u8]) -> Result<Vec<Label>, PreviewError> {
     let mut labels = Vec::new();
     for entry in tar_entries(bytes, u64::MAX)? {
-        if let Some((key, "json")) = split_key(&entry.name) {
-            labels.push(parse_label(key, entry.data)?);
+        match MemberName::parse(&entry.name) {
+            Some(member) if member.is_label() => labels.push(parse_label(member.key, entry.data)?),
+            _ => {}
         }
     }
     Ok(labels)
 }
 
 fn parse_label(key: &str, data: &[u8]) -> Result<Label, PreviewError> {
-    serde_json::from_slice(data).map_err(|source| PreviewError::Label {
+    Label::from_json(data).map_err(|source| PreviewError::Label {
         key: key.to_string(),
         source,
     })
@@ -70,9 +62,10 @@ pub fn samples_in_tar(
     let mut wanted: Vec<(String, Option<Label>, Option<BinaryImage>)> = Vec::new();
     let mut current: Option<(String, bool)> = None;
     for entry in tar_entries(bytes, u64::MAX)? {
-        let Some((key, field)) = split_key(&entry.name) else {
+        let Some(member) = MemberName::parse(&entry.name) else {
             continue;
         };
+        let key = member.key;
         if current.as_ref().map(|(k, _)| k.as_str()) != Some(key) {
             let kept = keep(key);
             if kept {
@@ -84,10 +77,10 @@ pub fn samples_in_tar(
             continue;
         }
         let slot = wanted.last_mut().expect("a kept key was pushed");
-        if field == "json" {
+        if member.is_label() {
             slot.1 = Some(parse_label(key, entry.data)?);
-        } else if let Some(compression) = array_compression(field) {
-            let raw = decompress(entry.data, compression, MAX_ARRAY_BYTES)?;
+        } else if member.is_image() {
+            let raw = decompress(entry.data, member.compression, MAX_ARRAY_BYTES)?;
             let image = npy::read_bytes(&raw, false)
                 .map_err(|source| PreviewError::Npy {
                     what: entry.name.clone(),
@@ -110,7 +103,7 @@ pub fn samples_in_tar(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use bettimill_shard::{compress, tar_bytes, Member};
+    use bettimill_shard::{compress, tar_bytes, Compression, Member};
 
     fn label_json(key: &str) -> Vec<u8> {
         serde_json::to_vec(&serde_json::json!({

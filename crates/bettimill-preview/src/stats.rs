@@ -7,21 +7,12 @@ use crate::canvas::{Canvas, BAR, FRAME, INK, MUTED, PAGE};
 use crate::font;
 use crate::render::betti_text;
 use crate::PreviewError;
-use bettimill_sample::Label;
-use serde::{Deserialize, Serialize};
+use bettimill_format::{CompletionRecord, Label};
+use serde::Serialize;
 use std::collections::BTreeMap;
 
 /// Number of bins of the hypervolume histogram.
 pub const HISTOGRAM_BINS: usize = 16;
-
-/// The parts of a shard's completion record (`DIR/records/NAME.json`) that statistics use.
-/// Unknown fields are ignored so records of other versions still count.
-#[derive(Clone, Debug, Default, Deserialize)]
-pub struct RecordStats {
-    /// Rejected attempts per stratum label.
-    #[serde(default)]
-    pub regenerations: Vec<(String, u64)>,
-}
 
 /// The value of [`BuildTime::source`].
 pub const BUILD_TIME_SOURCE: &str = "file modification times";
@@ -159,7 +150,7 @@ pub struct Stats {
 
 impl Stats {
     /// Counts `labels` (each with its split) and `records`.
-    pub fn collect(labels: &[(String, Label)], records: &[RecordStats], shards: u64) -> Stats {
+    pub fn collect(labels: &[(String, Label)], records: &[CompletionRecord], shards: u64) -> Stats {
         let mut stats = Stats {
             samples: labels.len() as u64,
             shards,
@@ -401,7 +392,17 @@ mod tests {
             ("train".to_string(), label("ball", vec![1, 0], 20, 2)),
             ("val".to_string(), label("handle", vec![1, 1], 41, 0)),
         ];
-        let records = vec![RecordStats {
+        let records = vec![CompletionRecord {
+            shard: bettimill_shard::ShardRecord {
+                name: "shards/t-000000.tar".into(),
+                split: "train".into(),
+                samples: 2,
+                bytes: 1024,
+                blake3: String::new(),
+                first_key: "k".into(),
+                last_key: "k".into(),
+                members: Vec::new(),
+            },
             regenerations: vec![("ball".to_string(), 2)],
         }];
         let stats = Stats::collect(&labels, &records, 1);

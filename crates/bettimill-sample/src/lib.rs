@@ -6,86 +6,14 @@
 //! (see `bettimill_plan::attempt_rng`), so the result is still a pure function of the
 //! manifest and the sample index, and the number of attempts is recorded in the label.
 
+pub use bettimill_format::{Label, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
 use bettimill_grid::BinaryImage;
-use bettimill_manifest::{DeformSpec, Manifest};
+use bettimill_manifest::Manifest;
 use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask};
-use serde::{Deserialize, Serialize};
 
 /// How many attempts a sample gets before the build reports it as failed.
 pub const MAX_ATTEMPTS: u32 = 16;
-
-/// The version written into every label.
-pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
-
-/// The label stored as `KEY.json`. Field order is fixed by this struct, and the
-/// construction record is a JSON value with sorted keys, so equal labels are equal bytes.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Label {
-    /// The WebDataset key.
-    pub key: String,
-    /// Betti numbers over Z/2, computed from the stored voxels.
-    pub betti: Vec<u64>,
-    /// Betti numbers over Q when they differ from the Z/2 ones (non-orientable pieces).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub betti_rational: Option<Vec<u64>>,
-    /// The coefficient field of `betti`.
-    pub field: String,
-    /// Euler characteristic.
-    pub euler: i64,
-    /// Foreground voxel count.
-    pub hypervolume: u64,
-    /// Number of objects placed by the construction.
-    pub components: u64,
-    /// Image shape.
-    pub shape: Vec<usize>,
-    /// Number of axes.
-    pub dim: usize,
-    /// `embed` or `carve`.
-    pub mode: String,
-    /// Construction family label.
-    pub family: String,
-    /// Knot or link type ("none" when there is none): a label Betti numbers cannot see.
-    pub knot_type: String,
-    /// Index of the sample's stratum (also stored as `KEY.cls`).
-    pub class_index: usize,
-    /// Human-readable stratum name.
-    pub class_label: String,
-    /// The sample's seed, 64 hex digits.
-    pub seed: String,
-    /// Which attempt (from 0) produced the sample; > 0 means earlier attempts were rejected.
-    pub attempt: u32,
-    /// The manifest's canonical hash.
-    pub manifest_hash: String,
-    /// bettimill version.
-    pub tool_version: String,
-    /// How the sample was built.
-    pub construction: serde_json::Value,
-    /// Deformation applied, if any.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub deform: Option<DeformSpec>,
-    /// The foreground voxel bin `[lo, hi]` the sample was brought into, if binned.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub hypervolume_bin: Option<(u64, u64)>,
-    /// Downscaled copies (stored as `KEY.rSIDE.npy`), each with its own computed labels.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub resolutions: Vec<ResolutionLabel>,
-}
-
-/// The label of one downscaled copy.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ResolutionLabel {
-    /// Side length of the copy.
-    pub side: u32,
-    /// Its Betti numbers over Z/2, computed from its voxels.
-    pub betti: Vec<u64>,
-    /// Its Euler characteristic.
-    pub euler: i64,
-    /// Its foreground voxel count.
-    pub hypervolume: u64,
-    /// Whether downscaling kept every Betti number.
-    pub preserved: bool,
-}
 
 /// A verified sample.
 #[derive(Clone, Debug)]

@@ -49,6 +49,19 @@ impl Compression {
         }
     }
 
+    /// Splits a compression suffix off a member name or field: `npy.gz` gives
+    /// (`npy`, [`Compression::Gzip`]), `npy.zst` gives (`npy`, [`Compression::Zstd`]),
+    /// anything else itself and [`Compression::None`]. The one parser of the suffixes that
+    /// [`Compression::suffix`] writes.
+    pub fn split_suffix(name: &str) -> (&str, Compression) {
+        for compression in [Compression::Gzip, Compression::Zstd] {
+            if let Some(base) = name.strip_suffix(compression.suffix()) {
+                return (base, compression);
+            }
+        }
+        (name, Compression::None)
+    }
+
     /// The lowercase name used in JSON and on the command line.
     pub fn name(self) -> &'static str {
         match self {

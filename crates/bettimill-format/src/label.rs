@@ -1,0 +1,94 @@
+//! The label stored as `KEY.json` in every sample.
+
+use bettimill_manifest::DeformSpec;
+use serde::{Deserialize, Serialize};
+
+/// The label stored as `KEY.json`. Field order is fixed by this struct, and the
+/// construction record is a JSON value with sorted keys, so equal labels are equal bytes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Label {
+    /// The WebDataset key.
+    pub key: String,
+    /// Betti numbers over Z/2, computed from the stored voxels.
+    pub betti: Vec<u64>,
+    /// Betti numbers over Q when they differ from the Z/2 ones (non-orientable pieces).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub betti_rational: Option<Vec<u64>>,
+    /// The coefficient field of `betti`.
+    pub field: String,
+    /// Euler characteristic.
+    pub euler: i64,
+    /// Foreground voxel count.
+    pub hypervolume: u64,
+    /// Number of objects placed by the construction.
+    pub components: u64,
+    /// Image shape.
+    pub shape: Vec<usize>,
+    /// Number of axes.
+    pub dim: usize,
+    /// `embed` or `carve`.
+    pub mode: String,
+    /// Construction family label.
+    pub family: String,
+    /// Knot or link type ("none" when there is none): a label Betti numbers cannot see.
+    pub knot_type: String,
+    /// Index of the sample's stratum (also stored as `KEY.cls`).
+    pub class_index: usize,
+    /// Human-readable stratum name.
+    pub class_label: String,
+    /// The sample's seed, 64 hex digits.
+    pub seed: String,
+    /// Which attempt (from 0) produced the sample; > 0 means earlier attempts were rejected.
+    pub attempt: u32,
+    /// The manifest's canonical hash.
+    pub manifest_hash: String,
+    /// bettimill version.
+    pub tool_version: String,
+    /// How the sample was built.
+    pub construction: serde_json::Value,
+    /// Deformation applied, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deform: Option<DeformSpec>,
+    /// The foreground voxel bin `[lo, hi]` the sample was brought into, if binned.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hypervolume_bin: Option<(u64, u64)>,
+    /// Downscaled copies (stored as `KEY.rSIDE.npy`), each with its own computed labels.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resolutions: Vec<ResolutionLabel>,
+}
+
+/// The label of one downscaled copy.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ResolutionLabel {
+    /// Side length of the copy.
+    pub side: u32,
+    /// Its Betti numbers over Z/2, computed from its voxels.
+    pub betti: Vec<u64>,
+    /// Its Euler characteristic.
+    pub euler: i64,
+    /// Its foreground voxel count.
+    pub hypervolume: u64,
+    /// Whether downscaling kept every Betti number.
+    pub preserved: bool,
+}
+
+impl Label {
+    /// Parses a `KEY.json` member.
+    pub fn from_json(bytes: &[u8]) -> Result<Label, serde_json::Error> {
+        serde_json::from_slice(bytes)
+    }
+
+    /// The stored Betti numbers of the copy of side `side`: the label's own for the full
+    /// resolution, a [`ResolutionLabel`]'s for a downscaled copy. `None` when the label has
+    /// no copy of that side.
+    pub fn betti_at(&self, side: Option<u32>) -> Option<&[u64]> {
+        match side {
+            None => Some(&self.betti),
+            Some(side) => self
+                .resolutions
+                .iter()
+                .find(|r| r.side == side)
+                .map(|r| r.betti.as_slice()),
+        }
+    }
+}

@@ -1,0 +1,96 @@
+//! The dataset directory of bettimill, owned in one place.
+//!
+//! Every crate and command that reads or writes a dataset directory goes through this crate;
+//! nobody else parses its records or labels. It holds:
+//!
+//! - [`dir`]: the layout (where each file lives), the identity file [`BuildInfo`] (checked
+//!   in full on every open), the completion records ([`CompletionRecord`]) and the one
+//!   streaming "does this tar match its record" check ([`DatasetDir::check_tar`]).
+//! - [`label`]: the label stored as `KEY.json` ([`Label`], [`ResolutionLabel`]).
+//! - [`member`]: member names and their compression suffixes.
+//!
+//! ```text
+//! DIR/manifest.toml             the manifest, byte for byte as given
+//! DIR/build.json                tool version, manifest hash, plan hash (written first)
+//! DIR/shards/NAME-000000.tar    WebDataset shards
+//! DIR/records/NAME-000000.json  one completion record per finished shard
+//! DIR/index.json                the hash manifest (written last, by finalize)
+//! DIR/shardindex-SPLIT.json     wids indexes, DIR/README.md the dataset card
+//! ```
+
+pub mod dir;
+pub mod label;
+pub mod member;
+
+pub use dir::{
+    check_build_info, check_tar_file, BuildInfo, CompletionRecord, DatasetDir, ShardState, TarCheck,
+};
+pub use label::{Label, ResolutionLabel};
+pub use member::{member_name, MemberName};
+
+use std::path::PathBuf;
+
+/// The bettimill version: written into every label, `build.json` and `index.json`.
+pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// Why a dataset directory could not be read or bound.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    /// The output directory holds something else.
+    #[error("{dir} is not empty and holds no bettimill dataset; choose an empty or new directory")]
+    ForeignDirectory {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// The directory holds a dataset of a different manifest.
+    #[error("{dir} holds a dataset built from a different manifest (hash {found}, this manifest is {expected}); use another --out directory")]
+    DifferentManifest {
+        /// The directory.
+        dir: PathBuf,
+        /// This manifest's hash.
+        expected: String,
+        /// The hash recorded in the directory.
+        found: String,
+    },
+    /// The directory was started by another bettimill version.
+    #[error("{dir} was built by bettimill {found} (its build.json says so), this is bettimill {expected}; shards of two versions must not mix: use bettimill {found} for this directory, or another --out directory")]
+    OtherToolVersion {
+        /// The directory.
+        dir: PathBuf,
+        /// The version recorded in the directory.
+        found: String,
+        /// This bettimill's version.
+        expected: String,
+    },
+    /// The directory's plan differs from the one this bettimill makes of the manifest.
+    #[error("{dir} holds plan {found} (built by bettimill {tool_version}), but this bettimill plans the same manifest as {expected}; use the bettimill that built it, or another --out directory")]
+    DifferentPlan {
+        /// The directory.
+        dir: PathBuf,
+        /// The version recorded in the directory.
+        tool_version: String,
+        /// The plan hash recorded in the directory.
+        found: String,
+        /// This bettimill's plan hash.
+        expected: String,
+    },
+    /// A file in the directory is not what bettimill wrote.
+    #[error("{path}: {reason}")]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An I/O error.
+    #[error("{path}: {source}")]
+    Io {
+        /// The path involved.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// Storage failed.
+    #[error(transparent)]
+    Shard(#[from] bettimill_shard::ShardError),
+}

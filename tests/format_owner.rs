@@ -1,0 +1,197 @@
+//! The dataset directory has one owner, `bettimill-format`:
+//!
+//! - no other crate parses JSON of the directory (records, labels, `build.json`) itself:
+//!   outside the format crate, library and binary sources never call `serde_json::from_*`,
+//!   and audit and preview never hold a `serde_json::Value`;
+//! - no other crate spells the layout (`join("records")`, `join("build.json")`, ...);
+//! - audit, preview and the CLI depend on the format crate, preview no longer on sample;
+//! - a directory started by another bettimill version is refused, naming both versions.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The non-test part of every `.rs` file under `crates/NAME/src`: everything before the
+/// first `#[cfg(test)]`, and nothing of files named `tests.rs`.
+fn sources(krate: &str) -> Vec<(PathBuf, String)> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if path.extension().is_some_and(|e| e == "rs")
+                && path.file_name().is_some_and(|n| n != "tests.rs")
+            {
+                out.push(path);
+            }
+        }
+    }
+    let mut files = Vec::new();
+    walk(
+        &workspace().join("crates").join(krate).join("src"),
+        &mut files,
+    );
+    assert!(!files.is_empty(), "no sources for {krate}");
+    files.sort();
+    files
+        .into_iter()
+        .map(|path| {
+            let text = std::fs::read_to_string(&path).unwrap();
+            let code = match text.find("#[cfg(test)]") {
+                Some(at) => text[..at].to_string(),
+                None => text,
+            };
+            (path, code)
+        })
+        .collect()
+}
+
+const READERS: [&str; 5] = [
+    "bettimill-executor",
+    "bettimill-audit",
+    "bettimill-preview",
+    "bettimill-cli",
+    "bettimill-sample",
+];
+
+#[test]
+fn only_the_format_crate_parses_directory_json() {
+    let mut offences = Vec::new();
+    for krate in READERS {
+        for (path, code) in sources(krate) {
+            for needle in [
+                "serde_json::from_slice",
+                "serde_json::from_str",
+                "serde_json::from_reader",
+                "serde_json::from_value",
+                "serde_json::Deserializer",
+            ] {
+                if code.contains(needle) {
+                    offences.push(format!("{}: {needle}", path.display()));
+                }
+            }
+            if (krate == "bettimill-audit" || krate == "bettimill-preview")
+                && code.contains("serde_json::Value")
+            {
+                offences.push(format!("{}: serde_json::Value", path.display()));
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "read the dataset directory through bettimill-format instead:\n{}",
+        offences.join("\n")
+    );
+}
+
+#[test]
+fn only_the_format_crate_spells_the_layout() {
+    let mut offences = Vec::new();
+    for krate in READERS {
+        for (path, code) in sources(krate) {
+            for file in [
+                "records",
+                "shards",
+                "build.json",
+                "index.json",
+                "manifest.toml",
+                "README.md",
+            ] {
+                let needle = format!("join(\"{file}\")");
+                if code.contains(&needle) {
+                    offences.push(format!("{}: {needle}", path.display()));
+                }
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "use bettimill_format::DatasetDir for paths inside a dataset:\n{}",
+        offences.join("\n")
+    );
+}
+
+#[test]
+fn readers_depend_on_the_format_crate() {
+    for krate in [
+        "bettimill-executor",
+        "bettimill-audit",
+        "bettimill-preview",
+        "bettimill-cli",
+        "bettimill-sample",
+    ] {
+        let toml =
+            std::fs::read_to_string(workspace().join("crates").join(krate).join("Cargo.toml"))
+                .unwrap();
+        assert!(
+            toml.contains("bettimill-format.workspace = true"),
+            "{krate} must read the directory through bettimill-format"
+        );
+        if krate == "bettimill-preview" {
+            assert!(
+                !toml.contains("bettimill-sample"),
+                "preview needs only the label, which lives in bettimill-format"
+            );
+        }
+    }
+}
+
+fn bettimill(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_bettimill"))
+        .args(args)
+        .output()
+        .expect("bettimill runs")
+}
+
+#[test]
+fn a_directory_of_another_tool_version_is_refused_naming_both_versions() {
+    let tmp = tempfile::tempdir().unwrap();
+    let manifest = tmp.path().join("m.toml");
+    std::fs::write(
+        &manifest,
+        "schema_version = 1\nname = \"v\"\ndimension = 2\nside = 16\nmode = [\"embed\"]\n\
+         samples = 4\nshard_size = 2\nseed = 1\n\n[[classes]]\nfamily = \"ball\"\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let (m, o) = (manifest.to_str().unwrap(), out.to_str().unwrap());
+    let built = bettimill(&["build", m, "--out", o, "--quiet", "--workers", "1"]);
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    // Pretend an older bettimill started the directory.
+    let build_json = out.join("build.json");
+    let text = std::fs::read_to_string(&build_json).unwrap();
+    let version = env!("CARGO_PKG_VERSION");
+    let older = text.replace(
+        &format!("\"tool_version\": \"{version}\""),
+        "\"tool_version\": \"0.0.1-old\"",
+    );
+    assert_ne!(older, text, "build.json records the tool version");
+    std::fs::write(&build_json, &older).unwrap();
+    let shard = out.join("shards").join("v-000001.tar");
+    std::fs::remove_file(&shard).unwrap();
+    for args in [
+        vec!["build", m, "--out", o, "--quiet", "--workers", "1"],
+        vec!["status", o],
+        vec!["finalize", o, "--quiet"],
+    ] {
+        let refused = bettimill(&args);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert!(!refused.status.success(), "{args:?} must refuse: {stderr}");
+        assert!(
+            stderr.contains("built by bettimill 0.0.1-old")
+                && stderr.contains(&format!("this is bettimill {version}")),
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(
+        !shard.exists(),
+        "nothing is written into the other version's directory"
+    );
+}
