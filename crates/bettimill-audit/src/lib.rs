@@ -151,34 +151,34 @@ pub enum AuditError {
 
 /// Chooses the shards of `dataset` named by `selection`.
 pub fn select(dataset: &Dataset, selection: &Selection) -> Result<Vec<ShardPlan>, AuditError> {
-    let shards = &dataset.plan.shards;
+    let plan = &dataset.plan;
+    let shard_count = plan.shard_count();
     match selection {
         Selection::Fraction { fraction, seed } => {
             if !(*fraction > 0.0 && *fraction <= 1.0) {
                 return Err(AuditError::BadFraction(*fraction));
             }
-            let count = ((shards.len() as f64) * fraction).ceil() as usize;
-            let mut order: Vec<usize> = (0..shards.len()).collect();
+            let count = ((shard_count as f64) * fraction).ceil() as usize;
+            let mut order: Vec<u64> = (0..shard_count).collect();
             let mut rng = rand_chacha::ChaCha8Rng::from_seed(bettimill_plan::derive_seed(
                 "bettimill audit selection v1",
                 &[dataset.plan.manifest_hash.as_bytes(), &seed.to_le_bytes()],
             ));
             order.shuffle(&mut rng);
-            let mut chosen: Vec<usize> = order.into_iter().take(count.max(1)).collect();
+            let mut chosen: Vec<u64> = order.into_iter().take(count.max(1)).collect();
             chosen.sort_unstable();
-            Ok(chosen.into_iter().map(|i| shards[i].clone()).collect())
+            Ok(chosen.into_iter().map(|i| plan.shard(i)).collect())
         }
         Selection::Shards(names) => names
             .iter()
             .map(|name| {
-                shards
-                    .iter()
-                    .find(|s| {
-                        s.name == *name
-                            || s.name.trim_end_matches(".tar") == name.trim_end_matches(".tar")
-                            || name.parse::<u64>().ok() == Some(s.index)
+                plan.shard_named(name.trim_end_matches(".tar"))
+                    .or_else(|| {
+                        name.parse::<u64>()
+                            .ok()
+                            .filter(|&i| i < shard_count)
+                            .map(|i| plan.shard(i))
                     })
-                    .cloned()
                     .ok_or_else(|| AuditError::UnknownShard(name.clone()))
             })
             .collect(),

@@ -65,7 +65,7 @@ fn a_clean_dataset_rebuilds_identically_and_relabels_cleanly() {
 fn a_tampered_shard_is_named_exactly() {
     let dir = scratch("tampered");
     let dataset = built(&dir);
-    let target = dataset.plan.shards[1].clone();
+    let target = dataset.plan.shard(1);
     let path = dataset.tar_path(&target);
     let mut bytes = std::fs::read(&path).unwrap();
     // Change one voxel of the first array: the rebuild must name that member.

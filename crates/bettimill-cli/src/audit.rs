@@ -45,7 +45,7 @@ pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<Status> {
     }
     let chosen = match &selection {
         Some(selection) => bettimill_audit::select(&dataset, selection)?,
-        None => dataset.plan.shards.clone(),
+        None => dataset.plan.shards().collect(),
     };
     drop(dataset);
     // One bar over both passes: every chosen sample once per pass.

@@ -388,7 +388,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
     let dataset = Dataset::create(&args.out, &text, manifest)?;
     let tasks = args
         .tasks
-        .unwrap_or_else(|| (dataset.plan.shards.len() as u64).clamp(1, 1000));
+        .unwrap_or_else(|| dataset.plan.shard_count().clamp(1, 1000));
     let program = std::env::current_exe().context("cannot find the running bettimill binary")?;
     let scripts = cluster::write_slurm_scripts(
         &dataset,

@@ -17,7 +17,7 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
     let seconds =
         plan.samples as f64 * voxels * NS_PER_VOXEL[plan.dimension.get() - 2] / 1e9 / cores;
     let totals = plan.total_counts();
-    let per_shard: Vec<Vec<u64>> = plan.shards.iter().map(|s| plan.shard_counts(s)).collect();
+    let per_shard: Vec<Vec<u64>> = plan.shards().map(|s| plan.shard_counts(&s)).collect();
     if json {
         let strata: Vec<serde_json::Value> = plan
             .strata
@@ -36,8 +36,7 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
             })
             .collect();
         let shards: Vec<serde_json::Value> = plan
-            .shards
-            .iter()
+            .shards()
             .zip(&per_shard)
             .map(|(s, counts)| {
                 serde_json::json!({
@@ -98,10 +97,9 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
     }
     outln!();
     for (split, size) in &plan.splits {
-        let shards: Vec<_> = plan.shards.iter().filter(|s| &s.split == split).collect();
         outln!(
             "split {split}: {size} samples in {} shards of up to {}",
-            shards.len(),
+            plan.split_shards(split).count(),
             plan.shard_size
         );
     }

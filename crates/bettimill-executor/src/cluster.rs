@@ -67,12 +67,12 @@ pub struct InvalidShard {
 pub fn status(dataset: &Dataset) -> StatusReport {
     let mut report = StatusReport {
         dir: dataset.dir.clone(),
-        shards: dataset.plan.shards.len() as u64,
+        shards: dataset.plan.shard_count(),
         finalized: dataset.layout().is_finalized(),
         ..StatusReport::default()
     };
-    for shard in &dataset.plan.shards {
-        match dataset.shard_state(shard) {
+    for shard in dataset.plan.shards() {
+        match dataset.shard_state(&shard) {
             ShardState::Complete(_) => report.complete.push(shard.name.clone()),
             ShardState::Missing => report.missing.push(shard.name.clone()),
             ShardState::Invalid { reason } => report.invalid.push(InvalidShard {
@@ -148,8 +148,7 @@ pub fn write_slurm_scripts(
     })?;
     let incomplete: Vec<u64> = dataset
         .plan
-        .shards
-        .iter()
+        .shards()
         .filter(|s| dataset.completed(s).is_none())
         .map(|s| s.index)
         .collect();

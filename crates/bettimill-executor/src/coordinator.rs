@@ -18,6 +18,7 @@
 
 use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
 use crate::{BuildError, Dataset, DirLock, LockError};
+use bettimill_plan::{Plan, ShardPlan};
 use bettimill_sample::TOOL_VERSION;
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::ffi::OsString;
@@ -229,14 +230,14 @@ pub fn run(
     // Shards hashed here, or by the worker that writes them below: finalize need not read
     // them back.
     let mut checked = BTreeSet::new();
-    for (i, shard) in dataset.plan.shards.iter().enumerate() {
-        if dataset.completed(shard).is_some() {
+    for (i, shard) in dataset.plan.shards().enumerate() {
+        if dataset.completed(&shard).is_some() {
             checked.insert(shard.name.clone());
         } else {
             missing.push(i);
         }
     }
-    let shards = dataset.plan.shards.len() as u64;
+    let shards = dataset.plan.shard_count();
     let mut report = BuildReport {
         skipped: shards - missing.len() as u64,
         shards,
@@ -248,7 +249,7 @@ pub fn run(
         skipped: report.skipped,
         samples: missing
             .iter()
-            .map(|&i| dataset.plan.shards[i].samples)
+            .map(|&i| dataset.plan.shard(i as u64).samples)
             .sum(),
         workers,
     });
@@ -315,12 +316,7 @@ async fn drive(
         any_handshake: std::sync::atomic::AtomicBool::new(false),
         options: options.clone(),
         handshake,
-        shards: dataset
-            .plan
-            .shards
-            .iter()
-            .map(|s| (s.name.clone(), s.samples))
-            .collect(),
+        plan: dataset.plan.clone(),
         scheduler: scheduler.clone(),
     });
     let mut slots = tokio::task::JoinSet::new();
@@ -376,7 +372,7 @@ struct SlotContext {
     any_handshake: std::sync::atomic::AtomicBool,
     options: BuildOptions,
     handshake: Handshake,
-    shards: Vec<(String, u64)>,
+    plan: Plan,
     scheduler: Arc<Mutex<Scheduler>>,
 }
 
@@ -448,7 +444,7 @@ async fn run_slot(
         let Some(shard_index) = context.lock().queue.pop_front() else {
             break;
         };
-        let (name, samples) = context.shards[shard_index].clone();
+        let ShardPlan { name, samples, .. } = context.plan.shard(shard_index as u64);
         let mut early_death = None;
         if worker.is_none() {
             match start_worker(&context).await {

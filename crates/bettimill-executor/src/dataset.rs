@@ -229,9 +229,10 @@ impl Dataset {
         mut progress: impl FnMut(u64, u64),
     ) -> Result<BuildSummary, BuildError> {
         let mut summary = BuildSummary::default();
-        let total = self.plan.shards.len() as u64;
+        let total = self.plan.shard_count();
         let mut checked = BTreeSet::new();
-        for (done, shard) in self.plan.shards.iter().enumerate() {
+        for (done, shard) in self.plan.shards().enumerate() {
+            let shard = &shard;
             if self.completed(shard).is_some() {
                 summary.skipped += 1;
             } else {
@@ -284,10 +285,8 @@ impl Dataset {
     /// The shards that are not complete yet.
     pub fn missing_shards(&self) -> Vec<ShardPlan> {
         self.plan
-            .shards
-            .iter()
+            .shards()
             .filter(|s| self.completed(s).is_none())
-            .cloned()
             .collect()
     }
 
@@ -303,8 +302,9 @@ impl Dataset {
     /// and size, so a build does not read back every byte it has just written; every other
     /// shard is hashed as in [`Dataset::finalize`].
     pub fn finalize_checked(&self, checked: &BTreeSet<String>) -> Result<Index, BuildError> {
-        let mut shards = Vec::with_capacity(self.plan.shards.len());
-        for plan in &self.plan.shards {
+        let mut shards = Vec::with_capacity(self.plan.shard_count() as usize);
+        for plan in self.plan.shards() {
+            let plan = &plan;
             let record = if checked.contains(&plan.name) {
                 self.recorded(plan)
             } else {
@@ -366,11 +366,11 @@ impl Dataset {
         }
         card.push_str("\n## Splits\n\n| split | samples | shards |\n|---|---|---|\n");
         for (split, size) in &plan.splits {
-            let shards = plan.shards.iter().filter(|s| &s.split == split).count();
+            let shards = plan.split_shards(split).count();
             card.push_str(&format!("| {split} | {size} | {shards} |\n"));
         }
-        let first = plan.shards.first().map(|s| s.name.as_str()).unwrap_or("");
-        let last = plan.shards.last().map(|s| s.name.as_str()).unwrap_or("");
+        let first = plan.shard(0).name;
+        let last = plan.shard(plan.shard_count() - 1).name;
         card.push_str(&format!(
             "\n## Loading in PyTorch\n\n```python\nimport torch, webdataset as wds\n\
              urls = \"shards/{{{first}..{last}}}.tar\"  # or list the files of one split\n\

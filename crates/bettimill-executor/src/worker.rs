@@ -185,15 +185,14 @@ pub fn serve(
             ToWorker::Shutdown => break,
             ToWorker::Build { shard_index } => shard_index,
         };
-        let Some(shard) = usize::try_from(shard_index)
-            .ok()
-            .and_then(|i| dataset.plan.shards.get(i))
+        let Some(shard) =
+            (shard_index < dataset.plan.shard_count()).then(|| dataset.plan.shard(shard_index))
         else {
             send(&FromWorker::Failed {
                 shard_index,
                 reason: format!(
                     "the plan has {} shards, there is no shard {shard_index}",
-                    dataset.plan.shards.len()
+                    dataset.plan.shard_count()
                 ),
             })?;
             continue;
@@ -213,7 +212,7 @@ pub fn serve(
                 regenerations,
             });
         };
-        let result = pool.install(|| dataset.write_shard_with_progress(shard, &progress));
+        let result = pool.install(|| dataset.write_shard_with_progress(&shard, &progress));
         match result {
             Ok(record) => send(&FromWorker::Done {
                 shard_index,
@@ -257,12 +256,15 @@ pub fn run_task(
         return Err(WorkerError::InjectedTaskFailure { index: task_index });
     }
     let mut report = TaskReport::default();
-    for shard in dataset
-        .plan
-        .shards
-        .iter()
-        .filter(|s| task_count > 0 && s.index % task_count == task_index)
-    {
+    let shard_count = if task_count > 0 {
+        dataset.plan.shard_count()
+    } else {
+        0
+    };
+    // Only this task's shards are computed: an array task of a 10^7-shard plan does not walk
+    // every shard.
+    for shard_index in (task_index..shard_count).step_by(task_count.max(1) as usize) {
+        let shard = &dataset.plan.shard(shard_index);
         if dataset.completed(shard).is_some() {
             report.skipped.push(shard.name.clone());
             continue;

@@ -96,10 +96,15 @@ pub struct SampleTask {
 }
 
 /// The expanded manifest.
+///
+/// Shards are not stored: a dataset of 10^7 one-sample shards has a plan of a few
+/// kilobytes, and [`Plan::shard`] computes any shard from the split table in constant time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// The manifest's canonical hash.
     pub manifest_hash: String,
+    /// The dataset name: the prefix of every shard file.
+    pub name: String,
     /// Number of axes.
     pub dimension: Dim,
     /// Voxels per axis.
@@ -112,10 +117,10 @@ pub struct Plan {
     pub infeasible: Vec<Infeasible>,
     /// Samples per split, in split order.
     pub splits: Vec<(String, u64)>,
+    /// Whether the manifest names its splits (then shard names carry the split).
+    pub named_splits: bool,
     /// Samples per shard.
     pub shard_size: u64,
-    /// The shards, in order.
-    pub shards: Vec<ShardPlan>,
     /// The order in which strata are dealt out cyclically.
     pub deal_order: Vec<usize>,
 }
@@ -155,37 +160,17 @@ impl Plan {
         deal_order.shuffle(&mut rng);
         let shard_size = manifest.samples_per_shard();
         let splits = manifest.split_sizes();
-        let named_splits = manifest.splits.is_some();
-        let mut shards = Vec::new();
-        let mut split_start = 0;
-        for (split, size) in &splits {
-            for k in 0..size.div_ceil(shard_size) {
-                let first_sample = split_start + k * shard_size;
-                let name = if named_splits {
-                    format!("{}-{split}-{k:06}", manifest.name)
-                } else {
-                    format!("{}-{k:06}", manifest.name)
-                };
-                shards.push(ShardPlan {
-                    index: shards.len() as u64,
-                    split: split.clone(),
-                    name,
-                    first_sample,
-                    samples: shard_size.min(split_start + size - first_sample),
-                });
-            }
-            split_start += size;
-        }
         Ok(Plan {
             manifest_hash,
+            name: manifest.name.clone(),
             dimension: manifest.dimension,
             side: manifest.side,
             samples: manifest.samples,
             strata,
             infeasible,
             splits,
+            named_splits: manifest.splits.is_some(),
             shard_size,
-            shards,
             deal_order,
         })
     }
@@ -196,17 +181,105 @@ impl Plan {
         blake3::hash(json.as_bytes()).to_hex().to_string()
     }
 
+    /// Number of shards over all splits.
+    pub fn shard_count(&self) -> u64 {
+        self.splits
+            .iter()
+            .map(|(_, size)| size.div_ceil(self.shard_size))
+            .sum()
+    }
+
+    /// Shard `index` (from 0, over the whole dataset). Panics if `index >= shard_count()`:
+    /// callers take indexes from [`Plan::shards`] or check them first.
+    pub fn shard(&self, index: u64) -> ShardPlan {
+        let mut first_shard = 0;
+        let mut split_start = 0;
+        for (split, size) in &self.splits {
+            let count = size.div_ceil(self.shard_size);
+            if index < first_shard + count {
+                let k = index - first_shard;
+                let first_sample = split_start + k * self.shard_size;
+                return ShardPlan {
+                    index,
+                    split: split.clone(),
+                    name: self.shard_name(split, k),
+                    first_sample,
+                    samples: self.shard_size.min(split_start + size - first_sample),
+                };
+            }
+            first_shard += count;
+            split_start += size;
+        }
+        panic!(
+            "shard {index} asked of a plan with {} shards",
+            self.shard_count()
+        )
+    }
+
+    /// Every shard, in order, computed one at a time.
+    pub fn shards(&self) -> impl ExactSizeIterator<Item = ShardPlan> + '_ {
+        (0..self.shard_count() as usize).map(|i| self.shard(i as u64))
+    }
+
+    /// The shards of one split, in order.
+    pub fn split_shards<'a>(&'a self, split: &'a str) -> impl Iterator<Item = ShardPlan> + 'a {
+        let mut first_shard = 0;
+        let mut range = 0..0;
+        for (name, size) in &self.splits {
+            let count = size.div_ceil(self.shard_size);
+            if name == split {
+                range = first_shard..first_shard + count;
+            }
+            first_shard += count;
+        }
+        range.map(|i| self.shard(i))
+    }
+
+    /// The shard whose file stem is `name`, if the plan has one.
+    pub fn shard_named(&self, name: &str) -> Option<ShardPlan> {
+        let mut first_shard = 0;
+        for (split, size) in &self.splits {
+            let count = size.div_ceil(self.shard_size);
+            let prefix = self.shard_name(split, 0);
+            let prefix = &prefix[..prefix.len() - 6];
+            if let Some(k) = name
+                .strip_prefix(prefix)
+                .and_then(|k| k.parse::<u64>().ok())
+            {
+                if k < count && self.shard_name(split, k) == name {
+                    return Some(self.shard(first_shard + k));
+                }
+            }
+            first_shard += count;
+        }
+        None
+    }
+
+    /// File stem of shard `k` of a split: `NAME-000000`, or `NAME-SPLIT-000000` when the
+    /// manifest names its splits.
+    fn shard_name(&self, split: &str, k: u64) -> String {
+        if self.named_splits {
+            format!("{}-{split}-{k:06}", self.name)
+        } else {
+            format!("{}-{k:06}", self.name)
+        }
+    }
+
     /// How many samples of each stratum a shard holds (indexed like [`Plan::strata`]),
     /// computed from the dealing rule without drawing any seed.
     pub fn shard_counts(&self, shard: &ShardPlan) -> Vec<u64> {
-        let n_strata = self.strata.len() as i64;
-        let first = shard.first_sample as i64;
-        let end = first + shard.samples as i64;
+        self.range_counts(shard.first_sample, shard.first_sample + shard.samples)
+    }
+
+    /// Samples of each stratum among the samples `first..end`.
+    fn range_counts(&self, first: u64, end: u64) -> Vec<u64> {
+        let n_strata = self.strata.len() as i128;
+        let (first, end) = (first as i128, end as i128);
         let mut counts = vec![0u64; self.strata.len()];
         for (position, &stratum) in self.deal_order.iter().enumerate() {
             // Dealt positions p in [first, end) with p mod S == position.
-            let q = position as i64;
-            let upto = |x: i64| (x - q).div_euclid(n_strata);
+            let q = position as i128;
+            let upto = |x: i128| (x - q).div_euclid(n_strata);
             counts[stratum] = (upto(end - 1) - upto(first - 1)) as u64;
         }
         counts
@@ -214,13 +287,7 @@ impl Plan {
 
     /// Samples of each stratum over the whole dataset.
     pub fn total_counts(&self) -> Vec<u64> {
-        let mut totals = vec![0u64; self.strata.len()];
-        for shard in &self.shards {
-            for (t, c) in totals.iter_mut().zip(self.shard_counts(shard)) {
-                *t += c;
-            }
-        }
-        totals
+        self.range_counts(0, self.samples)
     }
 
     /// The tasks of one shard, in the order they are written.
@@ -347,23 +414,22 @@ mod tests {
         let a = Plan::new(&manifest(100, 7)).unwrap();
         let b = Plan::new(&manifest(100, 7)).unwrap();
         assert_eq!(a.hash(), b.hash());
-        assert_eq!(a.shard_tasks(&a.shards[3]), b.shard_tasks(&b.shards[3]));
+        assert_eq!(a.shard_tasks(&a.shard(3)), b.shard_tasks(&b.shard(3)));
         assert_ne!(a.hash(), Plan::new(&manifest(101, 7)).unwrap().hash());
     }
 
     #[test]
     fn shards_cover_every_sample_once() {
         let plan = Plan::new(&manifest(103, 10)).unwrap();
-        assert_eq!(plan.shards.len(), 11);
+        assert_eq!(plan.shard_count(), 11);
         let mut all: Vec<u64> = plan
-            .shards
-            .iter()
-            .flat_map(|s| plan.shard_tasks(s))
+            .shards()
+            .flat_map(|s| plan.shard_tasks(&s))
             .map(|t| t.index)
             .collect();
         all.sort();
         assert_eq!(all, (0..103).collect::<Vec<_>>());
-        assert_eq!(plan.shards[10].samples, 3);
+        assert_eq!(plan.shard(10).samples, 3);
     }
 
     fn counts(plan: &Plan, tasks: &[SampleTask]) -> Vec<u64> {
@@ -377,10 +443,10 @@ mod tests {
     #[test]
     fn counting_agrees_with_the_tasks() {
         let plan = Plan::new(&manifest(97, 11)).unwrap();
-        for shard in &plan.shards {
+        for shard in plan.shards() {
             assert_eq!(
-                plan.shard_counts(shard),
-                counts(&plan, &plan.shard_tasks(shard))
+                plan.shard_counts(&shard),
+                counts(&plan, &plan.shard_tasks(&shard))
             );
         }
         assert_eq!(plan.total_counts().iter().sum::<u64>(), 97);
@@ -424,13 +490,13 @@ mod tests {
             let plan = Plan::new(&random_manifest(samples, shard_size, classes, copies, val)).unwrap();
             let mut all = Vec::new();
             for split in &plan.splits {
-                let tasks: Vec<SampleTask> = plan.shards.iter().filter(|s| s.split == split.0)
-                    .flat_map(|s| plan.shard_tasks(s)).collect();
+                let tasks: Vec<SampleTask> = plan.split_shards(&split.0)
+                    .flat_map(|s| plan.shard_tasks(&s)).collect();
                 proptest::prop_assert!(spread(&counts(&plan, &tasks)) <= 1);
                 all.extend(tasks);
             }
-            for shard in &plan.shards {
-                proptest::prop_assert!(spread(&plan.shard_counts(shard)) <= 1);
+            for shard in plan.shards() {
+                proptest::prop_assert!(spread(&plan.shard_counts(&shard)) <= 1);
             }
             proptest::prop_assert!(spread(&counts(&plan, &all)) <= 1);
             proptest::prop_assert_eq!(all.len() as u64, samples);
@@ -440,8 +506,8 @@ mod tests {
         fn balance_is_exact_per_dataset_and_per_shard(samples in 1u64..400, shard_size in 1u64..60) {
             let plan = Plan::new(&manifest(samples, shard_size)).unwrap();
             let mut all = Vec::new();
-            for shard in &plan.shards {
-                let tasks = plan.shard_tasks(shard);
+            for shard in plan.shards() {
+                let tasks = plan.shard_tasks(&shard);
                 let c = counts(&plan, &tasks);
                 proptest::prop_assert!(c.iter().max().unwrap() - c.iter().min().unwrap() <= 1);
                 all.extend(tasks);

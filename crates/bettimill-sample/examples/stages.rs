@@ -47,9 +47,8 @@ fn main() {
     let plan = Plan::new(&manifest).expect("plan");
     let side = plan.side as usize;
     let tasks: Vec<_> = plan
-        .shards
-        .iter()
-        .flat_map(|s| plan.shard_tasks(s))
+        .shards()
+        .flat_map(|s| plan.shard_tasks(&s))
         .take(n)
         .collect();
     for task in tasks {
