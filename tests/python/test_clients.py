@@ -92,6 +92,13 @@ class Dataset:
             path = root / shard["name"]
             assert path.is_file(), f"{path}: listed in index.json but missing"
             assert path.stat().st_size == shard["bytes"], f"{path}: size differs from index.json"
+            # index.json (format version 2) lists shards; each shard's members (name, offset,
+            # bytes, blake3) are in its completion record, records/NAME.json.
+            stem = shard["name"].removeprefix("shards/").removesuffix(".tar")
+            record = json.loads((root / "records" / f"{stem}.json").read_text())
+            assert record["shard"]["name"] == shard["name"], f"{stem}: record of another shard"
+            assert record["shard"]["blake3"] == shard["blake3"], f"{stem}: record and index.json disagree"
+            shard["members"] = record["shard"]["members"]
             self.splits.setdefault(shard["split"], []).append(shard)
 
     def shard_paths(self, split):

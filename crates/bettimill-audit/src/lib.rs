@@ -197,6 +197,9 @@ pub fn rebuild_with_progress(
     shards: &[ShardPlan],
     progress: &(dyn Fn() + Sync),
 ) -> Result<AuditReport, AuditError> {
+    bettimill_format::DatasetDir::new(dir)
+        .check_index()
+        .map_err(BuildError::from)?;
     let stored = Dataset::open(dir)?;
     let scratch = dir.join(format!(".audit-{}", std::process::id()));
     let io = |source| AuditError::Io {
@@ -270,6 +273,9 @@ pub fn relabel_with_progress(
     shards: &[ShardPlan],
     progress: &(dyn Fn() + Sync),
 ) -> Result<AuditReport, AuditError> {
+    bettimill_format::DatasetDir::new(dir)
+        .check_index()
+        .map_err(BuildError::from)?;
     let dataset = Dataset::open(dir)?;
     let per_shard: Vec<(u64, Vec<Finding>)> = shards
         .par_iter()

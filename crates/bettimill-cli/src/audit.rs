@@ -31,6 +31,8 @@ pub struct AuditArgs {
 
 /// Runs an audit, with a progress bar per sample on stderr (see `crate::progress`).
 pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<Status> {
+    // An index of an older format is named as such before the plan is compared.
+    bettimill_format::DatasetDir::new(&args.dir).check_index()?;
     let dataset = Dataset::open(&args.dir)?;
     let selection = match (&args.rebuild, &args.shards) {
         (Some(fraction), _) => Some(Selection::Fraction {

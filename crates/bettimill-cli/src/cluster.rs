@@ -531,8 +531,9 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
     dataset.remove_temporaries()?;
     // `status` has just hashed every shard: finalize checks their records and sizes only,
     // so a standalone finalize reads every byte once, not twice.
-    let checked = status.complete.iter().cloned().collect();
-    dataset.finalize_checked(&checked)?;
+    let checked: std::collections::BTreeSet<&str> =
+        status.complete.iter().map(String::as_str).collect();
+    dataset.finalize_checked(&|shard| checked.contains(shard.name.as_str()))?;
     if !quiet {
         eprintln!(
             "{} shards complete; wrote {}",

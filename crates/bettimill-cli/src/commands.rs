@@ -243,7 +243,7 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
 fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<Status> {
     // The bar appears once the index is read and the number of shards known.
     let mut bar = None;
-    let report = bettimill_shard::verify_with_progress(dir, &mut |done, total| {
+    let report = bettimill_format::DatasetDir::new(dir).verify(&mut |done, total| {
         bar.get_or_insert_with(|| crate::progress::bar(total, "shards", "verifying", quiet))
             .set_position(done);
     });

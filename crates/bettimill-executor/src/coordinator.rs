@@ -20,7 +20,7 @@ use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker
 use crate::{BuildError, Dataset, DirLock, LockError};
 use bettimill_plan::{Plan, ShardPlan};
 use bettimill_sample::TOOL_VERSION;
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::collections::{BTreeMap, VecDeque};
 use std::ffi::OsString;
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -195,8 +195,8 @@ struct Scheduler {
     failures: BTreeMap<usize, Vec<String>>,
     given_up: Vec<FailedShard>,
     built: u64,
-    /// Names of the shards built in this run.
-    built_names: Vec<String>,
+    /// Plan indexes of the shards built in this run.
+    built_indexes: Vec<usize>,
     samples: u64,
     regenerations: u64,
     retries: u64,
@@ -228,15 +228,18 @@ pub fn run(
     dataset.remove_temporaries()?;
     let mut missing = Vec::new();
     // Shards hashed here, or by the worker that writes them below: finalize need not read
-    // them back.
-    let mut checked = BTreeSet::new();
+    // them back. Only shards with a record are opened (one listing of records/ says which),
+    // so a new build starts its workers without touching a file per shard.
+    let recorded = dataset.record_names()?;
+    let mut checked = vec![false; dataset.plan.shard_count() as usize];
     for (i, shard) in dataset.plan.shards().enumerate() {
-        if dataset.completed(&shard).is_some() {
-            checked.insert(shard.name.clone());
+        if dataset.completed_among(&shard, &recorded).is_some() {
+            checked[i] = true;
         } else {
             missing.push(i);
         }
     }
+    drop(recorded);
     let shards = dataset.plan.shard_count();
     let mut report = BuildReport {
         skipped: shards - missing.len() as u64,
@@ -258,7 +261,7 @@ pub fn run(
         failures: BTreeMap::new(),
         given_up: Vec::new(),
         built: 0,
-        built_names: Vec::new(),
+        built_indexes: Vec::new(),
         samples: 0,
         regenerations: 0,
         retries: 0,
@@ -289,9 +292,11 @@ pub fn run(
     report.retries = scheduler.retries;
     report.failed = scheduler.given_up.clone();
     report.complete = report.skipped + report.built;
-    checked.extend(scheduler.built_names.iter().cloned());
+    for &i in &scheduler.built_indexes {
+        checked[i] = true;
+    }
     if report.complete == shards && !report.interrupted {
-        dataset.finalize_checked(&checked)?;
+        dataset.finalize_checked(&|shard| checked[shard.index as usize])?;
         report.finalized = true;
     }
     Ok(report)
@@ -488,7 +493,7 @@ async fn run_slot(
             Attempt::Done { regenerations } => {
                 let mut scheduler = context.lock();
                 scheduler.built += 1;
-                scheduler.built_names.push(name.clone());
+                scheduler.built_indexes.push(shard_index);
                 scheduler.samples += samples;
                 scheduler.regenerations += regenerations;
                 drop(scheduler);

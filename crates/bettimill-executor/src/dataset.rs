@@ -1,13 +1,16 @@
 //! The output directory of one dataset and the operations on it.
 
+use bettimill_format::TarCheck;
 use bettimill_format::{member_name, DatasetDir, FormatError, TOOL_VERSION};
 pub use bettimill_format::{BuildInfo, CompletionRecord, ShardState};
 use bettimill_manifest::{Compression, Manifest, ManifestError};
 use bettimill_plan::{Plan, ShardPlan};
 use bettimill_sample::{make_sample, SampleError};
-use bettimill_shard::{self as shard, Index, Member, ShardError};
+use bettimill_shard::{
+    self as shard, AtomicFile, IndexHeader, IndexWriter, Member, ShardError, WidsWriter,
+};
 use rayon::prelude::*;
-use std::collections::BTreeSet;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Why a build step failed.
@@ -138,15 +141,30 @@ impl Dataset {
         self.layout.record_path(&shard.name)
     }
 
-    /// The shard's completion record if the tar on disk has the record's size (no hash).
-    fn recorded(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
-        self.layout.recorded(&shard.name)
-    }
-
     /// The shard's completion record if the shard on disk matches it (size, then the
     /// blake3 streamed through a fixed buffer), else `None`.
     pub fn completed(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
         self.layout.completed(&shard.name)
+    }
+
+    /// The names of the shards that have a completion record, sorted: one directory listing,
+    /// so start-up does not open a record per shard of the plan (most are absent in a new
+    /// build).
+    pub fn record_names(&self) -> Result<Vec<String>, BuildError> {
+        Ok(self.layout.record_names()?)
+    }
+
+    /// [`Dataset::completed`], answering `None` without touching the disk when `recorded`
+    /// (from [`Dataset::record_names`]) has no record of the shard.
+    pub fn completed_among(
+        &self,
+        shard: &ShardPlan,
+        recorded: &[String],
+    ) -> Option<CompletionRecord> {
+        recorded
+            .binary_search(&shard.name)
+            .ok()
+            .and_then(|_| self.completed(shard))
     }
 
     /// Generates, verifies and writes one shard (tar first, then its record).
@@ -230,21 +248,21 @@ impl Dataset {
     ) -> Result<BuildSummary, BuildError> {
         let mut summary = BuildSummary::default();
         let total = self.plan.shard_count();
-        let mut checked = BTreeSet::new();
+        let recorded = self.record_names()?;
         for (done, shard) in self.plan.shards().enumerate() {
             let shard = &shard;
-            if self.completed(shard).is_some() {
+            if self.completed_among(shard, &recorded).is_some() {
                 summary.skipped += 1;
             } else {
                 let record = self.write_shard(shard)?;
                 summary.built += 1;
                 summary.regenerations += record.regenerations.iter().map(|r| r.1).sum::<u64>();
             }
-            checked.insert(shard.name.clone());
             progress(done as u64 + 1, total);
         }
         summary.samples = self.plan.samples;
-        self.finalize_checked(&checked)?;
+        // Every shard was hashed above or written (and hashed) by this process.
+        self.finalize_checked(&|_| true)?;
         Ok(summary)
     }
 
@@ -292,45 +310,96 @@ impl Dataset {
 
     /// Writes index.json from the completion records once every shard is complete, checking
     /// every shard against its record (size and blake3).
-    pub fn finalize(&self) -> Result<Index, BuildError> {
-        self.finalize_checked(&BTreeSet::new())
+    pub fn finalize(&self) -> Result<IndexHeader, BuildError> {
+        self.finalize_checked(&|_| false)
     }
 
     /// [`Dataset::finalize`] for a build that has already checked some shards itself: the
-    /// shards named in `checked` (hashed by the process that wrote them, or by
+    /// shards `checked` accepts (hashed by the process that wrote them, or by
     /// [`Dataset::completed`] earlier in the same build) are only checked for their record
     /// and size, so a build does not read back every byte it has just written; every other
     /// shard is hashed as in [`Dataset::finalize`].
-    pub fn finalize_checked(&self, checked: &BTreeSet<String>) -> Result<Index, BuildError> {
-        let mut shards = Vec::with_capacity(self.plan.shard_count() as usize);
-        for plan in self.plan.shards() {
-            let plan = &plan;
-            let record = if checked.contains(&plan.name) {
-                self.recorded(plan)
-            } else {
-                self.completed(plan)
-            };
-            let record = record.ok_or_else(|| BuildError::Corrupt {
-                path: self.tar_path(plan),
-                reason: "shard is missing or does not match its record; run the build again".into(),
-            })?;
-            shards.push(record.shard);
-        }
-        let index = Index::new(
+    ///
+    /// Streams: one record at a time goes into `index.json` and the wids indexes as it is
+    /// read, so memory does not grow with samples or shards.
+    pub fn finalize_checked(
+        &self,
+        checked: &dyn Fn(&ShardPlan) -> bool,
+    ) -> Result<IndexHeader, BuildError> {
+        let header = IndexHeader::new(
             TOOL_VERSION,
             self.plan.manifest_hash.clone(),
             self.plan.hash(),
-            shards,
+            self.plan.shard_count(),
+            self.plan.samples,
         );
+        let index_file = AtomicFile::create(&self.layout.index_path())?;
+        let index_tmp = index_file.temporary().to_path_buf();
+        let mut index = IndexWriter::new(index_file, &header).map_err(|source| BuildError::Io {
+            path: index_tmp.clone(),
+            source,
+        })?;
+        let mut wids: BTreeMap<String, WidsWriter<AtomicFile>> = BTreeMap::new();
+        for plan in self.plan.shards() {
+            let corrupt = || BuildError::Corrupt {
+                path: self.tar_path(&plan),
+                reason: "shard is missing or does not match its record; run the build again".into(),
+            };
+            let (record, record_blake3) = match self.layout.read_record_hashed(&plan.name) {
+                Ok(Some(found)) => found,
+                _ => return Err(corrupt()),
+            };
+            let check = if checked(&plan) {
+                TarCheck::Size
+            } else {
+                TarCheck::Full
+            };
+            if self
+                .layout
+                .check_tar(&plan.name, &record.shard, check)
+                .is_err()
+            {
+                return Err(corrupt());
+            }
+            let entry = record.shard.index_entry(record_blake3);
+            index.push(&entry).map_err(|source| BuildError::Io {
+                path: index_tmp.clone(),
+                source,
+            })?;
+            let split = match wids.entry(entry.split.clone()) {
+                std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+                std::collections::btree_map::Entry::Vacant(e) => {
+                    let file = AtomicFile::create(&self.layout.wids_index_path(&entry.split))?;
+                    let tmp = file.temporary().to_path_buf();
+                    e.insert(
+                        WidsWriter::new(file, &entry.split)
+                            .map_err(|source| BuildError::Io { path: tmp, source })?,
+                    )
+                }
+            };
+            split
+                .push(&entry.name, entry.samples, entry.bytes)
+                .map_err(|source| BuildError::Io {
+                    path: self.layout.wids_index_path(&entry.split),
+                    source,
+                })?;
+        }
         // Indexes for other tools and the dataset card first: index.json is written last,
         // so its presence means the whole dataset is complete.
-        for split in index.splits() {
-            let bytes = shard::wids_index(&split, &index.split_shards(&split));
-            shard::write_atomic(&self.layout.wids_index_path(&split), &bytes)?;
+        for (_, writer) in wids {
+            let file = writer.finish().map_err(|source| BuildError::Io {
+                path: index_tmp.clone(),
+                source,
+            })?;
+            file.commit()?;
         }
         shard::write_atomic(&self.layout.card_path(), self.dataset_card().as_bytes())?;
-        shard::write_atomic(&self.layout.index_path(), &index.to_json_bytes())?;
-        Ok(index)
+        let file = index.finish().map_err(|source| BuildError::Io {
+            path: index_tmp.clone(),
+            source,
+        })?;
+        file.commit()?;
+        Ok(header)
     }
 
     /// The dataset card written as DIR/README.md: what the dataset is, how it was built,

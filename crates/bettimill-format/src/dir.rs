@@ -231,6 +231,72 @@ impl DatasetDir {
             })
     }
 
+    /// Reads a shard's completion record with the blake3 of its file (what `index.json`
+    /// keeps as `record_blake3`); `Ok(None)` when there is none.
+    pub fn read_record_hashed(
+        &self,
+        shard: &str,
+    ) -> Result<Option<(CompletionRecord, String)>, FormatError> {
+        let path = self.record_path(shard);
+        let bytes = match std::fs::read(&path) {
+            Ok(bytes) => bytes,
+            Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(source) => return Err(FormatError::Io { path, source }),
+        };
+        let record = serde_json::from_slice(&bytes).map_err(|err| FormatError::Corrupt {
+            path,
+            reason: format!("not a completion record: {err}"),
+        })?;
+        Ok(Some((record, shard::blake3_hex(&bytes))))
+    }
+
+    /// The shard name (`NAME`) of an index entry or record name (`shards/NAME.tar`).
+    pub fn shard_stem(relative: &str) -> &str {
+        let name = relative.strip_prefix("shards/").unwrap_or(relative);
+        name.strip_suffix(".tar").unwrap_or(name)
+    }
+
+    /// Checks every shard against `index.json` and the completion records it covers (see
+    /// `bettimill_shard::verify`), streaming the index and each shard. `progress` gets
+    /// (shards checked, shards in the index).
+    pub fn verify(
+        &self,
+        progress: &mut dyn FnMut(u64, u64),
+    ) -> Result<shard::VerifyReport, FormatError> {
+        let mut records = |entry: &shard::IndexShard| -> Result<ShardRecord, String> {
+            let name = DatasetDir::shard_stem(&entry.name);
+            let path = self.record_path(name);
+            match self.read_record_hashed(name) {
+                Ok(Some((record, hash))) if hash == entry.record_blake3 => Ok(record.shard),
+                Ok(Some((_, hash))) => Err(format!(
+                    "{} has blake3 {hash}, index.json says {}",
+                    path.display(),
+                    entry.record_blake3
+                )),
+                Ok(None) => Err(format!(
+                    "{} is missing (it lists the shard's members)",
+                    path.display()
+                )),
+                Err(err) => Err(err.to_string()),
+            }
+        };
+        Ok(shard::verify_with_progress(
+            &self.root,
+            &mut records,
+            progress,
+        )?)
+    }
+
+    /// Reads `index.json` through once, if it exists, and says why it cannot be used (such
+    /// as an index of an older format version); `Ok` when there is none yet.
+    pub fn check_index(&self) -> Result<(), FormatError> {
+        if !self.is_finalized() {
+            return Ok(());
+        }
+        shard::read_index(&self.index_path(), &mut |_, _| Ok(()))?;
+        Ok(())
+    }
+
     /// Writes a shard's completion record (atomically). Write it only after its tar.
     pub fn write_record(&self, shard: &str, record: &CompletionRecord) -> Result<(), FormatError> {
         Ok(shard::write_atomic(
@@ -353,20 +419,7 @@ pub fn check_tar_file(path: &Path, record: &ShardRecord, check: TarCheck) -> Res
     if check == TarCheck::Size {
         return Ok(());
     }
-    let file = std::fs::File::open(path).map_err(|err| format!("{}: {err}", path.display()))?;
-    let mut hasher = blake3::Hasher::new();
-    hasher
-        .update_reader(file)
-        .map_err(|err| format!("{}: {err}", path.display()))?;
-    let found = hasher.finalize().to_hex();
-    if found.as_str() != record.blake3 {
-        return Err(format!(
-            "{} has blake3 {found}, its record says {}",
-            path.display(),
-            record.blake3
-        ));
-    }
-    Ok(())
+    shard::file_matches(path, record.bytes, &record.blake3)
 }
 
 fn list_stems(dir: &Path, extension: &str) -> Result<Vec<String>, FormatError> {

@@ -16,7 +16,7 @@
 use bettimill_grid::npy::{self, Dtype};
 use bettimill_grid::BinaryImage;
 use bettimill_shard::{
-    build_shard, compress, wids_index, write_atomic, Compression, Index, Member, ShardRecord,
+    build_shard, compress, wids_index, write_atomic, Compression, Index, Member,
 };
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -145,7 +145,8 @@ fn run(options: &Options) -> Result<(), String> {
     std::fs::create_dir_all(&shards_dir)
         .map_err(|e| format!("cannot create {}: {e}", shards_dir.display()))?;
     let val_samples = (options.samples / 4).max(1);
-    let mut records: Vec<ShardRecord> = Vec::new();
+    let mut records = Vec::new();
+    let mut member_count = 0;
     for (split, count) in [("train", options.samples), ("val", val_samples)] {
         let mut split_records = Vec::new();
         let mut index = 0;
@@ -157,7 +158,19 @@ fn run(options: &Options) -> Result<(), String> {
             let name = format!("shards/{split}-{:06}.tar", split_records.len());
             let (bytes, record) = build_shard(&name, split, &samples).map_err(|e| e.to_string())?;
             write_atomic(&options.out.join(&name), &bytes).map_err(|e| e.to_string())?;
-            split_records.push(record);
+            // The member records go beside the index (which lists shards only), covered by
+            // the hash the index keeps of them.
+            let record_name = format!("records/{split}-{:06}.json", split_records.len());
+            // Shaped like bettimill's completion records: {"shard": ..., "regenerations": []}.
+            let record_json = serde_json::to_vec_pretty(
+                &serde_json::json!({"shard": &record, "regenerations": []}),
+            )
+            .map_err(|e| e.to_string())?;
+            std::fs::create_dir_all(options.out.join("records")).map_err(|e| e.to_string())?;
+            write_atomic(&options.out.join(&record_name), &record_json)
+                .map_err(|e| e.to_string())?;
+            member_count += record.members.len();
+            split_records.push(record.index_entry(bettimill_shard::blake3_hex(&record_json)));
             index = end;
         }
         let wids = wids_index(split, &split_records);
@@ -175,7 +188,7 @@ fn run(options: &Options) -> Result<(), String> {
         .map_err(|e| e.to_string())?;
     let shards = index.shards.len();
     eprintln!(
-        "wrote {shards} shards ({} train + {val_samples} val samples, {} members) to {}",
+        "wrote {shards} shards ({} train + {val_samples} val samples, {member_count} members, compression {}) to {}",
         options.samples,
         options.compression,
         display(&options.out)

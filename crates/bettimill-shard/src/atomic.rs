@@ -39,6 +39,71 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ShardError> {
     result
 }
 
+/// A file written piece by piece under its temporary name and put in place atomically by
+/// [`AtomicFile::commit`] (fsync, rename, fsync of the directory), for files too large to
+/// hold in memory. Dropped without commit, the temporary file is removed.
+pub struct AtomicFile {
+    path: PathBuf,
+    temporary: PathBuf,
+    file: Option<std::io::BufWriter<File>>,
+}
+
+impl AtomicFile {
+    /// Starts writing `path` (its parent directory must exist).
+    pub fn create(path: &Path) -> Result<AtomicFile, ShardError> {
+        let temporary = temporary_path(path);
+        let file = OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&temporary)
+            .map_err(|e| ShardError::io("cannot create", &temporary, e))?;
+        Ok(AtomicFile {
+            path: path.to_path_buf(),
+            temporary,
+            file: Some(std::io::BufWriter::new(file)),
+        })
+    }
+
+    /// The temporary path being written.
+    pub fn temporary(&self) -> &Path {
+        &self.temporary
+    }
+
+    /// Flushes, fsyncs and renames the file into place.
+    pub fn commit(mut self) -> Result<(), ShardError> {
+        let writer = self.file.take().expect("not yet committed");
+        let file = writer
+            .into_inner()
+            .map_err(|e| ShardError::io("cannot write", &self.temporary, e.into_error()))?;
+        file.sync_all()
+            .map_err(|e| ShardError::io("cannot fsync", &self.temporary, e))?;
+        drop(file);
+        std::fs::rename(&self.temporary, &self.path)
+            .map_err(|e| ShardError::io("cannot rename into", &self.path, e))?;
+        sync_parent(&self.path)
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.file.as_mut().expect("not yet committed").write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.as_mut().expect("not yet committed").flush()
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if self.file.take().is_some() {
+            // Best effort: an uncommitted file must not linger under its temporary name.
+            let _ = std::fs::remove_file(&self.temporary);
+        }
+    }
+}
+
 fn write_and_rename(temporary: &Path, path: &Path, bytes: &[u8]) -> Result<(), ShardError> {
     let mut file = OpenOptions::new()
         .write(true)

@@ -4,18 +4,23 @@
 //!
 //! A JSON object with keys in this order: `format` (always `"bettimill-index"`),
 //! `format_version` ([`INDEX_FORMAT_VERSION`]), `tool_version`, `manifest_hash`,
-//! `plan_hash`, `shards`. Each shard record holds `name` (path relative to the dataset
-//! directory, always under `shards/`), `split`, `samples`, `bytes`, `blake3` (hex of the
-//! whole tar), `first_key`, `last_key` and `members`; each member record holds `name`,
-//! `offset` (of its first data byte in the tar), `bytes` and `blake3` (hex of its data).
+//! `plan_hash`, `shard_count`, `samples`, `shards`. Each entry of `shards`
+//! ([`IndexShard`]) holds `name` (path relative to the dataset directory, always under
+//! `shards/`), `split`, `samples`, `bytes`, `blake3` (hex of the whole tar), `first_key`,
+//! `last_key` and `record_blake3` (hex of the shard's completion record file, which holds
+//! the per-member records: `name`, `offset` of its first data byte in the tar, `bytes`,
+//! `blake3` of its data). So the index grows with shards, not with members.
 //! Written pretty-printed with two-space indentation and a trailing newline, keys in
-//! declaration order, so equal indexes are equal bytes.
+//! declaration order, so equal indexes are equal bytes; [`IndexWriter`] writes it one shard
+//! at a time and [`read_index`] reads it one shard at a time, so neither holds the list.
 //!
-//! Invariants checked by [`Index::read`] (an index breaking them is refused, because
+//! Format version 1 (bettimill 0.1.0 before this change) listed every member in the index
+//! instead (about 590 bytes per sample); it is refused with a message saying so.
+//!
+//! Invariants checked while reading (an index breaking them is refused, because
 //! [`crate::verify()`] and readers join shard names onto the dataset directory): the format
 //! name and version match, shard names are unique, relative, under `shards/` and free of
-//! `..`, and every member record lies where the deterministic layout of
-//! [`crate::tar_bytes`] puts it, so the records add up to the shard's size.
+//! `..`, and `shard_count` and `samples` add up.
 //!
 //! # wids index
 //!
@@ -28,12 +33,13 @@ use crate::ustar::{self, split_key, Member, BLOCK};
 use crate::ShardError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
+use std::io::Write;
 use std::path::Path;
 
 /// Value of [`Index::format`].
 pub const INDEX_FORMAT: &str = "bettimill-index";
 /// Value of [`Index::format_version`] written by this version.
-pub const INDEX_FORMAT_VERSION: u32 = 1;
+pub const INDEX_FORMAT_VERSION: u32 = 2;
 
 /// Where one member's data sits in its shard, and its hash.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
@@ -49,7 +55,8 @@ pub struct MemberRecord {
     pub blake3: String,
 }
 
-/// One shard file of the dataset.
+/// One shard file of the dataset, with every member: the record a shard's completion record
+/// holds, and what [`crate::verify()`] checks a tar against.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
 pub struct ShardRecord {
@@ -71,10 +78,60 @@ pub struct ShardRecord {
     pub members: Vec<MemberRecord>,
 }
 
-/// The contents of `index.json`.
+impl ShardRecord {
+    /// The shard's entry in `index.json`, given the blake3 of its record file.
+    pub fn index_entry(&self, record_blake3: impl Into<String>) -> IndexShard {
+        IndexShard {
+            name: self.name.clone(),
+            split: self.split.clone(),
+            samples: self.samples,
+            bytes: self.bytes,
+            blake3: self.blake3.clone(),
+            first_key: self.first_key.clone(),
+            last_key: self.last_key.clone(),
+            record_blake3: record_blake3.into(),
+        }
+    }
+
+    /// How this record disagrees with an index entry (everything but `record_blake3`).
+    pub fn disagreement(&self, entry: &IndexShard) -> Option<String> {
+        let mine = self.index_entry(entry.record_blake3.clone());
+        (mine != *entry).then(|| {
+            format!(
+                "the index says {} samples, {} bytes, blake3 {}, keys {}..{} in split {}; its record says {} samples, {} bytes, blake3 {}, keys {}..{} in split {}",
+                entry.samples, entry.bytes, entry.blake3, entry.first_key, entry.last_key, entry.split,
+                self.samples, self.bytes, self.blake3, self.first_key, self.last_key, self.split,
+            )
+        })
+    }
+}
+
+/// One shard in `index.json`: its file and the hash of its record (members are in the
+/// record, not here).
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
-pub struct Index {
+pub struct IndexShard {
+    /// Path relative to the dataset directory, such as `shards/train-000000.tar`.
+    pub name: String,
+    /// The split the shard belongs to.
+    pub split: String,
+    /// Number of samples.
+    pub samples: u64,
+    /// Size of the tar file.
+    pub bytes: u64,
+    /// BLAKE3 of the whole tar file, lowercase hex.
+    pub blake3: String,
+    /// Key of the first sample.
+    pub first_key: String,
+    /// Key of the last sample.
+    pub last_key: String,
+    /// BLAKE3 of the shard's completion record file (which lists every member), lowercase hex.
+    pub record_blake3: String,
+}
+
+/// Everything in `index.json` before the list of shards.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
+pub struct IndexHeader {
     /// Always [`INDEX_FORMAT`].
     pub format: String,
     /// [`INDEX_FORMAT_VERSION`] when written by this version.
@@ -85,8 +142,41 @@ pub struct Index {
     pub manifest_hash: String,
     /// Hash of the build plan.
     pub plan_hash: String,
+    /// Number of shards listed.
+    pub shard_count: u64,
+    /// Samples in all shards.
+    pub samples: u64,
+}
+
+impl IndexHeader {
+    /// A header of the current format.
+    pub fn new(
+        tool_version: impl Into<String>,
+        manifest_hash: impl Into<String>,
+        plan_hash: impl Into<String>,
+        shard_count: u64,
+        samples: u64,
+    ) -> IndexHeader {
+        IndexHeader {
+            format: INDEX_FORMAT.to_string(),
+            format_version: INDEX_FORMAT_VERSION,
+            tool_version: tool_version.into(),
+            manifest_hash: manifest_hash.into(),
+            plan_hash: plan_hash.into(),
+            shard_count,
+            samples,
+        }
+    }
+}
+
+/// The contents of `index.json`, held in memory: for tests and small datasets. Large ones
+/// are written with [`IndexWriter`] and read with [`read_index`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Index {
+    /// Everything but the shards.
+    pub header: IndexHeader,
     /// Every shard, in the order the build wrote them.
-    pub shards: Vec<ShardRecord>,
+    pub shards: Vec<IndexShard>,
 }
 
 impl Index {
@@ -95,87 +185,54 @@ impl Index {
         tool_version: impl Into<String>,
         manifest_hash: impl Into<String>,
         plan_hash: impl Into<String>,
-        shards: Vec<ShardRecord>,
+        shards: Vec<IndexShard>,
     ) -> Index {
+        let samples = shards.iter().map(|s| s.samples).sum();
         Index {
-            format: INDEX_FORMAT.to_string(),
-            format_version: INDEX_FORMAT_VERSION,
-            tool_version: tool_version.into(),
-            manifest_hash: manifest_hash.into(),
-            plan_hash: plan_hash.into(),
+            header: IndexHeader::new(
+                tool_version,
+                manifest_hash,
+                plan_hash,
+                shards.len() as u64,
+                samples,
+            ),
             shards,
         }
     }
 
     /// Reads and validates an index file (see the module documentation for the checks).
     pub fn read(path: &Path) -> Result<Index, ShardError> {
-        let bytes = std::fs::read(path).map_err(|e| ShardError::io("cannot read", path, e))?;
-        Index::from_json_bytes(&bytes, path)
+        let mut shards = Vec::new();
+        let header = read_index(path, &mut |_, shard| {
+            shards.push(shard);
+            Ok(())
+        })?;
+        Ok(Index { header, shards })
     }
 
     /// Parses and validates index bytes; `path` is only used in error messages.
     pub fn from_json_bytes(bytes: &[u8], path: &Path) -> Result<Index, ShardError> {
-        let index: Index = serde_json::from_slice(bytes).map_err(|source| ShardError::Json {
-            path: path.to_path_buf(),
-            source,
+        let mut shards = Vec::new();
+        let header = read_index_from(bytes, path, &mut |_, shard| {
+            shards.push(shard);
+            Ok(())
         })?;
-        index.validate().map_err(|reason| ShardError::IndexFormat {
-            path: path.to_path_buf(),
-            reason,
-        })?;
-        Ok(index)
+        Ok(Index { header, shards })
     }
 
-    fn validate(&self) -> Result<(), String> {
-        if self.format != INDEX_FORMAT {
-            return Err(format!(
-                "format is {:?}, expected {INDEX_FORMAT:?}",
-                self.format
-            ));
-        }
-        if self.format_version != INDEX_FORMAT_VERSION {
-            return Err(format!(
-                "format_version {} is not supported (this bettimill reads version {INDEX_FORMAT_VERSION}); use the bettimill version that wrote it ({})",
-                self.format_version, self.tool_version
-            ));
-        }
-        let mut seen = BTreeSet::new();
-        for shard in &self.shards {
-            check_shard_name(&shard.name)?;
-            if !seen.insert(shard.name.as_str()) {
-                return Err(format!("shard {:?} is listed twice", shard.name));
-            }
-            let mut expected_offset = BLOCK;
-            for member in &shard.members {
-                if member.offset != expected_offset {
-                    return Err(format!(
-                        "shard {:?}: member {:?} is recorded at offset {}, the layout puts it at {expected_offset}",
-                        shard.name, member.name, member.offset
-                    ));
-                }
-                expected_offset = member
-                    .offset
-                    .checked_add(member.bytes.div_ceil(BLOCK) * BLOCK + BLOCK)
-                    .ok_or_else(|| format!("shard {:?}: member sizes overflow", shard.name))?;
-            }
-            let expected_bytes = ustar::tar_len(shard.members.iter().map(|m| m.bytes));
-            if shard.bytes != expected_bytes {
-                return Err(format!(
-                    "shard {:?}: recorded size {} but its members add up to {expected_bytes}",
-                    shard.name, shard.bytes
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// Pretty JSON with keys in declaration order and a trailing newline.
+    /// Pretty JSON with keys in declaration order and a trailing newline (what
+    /// [`IndexWriter`] writes for the same shards).
     pub fn to_json_bytes(&self) -> Vec<u8> {
-        to_pretty_json(self)
+        let mut writer =
+            IndexWriter::new(Vec::new(), &self.header).expect("writing to memory cannot fail");
+        for shard in &self.shards {
+            writer.push(shard).expect("writing to memory cannot fail");
+        }
+        writer.finish().expect("writing to memory cannot fail")
     }
 
     /// The shards of one split, in index order.
-    pub fn split_shards(&self, split: &str) -> Vec<ShardRecord> {
+    pub fn split_shards(&self, split: &str) -> Vec<IndexShard> {
         self.shards
             .iter()
             .filter(|s| s.split == split)
@@ -190,11 +247,285 @@ impl Index {
     }
 }
 
-fn to_pretty_json<T: Serialize>(value: &T) -> Vec<u8> {
-    let mut out = serde_json::to_vec_pretty(value)
-        .expect("index types serialise infallibly: string keys, no maps with non-string keys");
-    out.push(b'\n');
-    out
+/// Writes a pretty JSON object whose last key is a list, one element at a time, in the
+/// exact bytes of `serde_json::to_vec_pretty` plus a trailing newline.
+struct StreamedObject<W: Write> {
+    out: W,
+    elements: u64,
+}
+
+impl<W: Write> StreamedObject<W> {
+    /// Writes `{`, the fields of `head` (a struct serialising to an object) and the opening
+    /// of the list `key`.
+    fn new<T: Serialize>(mut out: W, head: &T, key: &str) -> std::io::Result<Self> {
+        let head = serde_json::to_string_pretty(head).expect("index types serialise");
+        let body = head
+            .strip_suffix('}')
+            .expect("a struct serialises to an object")
+            .trim_end();
+        out.write_all(body.as_bytes())?;
+        out.write_all(format!(",\n  {}: [", serde_json::Value::from(key)).as_bytes())?;
+        Ok(StreamedObject { out, elements: 0 })
+    }
+
+    fn push<T: Serialize>(&mut self, element: &T) -> std::io::Result<()> {
+        let text = serde_json::to_string_pretty(element).expect("index types serialise");
+        self.out
+            .write_all(if self.elements == 0 { b"\n" } else { b",\n" })?;
+        for (n, line) in text.lines().enumerate() {
+            if n > 0 {
+                self.out.write_all(b"\n")?;
+            }
+            self.out.write_all(b"    ")?;
+            self.out.write_all(line.as_bytes())?;
+        }
+        self.elements += 1;
+        Ok(())
+    }
+
+    fn finish(mut self) -> std::io::Result<W> {
+        if self.elements == 0 {
+            self.out.write_all(b"]\n}\n")?;
+        } else {
+            self.out.write_all(b"\n  ]\n}\n")?;
+        }
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+/// Writes `index.json` one shard at a time (the list is never held in memory).
+pub struct IndexWriter<W: Write> {
+    inner: StreamedObject<W>,
+}
+
+impl<W: Write> IndexWriter<W> {
+    /// Writes the header; `header.shard_count` and `header.samples` must be what the pushed
+    /// shards add up to (readers check).
+    pub fn new(out: W, header: &IndexHeader) -> std::io::Result<Self> {
+        Ok(IndexWriter {
+            inner: StreamedObject::new(out, header, "shards")?,
+        })
+    }
+
+    /// Appends one shard.
+    pub fn push(&mut self, shard: &IndexShard) -> std::io::Result<()> {
+        self.inner.push(shard)
+    }
+
+    /// Closes the list and the object, flushes and returns the output.
+    pub fn finish(self) -> std::io::Result<W> {
+        self.inner.finish()
+    }
+}
+
+/// Reads `index.json` one shard at a time: checks the header (format name and version
+/// before any shard is read), then calls `each` with every shard in order, checking names
+/// and that the shards add up to the header's counts. `each` may stop the reading with a
+/// reason, returned as [`ShardError::IndexFormat`]. Holds one shard and the set of names
+/// seen (to refuse duplicates), never the list.
+pub fn read_index(
+    path: &Path,
+    each: &mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
+) -> Result<IndexHeader, ShardError> {
+    let file = std::fs::File::open(path).map_err(|e| ShardError::io("cannot read", path, e))?;
+    read_index_from(std::io::BufReader::new(file), path, each)
+}
+
+/// [`read_index`] from any reader; `path` is only used in error messages.
+pub fn read_index_from(
+    reader: impl std::io::Read,
+    path: &Path,
+    each: &mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
+) -> Result<IndexHeader, ShardError> {
+    let mut refusal = None;
+    let mut deserializer = serde_json::Deserializer::from_reader(reader);
+    let result = serde::Deserializer::deserialize_map(
+        &mut deserializer,
+        IndexVisitor {
+            each,
+            refusal: &mut refusal,
+        },
+    )
+    .and_then(|header| deserializer.end().map(|()| header));
+    match (result, refusal) {
+        (_, Some(reason)) => Err(ShardError::IndexFormat {
+            path: path.to_path_buf(),
+            reason,
+        }),
+        (Ok(header), None) => Ok(header),
+        (Err(source), None) => Err(ShardError::Json {
+            path: path.to_path_buf(),
+            source,
+        }),
+    }
+}
+
+/// The header fields read so far.
+#[derive(Default)]
+struct PartialHeader {
+    format: Option<String>,
+    format_version: Option<u32>,
+    tool_version: Option<String>,
+    manifest_hash: Option<String>,
+    plan_hash: Option<String>,
+    shard_count: Option<u64>,
+    samples: Option<u64>,
+}
+
+impl PartialHeader {
+    /// The header, or why it cannot be one; the version is judged first, so an index of
+    /// another format version gets a message about that, not about a missing field.
+    fn complete(&self) -> Result<IndexHeader, String> {
+        let format = self.format.clone().unwrap_or_default();
+        if format != INDEX_FORMAT {
+            return Err(format!("format is {format:?}, expected {INDEX_FORMAT:?}"));
+        }
+        let tool = self
+            .tool_version
+            .clone()
+            .unwrap_or_else(|| "unknown".into());
+        match self.format_version {
+            Some(INDEX_FORMAT_VERSION) => {}
+            Some(1) => {
+                return Err(format!(
+                    "format_version 1 (written by bettimill {tool}, listing every member) is not read by this bettimill, which reads version {INDEX_FORMAT_VERSION} (shards only; member hashes are in records/NAME.json); rewrite the index with `bettimill finalize DIR`, or use bettimill {tool}"
+                ))
+            }
+            Some(other) => {
+                return Err(format!(
+                    "format_version {other} is not supported (this bettimill reads version {INDEX_FORMAT_VERSION}); use the bettimill version that wrote it ({tool})"
+                ))
+            }
+            None => return Err("format_version is missing".into()),
+        }
+        let missing = |field: &str| format!("{field} is missing");
+        Ok(IndexHeader {
+            format,
+            format_version: INDEX_FORMAT_VERSION,
+            tool_version: self
+                .tool_version
+                .clone()
+                .ok_or_else(|| missing("tool_version"))?,
+            manifest_hash: self
+                .manifest_hash
+                .clone()
+                .ok_or_else(|| missing("manifest_hash"))?,
+            plan_hash: self.plan_hash.clone().ok_or_else(|| missing("plan_hash"))?,
+            shard_count: self.shard_count.ok_or_else(|| missing("shard_count"))?,
+            samples: self.samples.ok_or_else(|| missing("samples"))?,
+        })
+    }
+}
+
+struct IndexVisitor<'a> {
+    each: &'a mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
+    refusal: &'a mut Option<String>,
+}
+
+impl<'de> serde::de::Visitor<'de> for IndexVisitor<'_> {
+    type Value = IndexHeader;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a bettimill index object")
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<IndexHeader, A::Error> {
+        use serde::de::Error;
+        let mut partial = PartialHeader::default();
+        let mut header: Option<IndexHeader> = None;
+        let refuse = |refusal: &mut Option<String>, reason: String| {
+            *refusal = Some(reason.clone());
+            A::Error::custom(reason)
+        };
+        while let Some(key) = map.next_key::<String>()? {
+            match key.as_str() {
+                "format" => partial.format = Some(map.next_value()?),
+                "format_version" => partial.format_version = Some(map.next_value()?),
+                "tool_version" => partial.tool_version = Some(map.next_value()?),
+                "manifest_hash" => partial.manifest_hash = Some(map.next_value()?),
+                "plan_hash" => partial.plan_hash = Some(map.next_value()?),
+                "shard_count" => partial.shard_count = Some(map.next_value()?),
+                "samples" => partial.samples = Some(map.next_value()?),
+                "shards" => {
+                    let complete = partial
+                        .complete()
+                        .map_err(|reason| refuse(self.refusal, reason))?;
+                    map.next_value_seed(ShardsSeed {
+                        header: &complete,
+                        each: &mut *self.each,
+                        refusal: &mut *self.refusal,
+                    })?;
+                    header = Some(complete);
+                }
+                other => {
+                    // A version-1 index has no shard_count; say "old version", not "unknown".
+                    if let Err(reason) = partial.complete() {
+                        return Err(refuse(self.refusal, reason));
+                    }
+                    return Err(A::Error::unknown_field(other, &[]));
+                }
+            }
+        }
+        match header {
+            Some(header) => Ok(header),
+            None => Err(refuse(
+                self.refusal,
+                partial
+                    .complete()
+                    .err()
+                    .unwrap_or_else(|| "shards is missing".into()),
+            )),
+        }
+    }
+}
+
+struct ShardsSeed<'a> {
+    header: &'a IndexHeader,
+    each: &'a mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
+    refusal: &'a mut Option<String>,
+}
+
+impl<'de> serde::de::DeserializeSeed<'de> for ShardsSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: serde::Deserializer<'de>>(self, deserializer: D) -> Result<(), D::Error> {
+        deserializer.deserialize_seq(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for ShardsSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a list of shards")
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        use serde::de::Error;
+        let mut seen = BTreeSet::new();
+        let (mut shards, mut samples) = (0u64, 0u64);
+        let mut refuse = |reason: String| {
+            *self.refusal = Some(reason.clone());
+            A::Error::custom(reason)
+        };
+        while let Some(shard) = seq.next_element::<IndexShard>()? {
+            check_shard_name(&shard.name).map_err(&mut refuse)?;
+            if !seen.insert(shard.name.clone()) {
+                return Err(refuse(format!("shard {:?} is listed twice", shard.name)));
+            }
+            shards += 1;
+            samples = samples.saturating_add(shard.samples);
+            (self.each)(self.header, shard).map_err(&mut refuse)?;
+        }
+        if shards != self.header.shard_count || samples != self.header.samples {
+            return Err(refuse(format!(
+                "the index lists {shards} shards of {samples} samples, its header says {} shards of {} samples",
+                self.header.shard_count, self.header.samples
+            )));
+        }
+        Ok(())
+    }
 }
 
 fn check_shard_name(name: &str) -> Result<(), String> {
@@ -330,12 +661,11 @@ pub fn count_samples<'a>(member_names: impl IntoIterator<Item = &'a str>) -> u64
 }
 
 #[derive(Serialize)]
-struct WidsIndex<'a> {
+struct WidsHead<'a> {
     #[serde(rename = "__kind__")]
     kind: &'static str,
     wids_version: u32,
     name: &'a str,
-    shardlist: Vec<WidsShard<'a>>,
 }
 
 #[derive(Serialize)]
@@ -345,27 +675,61 @@ struct WidsShard<'a> {
     filesize: u64,
 }
 
+/// Writes a `wids-shard-index-v1` file one shard at a time (see [`wids_index`]).
+pub struct WidsWriter<W: Write> {
+    inner: StreamedObject<W>,
+}
+
+impl<W: Write> WidsWriter<W> {
+    /// Writes the head of the index of split `name`.
+    pub fn new(out: W, name: &str) -> std::io::Result<Self> {
+        let head = WidsHead {
+            kind: "wids-shard-index-v1",
+            wids_version: 1,
+            name,
+        };
+        Ok(WidsWriter {
+            inner: StreamedObject::new(out, &head, "shardlist")?,
+        })
+    }
+
+    /// Appends a shard (`url` relative to the dataset directory).
+    pub fn push(&mut self, url: &str, nsamples: u64, filesize: u64) -> std::io::Result<()> {
+        self.inner.push(&WidsShard {
+            url,
+            nsamples,
+            filesize,
+        })
+    }
+
+    /// Closes the file's JSON, flushes and returns the output.
+    pub fn finish(self) -> std::io::Result<W> {
+        self.inner.finish()
+    }
+}
+
 /// The `wids-shard-index-v1` JSON (pretty, trailing newline) listing `shards` in order,
 /// with URLs relative to the dataset directory. Pass the shards of one split.
-pub fn wids_index(name: &str, shards: &[ShardRecord]) -> Vec<u8> {
-    to_pretty_json(&WidsIndex {
-        kind: "wids-shard-index-v1",
-        wids_version: 1,
-        name,
-        shardlist: shards
-            .iter()
-            .map(|s| WidsShard {
-                url: &s.name,
-                nsamples: s.samples,
-                filesize: s.bytes,
-            })
-            .collect(),
-    })
+pub fn wids_index(name: &str, shards: &[IndexShard]) -> Vec<u8> {
+    let mut writer = WidsWriter::new(Vec::new(), name).expect("writing to memory cannot fail");
+    for s in shards {
+        writer
+            .push(&s.name, s.samples, s.bytes)
+            .expect("writing to memory cannot fail");
+    }
+    writer.finish().expect("writing to memory cannot fail")
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn to_pretty_json<T: Serialize>(value: &T) -> Vec<u8> {
+        let mut out = serde_json::to_vec_pretty(value)
+            .expect("index types serialise infallibly: string keys, no maps with non-string keys");
+        out.push(b'\n');
+        out
+    }
 
     fn sample(key: &str, fields: &[&str]) -> Vec<Member> {
         fields
@@ -430,36 +794,85 @@ mod tests {
             &[sample("a", &["json", "npy"])],
         )
         .unwrap();
-        let index = Index::new("0.1.0", "m", "p", vec![record.clone()]);
+        let (_, second) =
+            build_shard("shards/t-000001.tar", "val", &[sample("b", &["json"])]).unwrap();
+        let entry = record.index_entry("ab".repeat(32));
+        let index = Index::new(
+            "0.1.0",
+            "m",
+            "p",
+            vec![entry.clone(), second.index_entry("cd".repeat(32))],
+        );
         let bytes = index.to_json_bytes();
-        assert!(bytes.ends_with(b"}\n"));
+        // The streamed writer gives exactly serde_json's pretty bytes.
+        #[derive(Serialize)]
+        struct Whole<'a> {
+            #[serde(flatten)]
+            header: &'a IndexHeader,
+            shards: &'a [IndexShard],
+        }
+        let whole = to_pretty_json(&Whole {
+            header: &index.header,
+            shards: &index.shards,
+        });
+        assert_eq!(
+            String::from_utf8(bytes.clone()).unwrap(),
+            String::from_utf8(whole).unwrap()
+        );
+        let empty = Index::new("0.1.0", "m", "p", vec![]);
+        assert!(String::from_utf8(empty.to_json_bytes())
+            .unwrap()
+            .ends_with("\"shards\": []\n}\n"));
         let text = String::from_utf8(bytes.clone()).unwrap();
         let format_at = text.find("\"format\"").unwrap();
         let shards_at = text.find("\"shards\"").unwrap();
         assert!(format_at < shards_at, "declaration order");
+        assert!(
+            !text.contains("members"),
+            "the index lists shards, not members"
+        );
         let path = Path::new("index.json");
         assert_eq!(Index::from_json_bytes(&bytes, path).unwrap(), index);
+        assert_eq!(record.disagreement(&entry), None);
+        assert!(second.disagreement(&entry).is_some());
 
         let mut evil = index.clone();
         evil.shards[0].name = "shards/../../etc/passwd".into();
         assert!(Index::from_json_bytes(&evil.to_json_bytes(), path).is_err());
         let mut twice = index.clone();
-        twice.shards.push(record.clone());
-        assert!(Index::from_json_bytes(&twice.to_json_bytes(), path).is_err());
+        twice.shards.push(entry.clone());
+        twice.header.shard_count += 1;
+        twice.header.samples += 1;
+        let err = Index::from_json_bytes(&twice.to_json_bytes(), path).unwrap_err();
+        assert!(err.to_string().contains("listed twice"), "{err}");
         let mut lying = index.clone();
-        lying.shards[0].bytes += 512;
-        assert!(Index::from_json_bytes(&lying.to_json_bytes(), path).is_err());
-        let mut moved = index.clone();
-        moved.shards[0].members[1].offset += 1;
-        assert!(Index::from_json_bytes(&moved.to_json_bytes(), path).is_err());
-        let mut future = index;
-        future.format_version = 2;
+        lying.header.samples += 1;
+        let err = Index::from_json_bytes(&lying.to_json_bytes(), path).unwrap_err();
+        assert!(err.to_string().contains("header says"), "{err}");
+        let mut future = index.clone();
+        future.header.format_version = 3;
         let err = Index::from_json_bytes(&future.to_json_bytes(), path).unwrap_err();
-        assert!(err.to_string().contains("format_version 2"), "{err}");
+        assert!(err.to_string().contains("format_version 3"), "{err}");
         assert!(matches!(
             Index::from_json_bytes(b"{", path),
             Err(ShardError::Json { .. })
         ));
+        // An index of format version 1 (members listed) gets a message that says so.
+        let old = br#"{"format": "bettimill-index", "format_version": 1, "tool_version": "0.0.7",
+            "manifest_hash": "m", "plan_hash": "p", "shards": [{"name": "shards/t.tar",
+            "split": "train", "samples": 1, "bytes": 1024, "blake3": "x", "first_key": "a",
+            "last_key": "a", "members": []}]}"#;
+        let err = Index::from_json_bytes(old, path).unwrap_err();
+        assert!(matches!(err, ShardError::IndexFormat { .. }), "{err}");
+        let text = err.to_string();
+        assert!(
+            text.contains("format_version 1") && text.contains("0.0.7"),
+            "{text}"
+        );
+        assert!(text.contains("bettimill finalize"), "{text}");
+        // A reader can stop at any shard with a reason.
+        let err = read_index_from(&bytes[..], path, &mut |_, _| Err("stop".into())).unwrap_err();
+        assert!(err.to_string().contains("stop"), "{err}");
     }
 
     #[test]
@@ -467,7 +880,7 @@ mod tests {
         let (_, record) =
             build_shard("shards/t-000000.tar", "train", &[sample("a", &["json"])]).unwrap();
         let json: serde_json::Value =
-            serde_json::from_slice(&wids_index("train", &[record])).unwrap();
+            serde_json::from_slice(&wids_index("train", &[record.index_entry("")])).unwrap();
         assert_eq!(json["__kind__"], "wids-shard-index-v1");
         assert_eq!(json["wids_version"], 1);
         assert_eq!(json["shardlist"][0]["url"], "shards/t-000000.tar");

@@ -4,7 +4,7 @@
 //! A dataset directory looks like this:
 //!
 //! ```text
-//! DIR/index.json                 the Index: every shard, its size, hash and members
+//! DIR/index.json                 the Index: every shard, its size and hash, its record's hash
 //! DIR/shards/NAME-000000.tar     USTAR shards written by tar_bytes / build_shard
 //! DIR/*shardindex*.json          optional wids-shard-index-v1 files, one per split
 //! ```
@@ -25,14 +25,17 @@ pub mod index;
 pub mod ustar;
 pub mod verify;
 
-pub use atomic::write_atomic;
+pub use atomic::{write_atomic, AtomicFile};
 pub use compress::{compress, decompress, Compression};
 pub use error::ShardError;
 pub use index::{
-    blake3_hex, build_shard, count_samples, wids_index, Index, MemberRecord, ShardRecord,
-    INDEX_FORMAT, INDEX_FORMAT_VERSION,
+    blake3_hex, build_shard, count_samples, read_index, read_index_from, wids_index, Index,
+    IndexHeader, IndexShard, IndexWriter, MemberRecord, ShardRecord, WidsWriter, INDEX_FORMAT,
+    INDEX_FORMAT_VERSION,
 };
 pub use ustar::{
     read_tar, read_tar_with_limit, split_key, tar_bytes, tar_entries, Member, TarEntry,
 };
-pub use verify::{verify, verify_with_progress, Problem, Region, VerifyReport};
+pub use verify::{
+    file_matches, verify, verify_with_progress, Problem, RecordSource, Region, VerifyReport,
+};

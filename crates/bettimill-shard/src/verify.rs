@@ -10,10 +10,15 @@
 //! the index does not list (such as temporary files a crash left behind), and sample counts
 //! that disagree with the members.
 //!
-//! Every shard is checked and every problem reported; only an unreadable or invalid
-//! `index.json` is an error. Each shard is read whole into memory, one at a time.
+//! The index lists shards; the member records live with each shard's record (the caller
+//! resolves them, `bettimill-format` from `records/NAME.json`). Every shard is checked and
+//! every problem reported; only an unreadable or invalid `index.json` is an error. The
+//! index is read one shard at a time, and a shard is first compared with its record by
+//! size and a blake3 streamed through a fixed buffer ([`file_matches`]); only a shard that
+//! differs is read whole, to localise the damage. So memory does not grow with samples or
+//! shards (apart from the set of shard names, kept to report extra files).
 
-use crate::index::{blake3_hex, count_samples, Index, ShardRecord};
+use crate::index::{blake3_hex, count_samples, read_index, IndexShard, ShardRecord};
 use crate::ustar::{self, BLOCK};
 use crate::ShardError;
 use serde::Serialize;
@@ -261,45 +266,69 @@ impl VerifyReport {
     }
 }
 
-/// Checks every shard of `dir` against `dir/index.json` (see the module documentation).
-/// Returns `Err` only when the index itself cannot be read or is invalid.
-pub fn verify(dir: &Path) -> Result<VerifyReport, ShardError> {
-    verify_with_progress(dir, &mut |_, _| {})
+/// Finds the member records of an index entry (the shard's [`ShardRecord`]), or says why
+/// there are none.
+pub type RecordSource<'a> = dyn FnMut(&IndexShard) -> Result<ShardRecord, String> + 'a;
+
+/// Checks every shard of `dir` against `dir/index.json` and the records `records` gives
+/// (see the module documentation). Returns `Err` only when the index itself cannot be read
+/// or is invalid.
+pub fn verify(dir: &Path, records: &mut RecordSource) -> Result<VerifyReport, ShardError> {
+    verify_with_progress(dir, records, &mut |_, _| {})
+}
+
+/// Whether the file at `path` has `bytes` bytes and blake3 `blake3`, hashed through a fixed
+/// buffer. The error says what differs (or why the file cannot be read).
+pub fn file_matches(path: &Path, bytes: u64, blake3: &str) -> Result<(), String> {
+    let size = std::fs::metadata(path)
+        .map_err(|err| format!("{}: {err}", path.display()))?
+        .len();
+    if size != bytes {
+        return Err(format!(
+            "{} has {size} bytes, its record says {bytes}",
+            path.display()
+        ));
+    }
+    let file = std::fs::File::open(path).map_err(|err| format!("{}: {err}", path.display()))?;
+    let mut hasher = blake3::Hasher::new();
+    hasher
+        .update_reader(file)
+        .map_err(|err| format!("{}: {err}", path.display()))?;
+    let found = hasher.finalize().to_hex();
+    if found.as_str() != blake3 {
+        return Err(format!(
+            "{} has blake3 {found}, its record says {blake3}",
+            path.display()
+        ));
+    }
+    Ok(())
 }
 
 /// [`verify`], calling `progress` with (shards checked, shards in the index): once with
-/// zero checked after the index is read, then after each shard.
+/// zero checked when the index's header is read, then after each shard.
 pub fn verify_with_progress(
     dir: &Path,
+    records: &mut RecordSource,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<VerifyReport, ShardError> {
-    let index = Index::read(&dir.join("index.json"))?;
-    let total = index.shards.len() as u64;
-    progress(0, total);
     let mut report = VerifyReport::default();
-    for record in &index.shards {
-        report.shards_checked += 1;
-        report.samples_checked += record.samples;
-        check_record(record, &mut report.problems);
-        let path = dir.join(&record.name);
-        match std::fs::read(&path) {
-            Ok(bytes) => {
-                report.bytes_checked += bytes.len() as u64;
-                check_shard_bytes(record, &bytes, &mut report.problems);
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                report.problems.push(Problem::MissingShard {
-                    shard: record.name.clone(),
-                })
-            }
-            Err(e) => report.problems.push(Problem::Unreadable {
-                path: path.display().to_string(),
-                error: e.to_string(),
-            }),
+    let mut listed = BTreeSet::new();
+    let mut started = false;
+    let header = read_index(&dir.join("index.json"), &mut |header, entry| {
+        if !started {
+            progress(0, header.shard_count);
+            started = true;
         }
-        progress(report.shards_checked, total);
+        report.shards_checked += 1;
+        report.samples_checked += entry.samples;
+        check_entry(dir, &entry, records, &mut report);
+        listed.insert(entry.name);
+        progress(report.shards_checked, header.shard_count);
+        Ok(())
+    })?;
+    if !started {
+        progress(0, header.shard_count);
     }
-    let listed: BTreeSet<&str> = index.shards.iter().map(|s| s.name.as_str()).collect();
     let mut found = Vec::new();
     list_files(dir, Path::new("shards"), &mut found, &mut report.problems);
     found.sort();
@@ -309,6 +338,83 @@ pub fn verify_with_progress(
         }
     }
     Ok(report)
+}
+
+/// Checks one index entry: its record, then its file.
+fn check_entry(
+    dir: &Path,
+    entry: &IndexShard,
+    records: &mut RecordSource,
+    report: &mut VerifyReport,
+) {
+    let path = dir.join(&entry.name);
+    let problems = &mut report.problems;
+    let record = match records(entry) {
+        Ok(record) => record,
+        Err(reason) => {
+            problems.push(Problem::RecordInconsistent {
+                shard: entry.name.clone(),
+                reason,
+            });
+            // Without member records the file can still be checked as a whole.
+            match std::fs::metadata(&path) {
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                    problems.push(Problem::MissingShard {
+                        shard: entry.name.clone(),
+                    })
+                }
+                _ => {
+                    if let Err(reason) = file_matches(&path, entry.bytes, &entry.blake3) {
+                        problems.push(Problem::RecordInconsistent {
+                            shard: entry.name.clone(),
+                            reason,
+                        });
+                    } else {
+                        report.bytes_checked += entry.bytes;
+                    }
+                }
+            }
+            return;
+        }
+    };
+    if let Some(reason) = record.disagreement(entry) {
+        problems.push(Problem::RecordInconsistent {
+            shard: entry.name.clone(),
+            reason,
+        });
+    }
+    check_record(&record, problems);
+    match std::fs::metadata(&path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            problems.push(Problem::MissingShard {
+                shard: record.name.clone(),
+            });
+            return;
+        }
+        Err(e) => {
+            problems.push(Problem::Unreadable {
+                path: path.display().to_string(),
+                error: e.to_string(),
+            });
+            return;
+        }
+        Ok(_) => {}
+    }
+    if file_matches(&path, record.bytes, &record.blake3).is_ok() {
+        report.bytes_checked += record.bytes;
+        return;
+    }
+    // It differs: read it whole (one shard) to say where.
+    match std::fs::read(&path) {
+        Ok(bytes) => {
+            report.bytes_checked += bytes.len() as u64;
+            check_shard_bytes(&record, &bytes, problems);
+        }
+        Err(e) => problems.push(Problem::Unreadable {
+            path: path.display().to_string(),
+            error: e.to_string(),
+        }),
+    }
 }
 
 /// Problems a record has on its own, without looking at the file.

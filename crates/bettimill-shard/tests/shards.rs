@@ -3,8 +3,8 @@
 
 use bettimill_shard::ustar::{header_block, tar_len};
 use bettimill_shard::{
-    build_shard, compress, read_tar, read_tar_with_limit, tar_bytes, verify, verify_with_progress,
-    write_atomic, Compression, Index, Member, Problem, Region, ShardError, ShardRecord,
+    blake3_hex, build_shard, compress, read_tar, read_tar_with_limit, tar_bytes, write_atomic,
+    Compression, Index, IndexShard, Member, Problem, Region, ShardError, ShardRecord, VerifyReport,
 };
 use proptest::prelude::*;
 use std::path::Path;
@@ -37,9 +37,53 @@ fn dataset() -> (tempfile::TempDir, Vec<ShardRecord>) {
         write_atomic(&dir.path().join(&name), &bytes).unwrap();
         records.push(record);
     }
-    let index = Index::new("0.1.0", "manifest", "plan", records.clone());
-    write_atomic(&dir.path().join("index.json"), &index.to_json_bytes()).unwrap();
+    write_index(dir.path(), &records);
     (dir, records)
+}
+
+/// Writes index.json listing `records`, each record beside it as `records/STEM.json` (the
+/// sidecar the index's `record_blake3` covers).
+fn write_index(dir: &Path, records: &[ShardRecord]) {
+    std::fs::create_dir_all(dir.join("records")).unwrap();
+    let mut entries = Vec::new();
+    for record in records {
+        let json = serde_json::to_vec(record).unwrap();
+        std::fs::write(record_path(dir, &record_entry_name(record)), &json).unwrap();
+        entries.push(record.index_entry(blake3_hex(&json)));
+    }
+    let index = Index::new("0.1.0", "manifest", "plan", entries);
+    write_atomic(&dir.join("index.json"), &index.to_json_bytes()).unwrap();
+}
+
+fn record_entry_name(record: &ShardRecord) -> String {
+    record.name.clone()
+}
+
+fn record_path(dir: &Path, shard: &str) -> std::path::PathBuf {
+    let stem = shard.trim_start_matches("shards/").trim_end_matches(".tar");
+    dir.join("records").join(format!("{stem}.json"))
+}
+
+/// The records of an index entry, from the sidecar [`write_index`] wrote.
+fn sidecar(dir: &Path) -> impl FnMut(&IndexShard) -> Result<ShardRecord, String> + '_ {
+    move |entry| {
+        let json = std::fs::read(record_path(dir, &entry.name)).map_err(|e| e.to_string())?;
+        if blake3_hex(&json) != entry.record_blake3 {
+            return Err("record hash differs".into());
+        }
+        serde_json::from_slice(&json).map_err(|e| e.to_string())
+    }
+}
+
+fn verify(dir: &Path) -> Result<VerifyReport, ShardError> {
+    bettimill_shard::verify(dir, &mut sidecar(dir))
+}
+
+fn verify_with_progress(
+    dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<VerifyReport, ShardError> {
+    bettimill_shard::verify_with_progress(dir, &mut sidecar(dir), progress)
 }
 
 #[test]
@@ -369,8 +413,7 @@ fn verify_reports_missing_shards_and_extra_files() {
 fn verify_reports_a_sample_count_the_members_contradict() {
     let (dir, mut records) = dataset();
     records[0].samples = 4;
-    let index = Index::new("0.1.0", "manifest", "plan", records.clone());
-    std::fs::write(dir.path().join("index.json"), index.to_json_bytes()).unwrap();
+    write_index(dir.path(), &records);
     let report = verify(dir.path()).unwrap();
     assert_eq!(
         report.problems,
@@ -386,8 +429,7 @@ fn verify_reports_a_sample_count_the_members_contradict() {
 fn verify_reports_a_wrong_shard_hash_when_every_member_checks_out() {
     let (dir, mut records) = dataset();
     records[1].blake3 = "0".repeat(64);
-    let index = Index::new("0.1.0", "manifest", "plan", records.clone());
-    std::fs::write(dir.path().join("index.json"), index.to_json_bytes()).unwrap();
+    write_index(dir.path(), &records);
     let problems = verify(dir.path()).unwrap().problems;
     assert!(
         matches!(&problems[..], [Problem::HashMismatch { shard, .. }] if *shard == records[1].name),
