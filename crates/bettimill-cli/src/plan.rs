@@ -46,7 +46,7 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
             })
             .collect();
         let value = serde_json::json!({
-            "name": manifest.name,
+            "name": plan.name,
             "dimension": plan.dimension.get(),
             "side": plan.side,
             "manifest_hash": plan.manifest_hash,
@@ -65,7 +65,7 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
     }
     outln!(
         "dataset {}: {}D, side {}, {} samples",
-        manifest.name,
+        plan.name,
         plan.dimension,
         plan.side,
         plan.samples

@@ -244,6 +244,11 @@ impl Plan {
         Plan::new(&Manifest::from_path(path)?)
     }
 
+    /// Parses, validates and resolves manifest text; `path` is only used in error messages.
+    pub fn parse(text: &str, path: &std::path::Path) -> Result<Plan, PlanError> {
+        Plan::new(&Manifest::parse(text, path)?)
+    }
+
     /// Resolves a validated manifest.
     pub fn new(manifest: &Manifest) -> Result<Plan, PlanError> {
         let mut classes: Vec<Family> = Vec::with_capacity(manifest.classes.len());
