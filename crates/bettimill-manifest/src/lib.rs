@@ -66,7 +66,7 @@ pub struct Manifest {
     pub seed: u64,
     /// Per-member compression inside the tar shards.
     #[serde(default)]
-    pub compression: Compression,
+    pub compression: CompressionSetting,
     /// Named splits and their sizes; they must add up to `samples`. Default: all `train`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub splits: Option<std::collections::BTreeMap<String, u64>>,
@@ -219,7 +219,7 @@ impl Modes {
 /// Per-member compression of the stored arrays.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Compression {
+pub enum CompressionSetting {
     /// The default: plain `.npy` when one array is smaller than
     /// [`AUTO_COMPRESSION_THRESHOLD`] bytes (every client reads it, and tiny members gain
     /// little), `.npy.gz` from that size on (binary images shrink by one to two orders of

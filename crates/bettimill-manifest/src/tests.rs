@@ -43,7 +43,7 @@ fn a_good_manifest_parses() {
     let m = parse(GOOD).unwrap();
     assert_eq!(m.dimension, Dim::Three);
     assert_eq!(m.mode.to_vec(), vec![Mode::Embed]);
-    assert_eq!(m.compression, Compression::Auto);
+    assert_eq!(m.compression, CompressionSetting::Auto);
 }
 
 #[test]

@@ -38,7 +38,7 @@ pub struct Stratum {
     /// Position in [`Plan::strata`]; stored as the sample's `cls`.
     pub index: usize,
     /// Index of the class in the manifest's `[[classes]]` list.
-    pub class_index: usize,
+    pub manifest_class: usize,
     /// The construction family (a scene of copies when `components` > 1).
     pub family: Family,
     /// Object in empty space or cavity in a cube.
@@ -139,7 +139,7 @@ pub struct Plan {
 }
 
 /// Array size (bytes of voxels) from which `compression = "auto"` compresses; see
-/// [`bettimill_manifest::Compression::Auto`].
+/// [`bettimill_manifest::CompressionSetting::Auto`].
 pub use bettimill_manifest::AUTO_COMPRESSION_THRESHOLD;
 
 /// Upper bound of one sample's bytes in a shard, uncompressed: tar headers and padding of
@@ -156,7 +156,7 @@ fn sample_bytes_estimate(manifest: &Manifest) -> u64 {
 
 /// The member compression a manifest asks for, `auto` resolved by the array size.
 fn member_compression(manifest: &Manifest) -> bettimill_shard::Compression {
-    use bettimill_manifest::Compression as Written;
+    use bettimill_manifest::CompressionSetting as Written;
     use bettimill_shard::Compression;
     match manifest.compression {
         Written::Auto if manifest.voxels() >= AUTO_COMPRESSION_THRESHOLD => Compression::Gzip,
@@ -491,7 +491,7 @@ fn strata(
     let side = manifest.side as usize;
     let mut strata = Vec::new();
     let mut infeasible = Vec::new();
-    for (class_index, (class, spec)) in classes.iter().zip(&manifest.classes).enumerate() {
+    for (manifest_class, (class, spec)) in classes.iter().zip(&manifest.classes).enumerate() {
         let before = strata.len();
         let mut reasons: Vec<String> = Vec::new();
         for mode in manifest.mode.to_vec() {
@@ -517,7 +517,7 @@ fn strata(
                     match &checked {
                         Ok(betti) => strata.push(Stratum {
                             index: strata.len(),
-                            class_index,
+                            manifest_class,
                             label,
                             family: family.clone(),
                             mode,
@@ -546,7 +546,7 @@ fn strata(
                     spec.entry,
                     format!(
                         "class {} ({}): {}",
-                        class_index + 1,
+                        manifest_class + 1,
                         class.label(),
                         reasons.join("; ")
                     ),
