@@ -37,17 +37,19 @@ pub struct DeformArgs {
     /// Seed of the noise and of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Improved Noise frequency in cycles per voxel.
-    #[arg(long, default_value_t = 1.0 / 16.0)]
+    /// Improved Noise frequency in cycles per voxel, in (0, 1] (the manifest's default).
+    #[arg(long, default_value_t = bettimill_deform::DEFAULT_NOISE_FREQUENCY)]
     noise_frequency: f64,
-    /// Fractal octaves of the noise.
-    #[arg(long, default_value_t = 3)]
+    /// Fractal octaves of the noise, 1 to 24 (the manifest's default).
+    #[arg(long, default_value_t = bettimill_deform::DEFAULT_OCTAVES)]
     octaves: u32,
-    /// Moves: the farthest (Chebyshev) distance a voxel may travel.
-    #[arg(long, default_value_t = 1)]
+    /// Moves: the farthest (Chebyshev) distance a voxel may travel, 1 to 8 (the manifest's
+    /// default).
+    #[arg(long, default_value_t = bettimill_deform::DEFAULT_MAX_DISTANCE)]
     max_distance: u32,
-    /// Dilate/erode: the share of the frontier that may flip per iteration, in (0, 1].
-    #[arg(long, default_value_t = 1.0)]
+    /// Dilate/erode: the share of the frontier that may flip per iteration, in (0, 1]; 1 is
+    /// plain topology-preserving morphology (the manifest's default).
+    #[arg(long, default_value_t = bettimill_deform::DEFAULT_GROWTH_PROBABILITY)]
     growth_probability: f64,
     /// Refuse input values other than 0 and 1.
     #[arg(long)]

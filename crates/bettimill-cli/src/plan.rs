@@ -12,7 +12,7 @@ const NS_PER_VOXEL: [f64; 3] = [400.0, 300.0, 250.0];
 pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
     let plan = Plan::new(manifest)?;
     let voxels = (plan.side as f64).powi(plan.dimension.get() as i32);
-    let bytes = manifest.sample_bytes_estimate() * plan.samples;
+    let bytes = plan.sample_bytes * plan.samples;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
     let seconds =
         plan.samples as f64 * voxels * NS_PER_VOXEL[plan.dimension.get() - 2] / 1e9 / cores;
@@ -46,7 +46,7 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
             })
             .collect();
         let value = serde_json::json!({
-            "name": manifest.name,
+            "name": plan.name,
             "dimension": plan.dimension.get(),
             "side": plan.side,
             "manifest_hash": plan.manifest_hash,
@@ -65,7 +65,7 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
     }
     outln!(
         "dataset {}: {}D, side {}, {} samples",
-        manifest.name,
+        plan.name,
         plan.dimension,
         plan.side,
         plan.samples

@@ -58,7 +58,21 @@ pub enum Method {
     Erode,
 }
 
+/// Default [`DeformSettings::noise_frequency`].
+pub const DEFAULT_NOISE_FREQUENCY: f64 = 0.08;
+/// Default [`DeformSettings::octaves`].
+pub const DEFAULT_OCTAVES: u32 = 3;
+/// Default [`DeformSettings::max_distance`].
+pub const DEFAULT_MAX_DISTANCE: u32 = 1;
+/// Default [`DeformSettings::growth_probability`].
+pub const DEFAULT_GROWTH_PROBABILITY: f64 = 0.5;
+
 /// Everything that decides a deformation besides the image and the seed.
+///
+/// This is the one schema of deformation settings: the manifest's `[deform]` table is read
+/// straight into it (so its defaults are the manifest's defaults), the `bettimill deform`
+/// command fills it from its flags with the same defaults, and [`DeformSettings::validate`]
+/// holds the one set of ranges. Its serialised form is the `deform` field of a label.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DeformSettings {
@@ -67,29 +81,56 @@ pub struct DeformSettings {
     /// Moves to apply ([`Method::Moves`]) or iterations ([`Method::Dilate`],
     /// [`Method::Erode`]).
     pub steps: u32,
-    /// Noise frequency in lattice cells per voxel (1/16 gives features ~16 voxels wide).
+    /// Noise frequency in lattice cells per voxel, in (0, 1] (1/16 gives features ~16
+    /// voxels wide).
+    #[serde(default = "default_noise_frequency")]
     pub noise_frequency: f64,
-    /// Octaves of fractal noise (1 ..= 24).
+    /// Octaves of fractal noise (1 ..= [`bettimill_noise::MAX_OCTAVES`]).
+    #[serde(default = "default_octaves")]
     pub octaves: u32,
     /// Moves only: the largest Chebyshev distance between a moved voxel's old and new
-    /// position (1 ..= [`MAX_DISTANCE`]). 1 means a neighbour, as in the paper.
+    /// position (1 ..= [`MAX_DISTANCE`], checked for every method). 1 means a neighbour, as
+    /// in the paper.
+    #[serde(default = "default_max_distance")]
     pub max_distance: u32,
     /// Dilate and erode only: the fraction (0, 1] of the frontier allowed to flip in each
     /// iteration, the ones at the highest noise for dilation and the lowest for erosion.
     /// 1 is plain topology-preserving dilation (erosion).
+    #[serde(default = "default_growth_probability")]
     pub growth_probability: f64,
 }
 
-impl Default for DeformSettings {
-    fn default() -> Self {
+fn default_noise_frequency() -> f64 {
+    DEFAULT_NOISE_FREQUENCY
+}
+fn default_octaves() -> u32 {
+    DEFAULT_OCTAVES
+}
+fn default_max_distance() -> u32 {
+    DEFAULT_MAX_DISTANCE
+}
+fn default_growth_probability() -> f64 {
+    DEFAULT_GROWTH_PROBABILITY
+}
+
+impl DeformSettings {
+    /// `method` for `steps` with every other setting at its default.
+    pub fn new(method: Method, steps: u32) -> DeformSettings {
         DeformSettings {
-            method: Method::Moves,
-            steps: 600,
-            noise_frequency: 1.0 / 16.0,
-            octaves: 3,
-            max_distance: 1,
-            growth_probability: 1.0,
+            method,
+            steps,
+            noise_frequency: DEFAULT_NOISE_FREQUENCY,
+            octaves: DEFAULT_OCTAVES,
+            max_distance: DEFAULT_MAX_DISTANCE,
+            growth_probability: DEFAULT_GROWTH_PROBABILITY,
         }
+    }
+}
+
+impl Default for DeformSettings {
+    /// 600 hypervolume-preserving moves with the default settings.
+    fn default() -> Self {
+        DeformSettings::new(Method::Moves, 600)
     }
 }
 
@@ -151,10 +192,10 @@ impl DeformSettings {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), DeformError> {
         let bad = |field, reason: String| Err(DeformError::InvalidSetting { field, reason });
-        if !(self.noise_frequency.is_finite() && self.noise_frequency > 0.0) {
+        if !(self.noise_frequency > 0.0 && self.noise_frequency <= 1.0) {
             return bad(
                 "noise_frequency",
-                format!("must be finite and > 0, got {}", self.noise_frequency),
+                format!("must be in (0, 1], got {}", self.noise_frequency),
             );
         }
         if self.octaves == 0 || self.octaves > bettimill_noise::MAX_OCTAVES {
@@ -167,7 +208,7 @@ impl DeformSettings {
                 ),
             );
         }
-        if self.method == Method::Moves && !(1..=MAX_DISTANCE).contains(&self.max_distance) {
+        if !(1..=MAX_DISTANCE).contains(&self.max_distance) {
             return bad(
                 "max_distance",
                 format!(
@@ -306,6 +347,15 @@ mod tests {
             },
             DeformSettings {
                 growth_probability: 1.5,
+                ..ok.clone()
+            },
+            // The manifest once accepted 0 and every build attempt then failed.
+            DeformSettings {
+                growth_probability: 0.0,
+                ..ok.clone()
+            },
+            DeformSettings {
+                noise_frequency: 1.5,
                 ..ok.clone()
             },
         ] {

@@ -157,7 +157,7 @@ pub fn write_slurm_scripts(
     tasks_with_work.dedup();
     let dir_text = dir.to_string_lossy();
     let program_text = program.to_string_lossy();
-    let name = &dataset.manifest.name;
+    let name = &dataset.plan.name;
     let extra: String = options
         .extra
         .iter()
@@ -324,7 +324,7 @@ pub fn kubernetes_job(
     }
     let dir = absolute(&dataset.dir)?;
     let dir_text = dir.to_string_lossy();
-    let name = dns_label(&format!("bettimill-{}", dataset.manifest.name));
+    let name = dns_label(&format!("bettimill-{}", dataset.plan.name));
     Ok(format!(
         "# Written by `bettimill k8s`: pod t builds the incomplete shards s with s % {tasks} == t of\n\
          # the dataset in {dir_text}, which must be on the claim {claim} mounted at that path.\n\

@@ -3,7 +3,7 @@
 use bettimill_format::TarCheck;
 use bettimill_format::{member_name, DatasetDir, FormatError, TOOL_VERSION};
 pub use bettimill_format::{BuildInfo, CompletionRecord, ShardState};
-use bettimill_manifest::{Compression, Manifest, ManifestError};
+use bettimill_manifest::{Manifest, ManifestError};
 use bettimill_plan::{Plan, ShardPlan};
 use bettimill_sample::{make_sample, SampleError};
 use bettimill_shard::{
@@ -182,18 +182,14 @@ impl Dataset {
         progress: &(dyn Fn(u32) + Sync),
     ) -> Result<CompletionRecord, BuildError> {
         let tasks = self.plan.shard_tasks(shard);
-        let compression = match self.manifest.member_compression() {
-            Compression::None | Compression::Auto => shard::Compression::None,
-            Compression::Gzip => shard::Compression::Gzip,
-            Compression::Zstd => shard::Compression::Zstd,
-        };
+        let compression = self.plan.compression;
         // Each sample becomes its (compressed) members as soon as it is verified, so a
         // worker holds a shard's compressed bytes, not every uncompressed image of the shard
         // (150 samples of 56^4 held 1.5 GB that way).
         let samples: Vec<(Vec<Member>, String, u32)> = tasks
             .par_iter()
             .map(|task| {
-                let sample = make_sample(&self.manifest, &self.plan, task)?;
+                let sample = make_sample(&self.plan, task)?;
                 progress(sample.label.attempt);
                 let key = &sample.label.key;
                 let mut fields = Vec::new();

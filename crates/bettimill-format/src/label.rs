@@ -1,6 +1,6 @@
 //! The label stored as `KEY.json` in every sample.
 
-use bettimill_manifest::DeformSpec;
+use bettimill_deform::DeformSettings;
 use serde::{Deserialize, Serialize};
 
 /// The label stored as `KEY.json`. Field order is fixed by this struct, and the
@@ -48,7 +48,7 @@ pub struct Label {
     pub construction: serde_json::Value,
     /// Deformation applied, if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub deform: Option<DeformSpec>,
+    pub deform: Option<DeformSettings>,
     /// The foreground voxel bin `[lo, hi]` the sample was brought into, if binned.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hypervolume_bin: Option<(u64, u64)>,

@@ -12,6 +12,36 @@ pub mod npy;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
+/// Which phase the objects of a sample are: the voxel model's two ways to draw a shape.
+///
+/// It lives beside [`Dim`] because the manifest, the plan, the constructions and the
+/// labels all speak of it, and none of them should need another's crate to do so.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Objects (foreground) in empty space.
+    Embed,
+    /// A solid cube filling the image except a one-voxel margin, with the objects removed
+    /// as cavities.
+    Carve,
+}
+
+impl Mode {
+    /// The manifest spelling: `embed` or `carve`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Embed => "embed",
+            Mode::Carve => "carve",
+        }
+    }
+}
+
+impl fmt::Display for Mode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// The number of axes of an image. Only 2, 3 and 4 exist, so every function that takes a
 /// `Dim` can rely on that instead of re-checking it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]

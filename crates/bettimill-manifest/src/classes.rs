@@ -3,54 +3,71 @@
 //! A class table may give an integer parameter as an inclusive range `[lo, hi]`, or a
 //! string parameter as a list of strings; the entry then stands for every combination, keys taken in
 //! alphabetical order (later keys vary fastest). Arrays of tables (the
-//! `objects` of a scene) are never expanded. Each concrete table is then read as a
-//! `bettimill_shapes::Family`, so unknown fields and wrong types are still errors.
+//! `objects` of a scene) are never expanded.
 //!
 //! A class may instead give the label itself: `betti = [1, 2, 1, 0]` (b_0..b_{d-1}),
-//! each entry an integer or an inclusive range `[lo, hi]`; shapes realises each vector by
-//! a canonical construction (`Family::Betti`).
+//! each entry an integer or an inclusive range `[lo, hi]`.
+//!
+//! What a concrete table means (which families exist, their parameters and whether they can
+//! be built) is not decided here: the manifest knows syntax and ranges, and the plan turns
+//! each [`ClassSpec`] into a construction, once (`bettimill_plan::Plan::new`).
 
-use bettimill_shapes::Family;
 use serde::de::Error as _;
-use serde::{Deserialize, Deserializer};
+use serde::{Deserialize, Deserializer, Serialize};
 use toml::Value;
 
 /// The most classes one entry may expand into.
 const MAX_EXPANSION: usize = 10_000;
 
+/// One concrete label class, ranges expanded, not yet resolved into a construction.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ClassSpec {
+    /// 1-based position of the `[[classes]]` entry it came from (for error messages).
+    pub entry: usize,
+    /// What the entry says.
+    pub kind: ClassKind,
+}
+
+/// A concrete class as written.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum ClassKind {
+    /// A construction family and its parameters, e.g. `{ family = "handlebody", genus = 2 }`.
+    Family(toml::Table),
+    /// A Betti vector `b0..b(d-1)`.
+    Betti(Vec<u64>),
+}
+
 /// Deserialises `classes`, expanding ranges and lists.
-pub(crate) fn expand<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<Family>, D::Error> {
+pub(crate) fn expand<'de, D: Deserializer<'de>>(
+    deserializer: D,
+) -> Result<Vec<ClassSpec>, D::Error> {
     let tables = Vec::<toml::Table>::deserialize(deserializer)?;
     let mut out = Vec::new();
     for (position, table) in tables.into_iter().enumerate() {
+        let entry = position + 1;
         if table.contains_key("betti")
             || table.get("family").and_then(Value::as_str) == Some("betti")
         {
             let vectors = betti_vectors(&table)
-                .map_err(|reason| D::Error::custom(format!("class {}: {reason}", position + 1)))?;
-            out.extend(vectors.into_iter().map(|betti| Family::Betti { betti }));
+                .map_err(|reason| D::Error::custom(format!("class {entry}: {reason}")))?;
+            out.extend(vectors.into_iter().map(|betti| ClassSpec {
+                entry,
+                kind: ClassKind::Betti(betti),
+            }));
             continue;
         }
+        if !table.contains_key("family") {
+            return Err(D::Error::custom(format!(
+                "class {entry}: give `family = \"...\"` or `betti = [...]`"
+            )));
+        }
         for concrete in expand_table(table)
-            .map_err(|reason| D::Error::custom(format!("class {}: {reason}", position + 1)))?
+            .map_err(|reason| D::Error::custom(format!("class {entry}: {reason}")))?
         {
-            let family = Family::deserialize(Value::Table(concrete.clone()))
-                .map_err(|err| D::Error::custom(format!("class {}: {err}", position + 1)))?;
-            // serde ignores extra keys next to a unit variant (`{ family = "ball", radius =
-            // 3 }`); a misspelt or unsupported parameter must never be silently dropped, so
-            // every key written must survive a round trip.
-            let known = Value::try_from(&family)
-                .ok()
-                .and_then(|v| v.as_table().cloned())
-                .unwrap_or_default();
-            if let Some(extra) = concrete.keys().find(|k| !known.contains_key(*k)) {
-                return Err(D::Error::custom(format!(
-                    "class {}: unknown field `{extra}` for family {}",
-                    position + 1,
-                    family.label()
-                )));
-            }
-            out.push(family);
+            out.push(ClassSpec {
+                entry,
+                kind: ClassKind::Family(concrete),
+            });
         }
     }
     Ok(out)
@@ -162,50 +179,37 @@ fn expand_table(table: toml::Table) -> Result<Vec<toml::Table>, String> {
 mod tests {
     use super::*;
 
-    fn expanded(text: &str) -> Vec<Family> {
+    fn expanded(text: &str) -> Result<Vec<ClassKind>, String> {
         #[derive(Deserialize)]
         struct Wrapper {
             #[serde(deserialize_with = "expand")]
-            classes: Vec<Family>,
+            classes: Vec<ClassSpec>,
         }
-        toml::from_str::<Wrapper>(text).unwrap().classes
+        toml::from_str::<Wrapper>(text)
+            .map(|w| w.classes.into_iter().map(|c| c.kind).collect())
+            .map_err(|e| e.message().to_string())
     }
 
-    #[test]
-    fn extra_keys_on_unit_families_are_refused() {
-        #[derive(Deserialize, Debug)]
-        #[allow(dead_code)]
-        struct Wrapper {
-            #[serde(deserialize_with = "expand")]
-            classes: Vec<Family>,
-        }
-        let err =
-            toml::from_str::<Wrapper>("[[classes]]\nfamily = \"ball\"\nradius = 3\n").unwrap_err();
-        assert!(err.message().contains("unknown field `radius`"), "{err}");
+    fn table(text: &str) -> ClassKind {
+        ClassKind::Family(toml::from_str(text).unwrap())
     }
 
     #[test]
     fn betti_vectors_expand_their_ranges() {
-        let betti = |v: &[u64]| Family::Betti { betti: v.to_vec() };
+        let betti = |v: &[u64]| ClassKind::Betti(v.to_vec());
         assert_eq!(
-            expanded("[[classes]]\nbetti = [1, 2, 1, 0]\n"),
+            expanded("[[classes]]\nbetti = [1, 2, 1, 0]\n").unwrap(),
             vec![betti(&[1, 2, 1, 0])]
         );
         // Two integers are a vector, not a range: b0 = 1, b1 = 2.
         assert_eq!(
-            expanded("[[classes]]\nbetti = [1, 2]\n"),
+            expanded("[[classes]]\nbetti = [1, 2]\n").unwrap(),
             vec![betti(&[1, 2])]
         );
         assert_eq!(
-            expanded("[[classes]]\nfamily = \"betti\"\nbetti = [1, [0, 2], 0]\n"),
+            expanded("[[classes]]\nfamily = \"betti\"\nbetti = [1, [0, 2], 0]\n").unwrap(),
             vec![betti(&[1, 0, 0]), betti(&[1, 1, 0]), betti(&[1, 2, 0])]
         );
-        #[derive(Deserialize, Debug)]
-        #[allow(dead_code)]
-        struct Wrapper {
-            #[serde(deserialize_with = "expand")]
-            classes: Vec<Family>,
-        }
         for (text, needle) in [
             ("betti = [1, 0]\ngenus = 2", "unknown field `genus`"),
             (
@@ -218,30 +222,31 @@ mod tests {
             ("betti = [1, 0.5]", "found float"),
             ("betti = [1, 0, 0, 0, 0]", "5 entries"),
             ("family = \"betti\"", "must be a list"),
+            ("genus = 2", "give `family"),
         ] {
-            let err = toml::from_str::<Wrapper>(&format!("[[classes]]\n{text}\n")).unwrap_err();
-            assert!(err.message().contains(needle), "{text}: {err}");
+            let err = expanded(&format!("[[classes]]\n{text}\n")).unwrap_err();
+            assert!(err.contains(needle), "{text}: {err}");
         }
     }
 
     #[test]
     fn ranges_and_lists_expand() {
         let classes =
-            expanded("[[classes]]\nfamily = \"connected_sum\"\ng = [0, 2]\nh = 1\ni = 0\nj = 0\n");
+            expanded("[[classes]]\nfamily = \"connected_sum\"\ng = [0, 2]\nh = 1\ni = 0\nj = 0\n")
+                .unwrap();
         assert_eq!(classes.len(), 3);
         assert_eq!(
             classes[2],
-            Family::ConnectedSum {
-                g: 2,
-                h: 1,
-                i: 0,
-                j: 0
-            }
+            table("family = \"connected_sum\"\ng = 2\nh = 1\ni = 0\nj = 0")
         );
         let classes =
-            expanded("[[classes]]\nfamily = \"knot\"\nknot = [\"trefoil\", \"figure_eight\"]\n");
+            expanded("[[classes]]\nfamily = \"knot\"\nknot = [\"trefoil\", \"figure_eight\"]\n")
+                .unwrap();
         assert_eq!(classes.len(), 2);
-        let classes = expanded("[[classes]]\nfamily = [\"ball\", \"handle\"]\n");
-        assert_eq!(classes, vec![Family::Ball, Family::Handle]);
+        let classes = expanded("[[classes]]\nfamily = [\"ball\", \"handle\"]\n").unwrap();
+        assert_eq!(
+            classes,
+            vec![table("family = \"ball\""), table("family = \"handle\"")]
+        );
     }
 }

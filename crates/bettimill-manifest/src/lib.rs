@@ -2,9 +2,11 @@
 //!
 //! A manifest is the user's entire interface to a build, so parsing it is strict: unknown
 //! fields, wrong types and impossible values are errors that name the file, the line and the
-//! field, never silent defaults. The [`Manifest::canonical_hash`] identifies the dataset:
-//! every sample seed is derived from it, so two manifests that differ only in comments,
-//! whitespace or key order build identical bytes.
+//! field, never silent defaults. This crate knows the syntax and the ranges of every field;
+//! what the classes mean (which constructions exist, whether they fit) is decided once, by
+//! the plan (`bettimill_plan::Plan::new`), which also computes the canonical hash that
+//! identifies the dataset. Two manifests that differ only in comments, whitespace or key
+//! order build identical bytes.
 //!
 //! Schema version 1 (see `docs/manifest.md` for every field with an example):
 //!
@@ -26,8 +28,8 @@
 //! family = "handle"
 //! ```
 
-use bettimill_grid::Dim;
-use bettimill_shapes::{Family, Mode};
+use bettimill_deform::DeformSettings;
+use bettimill_grid::{Dim, Mode};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -64,7 +66,7 @@ pub struct Manifest {
     pub seed: u64,
     /// Per-member compression inside the tar shards.
     #[serde(default)]
-    pub compression: Compression,
+    pub compression: CompressionSetting,
     /// Named splits and their sizes; they must add up to `samples`. Default: all `train`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub splits: Option<std::collections::BTreeMap<String, u64>>,
@@ -80,13 +82,29 @@ pub struct Manifest {
     /// computed Betti numbers (max pooling; each must divide `side`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub resolutions: Vec<u32>,
-    /// Optional topology-preserving deformation applied to every sample.
+    /// Optional topology-preserving deformation applied to every sample (the one schema of
+    /// deformation settings, with its defaults and ranges, is `bettimill_deform`'s).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub deform: Option<DeformSpec>,
+    pub deform: Option<DeformSettings>,
     /// The label classes, expanded: an integer parameter written `[lo, hi]` or a list of
-    /// strings becomes one class per value.
+    /// strings becomes one class per value. The plan's canonical form serialises this field
+    /// last, so it must stay the last field.
     #[serde(deserialize_with = "classes::expand")]
-    pub classes: Vec<Family>,
+    pub classes: Vec<ClassSpec>,
+    /// Where the manifest came from, for error messages of later stages; not part of the
+    /// dataset's identity.
+    #[serde(skip)]
+    pub origin: Origin,
+}
+
+/// The file a manifest was read from and its text, so that the plan can point at the line
+/// of a field it refuses.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Origin {
+    /// The manifest path (or `<embedded demo manifest>`).
+    pub path: PathBuf,
+    /// The manifest text.
+    pub text: String,
 }
 
 /// Hypervolume bins, as written in the `[hypervolume]` table.
@@ -112,40 +130,32 @@ pub enum HypervolumeUnit {
 }
 
 impl Manifest {
-    /// The member compression actually used: `auto` resolved by the array size.
-    pub fn member_compression(&self) -> Compression {
-        match self.compression {
-            Compression::Auto => {
-                let voxels = (self.side as u64).pow(self.dimension.get() as u32);
-                if voxels >= AUTO_COMPRESSION_THRESHOLD {
-                    Compression::Gzip
-                } else {
-                    Compression::None
-                }
-            }
-            other => other,
-        }
+    /// Voxels of one sample: side^dimension.
+    pub fn voxels(&self) -> u64 {
+        (self.side as u64).pow(self.dimension.get() as u32)
     }
 
-    /// Samples per shard, from `shard_size` or derived from `shard_bytes`.
-    pub fn samples_per_shard(&self) -> u64 {
-        match (self.shard_size, self.shard_bytes) {
-            (Some(n), _) => n,
-            (None, Some(bytes)) => (bytes / self.sample_bytes_estimate()).max(1),
-            (None, None) => unreachable!("validation requires shard_size or shard_bytes"),
-        }
+    /// An error about `field` of this manifest, at the line where the field is written.
+    pub fn error(&self, field: &str, reason: impl Into<String>) -> ManifestError {
+        ManifestError::invalid(&self.origin.source(), field, reason)
     }
 
-    /// Upper bound of one sample's bytes in a shard, uncompressed: tar headers and
-    /// padding of every member, the arrays (with downscaled copies) and a generous label.
-    pub fn sample_bytes_estimate(&self) -> u64 {
-        let pad = |n: u64| 512 + n.div_ceil(512) * 512;
-        let voxels = |side: u32| (side as u64).pow(self.dimension.get() as u32);
-        let arrays: u64 = std::iter::once(self.side)
-            .chain(self.resolutions.iter().copied())
-            .map(|side| pad(128 + voxels(side)))
-            .sum();
-        arrays + pad(8192) + pad(16)
+    /// An error about the `entry`-th (1-based) `[[classes]]` entry, at its header line.
+    pub fn class_error(&self, entry: usize, reason: impl Into<String>) -> ManifestError {
+        let line = self
+            .origin
+            .text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.trim() == "[[classes]]")
+            .nth(entry.saturating_sub(1))
+            .map_or(0, |(i, _)| i + 1);
+        ManifestError::Invalid {
+            path: self.origin.path.clone(),
+            line,
+            field: "classes".to_string(),
+            reason: reason.into(),
+        }
     }
 
     /// The voxel bounds `[lo, hi]` (inclusive) of each hypervolume bin.
@@ -209,7 +219,7 @@ impl Modes {
 /// Per-member compression of the stored arrays.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum Compression {
+pub enum CompressionSetting {
     /// The default: plain `.npy` when one array is smaller than
     /// [`AUTO_COMPRESSION_THRESHOLD`] bytes (every client reads it, and tiny members gain
     /// little), `.npy.gz` from that size on (binary images shrink by one to two orders of
@@ -227,53 +237,6 @@ pub enum Compression {
 /// Array size (bytes of voxels) from which `compression = "auto"` compresses: 1 MiB, a 4D
 /// image of side 32 or a 3D image of side 102.
 pub const AUTO_COMPRESSION_THRESHOLD: u64 = 1 << 20;
-
-/// Deformation settings as written in the manifest's `[deform]` table.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DeformSpec {
-    /// `moves` (hypervolume-preserving), `dilate` or `erode` (modified morphology).
-    pub method: DeformMethod,
-    /// Number of moves, or of morphology iterations.
-    pub steps: u32,
-    /// Spatial frequency of the Improved Noise field, in cycles per voxel.
-    #[serde(default = "default_frequency")]
-    pub noise_frequency: f64,
-    /// Fractal octaves of the noise.
-    #[serde(default = "default_octaves")]
-    pub octaves: u32,
-    /// How far (in voxels, Chebyshev) a moved voxel may travel.
-    #[serde(default = "default_distance")]
-    pub max_distance: u32,
-    /// Probability that a simple candidate voxel grows during dilation.
-    #[serde(default = "default_growth")]
-    pub growth_probability: f64,
-}
-
-fn default_frequency() -> f64 {
-    0.08
-}
-fn default_octaves() -> u32 {
-    3
-}
-fn default_distance() -> u32 {
-    1
-}
-fn default_growth() -> f64 {
-    0.5
-}
-
-/// A deformation method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DeformMethod {
-    /// Hypervolume-preserving moves of simple boundary voxels.
-    Moves,
-    /// Noise-modulated topology-preserving dilation.
-    Dilate,
-    /// Noise-modulated topology-preserving erosion.
-    Erode,
-}
 
 /// `path:line`, or just `path` when no line is at fault (a missing field).
 fn at_line(path: &std::path::Path, line: usize) -> String {
@@ -324,6 +287,15 @@ impl ManifestError {
 struct Source<'a> {
     path: &'a Path,
     text: &'a str,
+}
+
+impl Origin {
+    fn source(&self) -> Source<'_> {
+        Source {
+            path: &self.path,
+            text: &self.text,
+        }
+    }
 }
 
 impl Source<'_> {
@@ -384,7 +356,7 @@ impl Manifest {
     /// Parses and validates manifest text; `path` is only used in error messages.
     pub fn parse(text: &str, path: &Path) -> Result<Manifest, ManifestError> {
         let source = Source { path, text };
-        let manifest: Manifest = toml::from_str(text).map_err(|err| {
+        let mut manifest: Manifest = toml::from_str(text).map_err(|err| {
             let (line, field) = match err.span() {
                 Some(span) => (source.line_at(span.start), source.key_at(span.start)),
                 None => (0, String::from("(file)")),
@@ -398,6 +370,10 @@ impl Manifest {
             }
         })?;
         manifest.validate(&source)?;
+        manifest.origin = Origin {
+            path: path.to_path_buf(),
+            text: text.to_string(),
+        };
         Ok(manifest)
     }
 
@@ -473,16 +449,6 @@ impl Manifest {
                     source,
                     "shard_size",
                     "missing: give shard_size (samples per shard) or shard_bytes",
-                ))
-            }
-            (None, Some(bytes)) if bytes < self.sample_bytes_estimate() => {
-                return Err(ManifestError::invalid(
-                    source,
-                    "shard_bytes",
-                    format!(
-                        "{bytes} bytes cannot hold one sample (about {} bytes each)",
-                        self.sample_bytes_estimate()
-                    ),
                 ))
             }
             _ => {}
@@ -611,105 +577,26 @@ impl Manifest {
                 "at least one [[classes]] entry is needed",
             ));
         }
-        let copies = self.components.clone().unwrap_or_else(|| vec![1]);
-        for (i, class) in self.classes.iter().enumerate() {
-            if self.classes[..i].contains(class) {
-                return Err(ManifestError::invalid(
-                    source,
-                    "classes",
-                    format!("class {} ({}) is listed twice", i + 1, class.label()),
-                ));
-            }
-            // A class must be buildable in at least one combination of the other axes;
-            // combinations that cannot be built are left out of the plan with a reason.
-            let mut errors: Vec<String> = Vec::new();
-            let mut feasible = false;
-            for &mode in &modes {
-                for &c in &copies {
-                    let family = class_with_copies(class, c);
-                    match family
-                        .expected_betti(self.dimension, mode)
-                        .and_then(|_| family.check_fits(self.dimension, self.side as usize, mode))
-                    {
-                        Ok(()) => feasible = true,
-                        Err(err) => {
-                            let err = err.to_string();
-                            if !errors.contains(&err) {
-                                errors.push(err);
-                            }
-                        }
-                    }
-                }
-            }
-            if !feasible {
-                // Every reason, so that a class refused in two modes for two different
-                // reasons (too big here, impossible there) says both.
-                return Err(ManifestError::invalid(
-                    source,
-                    "classes",
-                    format!("class {} ({}): {}", i + 1, class.label(), errors.join("; ")),
-                ));
-            }
-        }
         if let Some(deform) = &self.deform {
-            if !(deform.noise_frequency > 0.0 && deform.noise_frequency <= 1.0) {
+            if let Err(bettimill_deform::DeformError::InvalidSetting { field, reason }) =
+                deform.validate()
+            {
                 return Err(ManifestError::invalid(
                     source,
-                    "deform.noise_frequency",
-                    format!("{} must be in (0, 1]", deform.noise_frequency),
-                ));
-            }
-            if !(0.0..=1.0).contains(&deform.growth_probability) {
-                return Err(ManifestError::invalid(
-                    source,
-                    "deform.growth_probability",
-                    format!("{} must be in [0, 1]", deform.growth_probability),
-                ));
-            }
-            if deform.octaves == 0 || deform.octaves > 12 {
-                return Err(ManifestError::invalid(
-                    source,
-                    "deform.octaves",
-                    format!("{} must be in 1..=12", deform.octaves),
-                ));
-            }
-            if deform.max_distance == 0 || deform.max_distance > 8 {
-                return Err(ManifestError::invalid(
-                    source,
-                    "deform.max_distance",
-                    format!("{} must be in 1..=8", deform.max_distance),
+                    &format!("deform.{field}"),
+                    reason,
                 ));
             }
         }
         Ok(())
     }
 
-    /// The canonical JSON form: every field, defaults filled in, fixed key order. Comments,
-    /// whitespace and the order of keys in the file do not change it.
-    pub fn canonical_json(&self) -> String {
-        serde_json::to_string(self).expect("a manifest always serialises")
-    }
-
-    /// blake3 of the canonical JSON, as 64 hex digits. Identifies the dataset.
-    pub fn canonical_hash(&self) -> String {
-        blake3::hash(self.canonical_json().as_bytes())
-            .to_hex()
-            .to_string()
-    }
-}
-
-/// The class object repeated `copies` times: itself for one copy, else a scene (the
-/// objects of a scene class are repeated).
-pub fn class_with_copies(class: &Family, copies: u32) -> Family {
-    if copies == 1 {
-        return class.clone();
-    }
-    let one: Vec<Family> = match class {
-        Family::Scene { objects } => objects.clone(),
-        other => vec![other.clone()],
-    };
-    Family::Scene {
-        objects: (0..copies).flat_map(|_| one.iter().cloned()).collect(),
+    /// The manifest's JSON form with `classes` left empty: the plan appends the resolved
+    /// classes to make the canonical form (`bettimill_plan::canonical_json`).
+    pub fn json_without_classes(&self) -> String {
+        let mut copy = self.clone();
+        copy.classes.clear();
+        serde_json::to_string(&copy).expect("a manifest always serialises")
     }
 }
 
@@ -719,5 +606,6 @@ fn unknown_field_name(message: &str) -> Option<String> {
 }
 
 mod classes;
+pub use classes::{ClassKind, ClassSpec};
 #[cfg(test)]
 mod tests;

@@ -4,8 +4,9 @@
 //! duplicated, swapped), values (replaced by hostile ones: negative, zero, 2^64 - 1, huge
 //! floats, NaN, strings, arrays, tables), and bytes (inserted, replaced); plus random text.
 //! Properties: `Manifest::parse` never panics; an error names a line within the file; an
-//! accepted manifest can be hashed and sized (canonical hash, sample size estimate, splits,
-//! hypervolume bins) without panicking, and its canonical hash is the same when parsed again.
+//! accepted manifest's splits and hypervolume bins can be computed without panicking. (What
+//! the plan makes of an accepted manifest is fuzzed in `bettimill-sample`'s
+//! `plan_then_build` test: a manifest that plans builds.)
 //!
 //! Each test prints how many inputs it ran; `BETTIMILL_FUZZ_CASES=N` multiplies them.
 
@@ -87,12 +88,9 @@ fn check(text: &str) -> Result<(), TestCaseError> {
     let path = Path::new("fuzz.toml");
     match Manifest::parse(text, path) {
         Ok(manifest) => {
-            let hash = manifest.canonical_hash();
-            let _ = manifest.sample_bytes_estimate();
-            let _ = manifest.samples_per_shard();
-            let _ = manifest.split_sizes();
+            let splits = manifest.split_sizes();
+            prop_assert_eq!(splits.iter().map(|s| s.1).sum::<u64>(), manifest.samples);
             let _ = manifest.hypervolume_voxel_bins();
-            prop_assert_eq!(hash.len(), 64, "a blake3 hex digest");
         }
         Err(err) => {
             let message = err.to_string();

@@ -1,8 +1,17 @@
-//! The plan: a manifest expanded into strata, shards and per-sample seeds.
+//! The plan: a manifest resolved, once, into strata, shards, per-sample seeds and every
+//! setting a worker needs.
 //!
 //! The plan is a pure function of the manifest, so every machine that reads the same
 //! manifest computes the same plan, and a worker can be handed nothing but the manifest text
 //! and a shard index. Nothing here depends on worker count, time or file system state.
+//!
+//! This is the only place a manifest is resolved: the classes are turned into
+//! constructions and checked for feasibility here (and only here), `compression = "auto"`
+//! becomes a member compression, `shard_bytes` becomes a number of samples, and the
+//! deformation settings, resolutions and compression are copied into the plan in the types
+//! their consumers take, so that nothing downstream reads the manifest again. A manifest
+//! that plans is one every sample of which can be attempted; what cannot be known before
+//! building (a construction that fails every attempt) is the sample's to report.
 //!
 //! Balance: samples are assigned to strata cyclically in global order (sample j gets
 //! stratum `order[j mod S]`), so stratum counts differ by at most one over the whole dataset
@@ -14,9 +23,10 @@
 //! index_le)` (32 bytes), and regeneration attempt k of that sample uses
 //! `blake3-derive-key("bettimill attempt seed v1", sample_seed || k_le)` as a ChaCha8 seed.
 
-use bettimill_grid::Dim;
-use bettimill_manifest::Manifest;
-use bettimill_shapes::{Family, Mode};
+use bettimill_deform::DeformSettings;
+use bettimill_grid::{Dim, Mode};
+use bettimill_manifest::{ClassKind, ClassSpec, Manifest, ManifestError};
+use bettimill_shapes::Family;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -28,7 +38,7 @@ pub struct Stratum {
     /// Position in [`Plan::strata`]; stored as the sample's `cls`.
     pub index: usize,
     /// Index of the class in the manifest's `[[classes]]` list.
-    pub class_index: usize,
+    pub manifest_class: usize,
     /// The construction family (a scene of copies when `components` > 1).
     pub family: Family,
     /// Object in empty space or cavity in a cube.
@@ -52,19 +62,14 @@ pub struct Infeasible {
     pub reason: String,
 }
 
-/// Why a manifest has no usable plan.
+/// Why a manifest has no usable plan: the message names the file, line and field.
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
-    /// A class cannot be built in any combination of the other axes.
-    #[error("class {class} ({label}) cannot be built in any combination: {reason}")]
-    ClassNeverFeasible {
-        /// 1-based class number in the manifest.
-        class: usize,
-        /// The class label.
-        label: String,
-        /// The reason given for its last combination.
-        reason: String,
-    },
+    /// A field the plan resolves cannot be used: an unknown family or parameter, a class
+    /// listed twice, a class that no combination of the strata axes can build, a
+    /// `shard_bytes` too small for one sample.
+    #[error(transparent)]
+    Manifest(#[from] ManifestError),
 }
 
 /// A contiguous range of samples written as one tar file.
@@ -123,6 +128,92 @@ pub struct Plan {
     pub shard_size: u64,
     /// The order in which strata are dealt out cyclically.
     pub deal_order: Vec<usize>,
+    /// Member compression of every array (`auto` resolved).
+    pub compression: bettimill_shard::Compression,
+    /// Side lengths of the downscaled copies stored with every sample.
+    pub resolutions: Vec<u32>,
+    /// The deformation applied to every sample, if any.
+    pub deform: Option<DeformSettings>,
+    /// Upper bound of one sample's bytes in a shard, uncompressed.
+    pub sample_bytes: u64,
+}
+
+/// Array size (bytes of voxels) from which `compression = "auto"` compresses; see
+/// [`bettimill_manifest::CompressionSetting::Auto`].
+pub use bettimill_manifest::AUTO_COMPRESSION_THRESHOLD;
+
+/// Upper bound of one sample's bytes in a shard, uncompressed: tar headers and padding of
+/// every member, the arrays (with downscaled copies) and a generous label.
+fn sample_bytes_estimate(manifest: &Manifest) -> u64 {
+    let member = bettimill_shard::ustar::member_bytes;
+    let voxels = |side: u32| (side as u64).pow(manifest.dimension.get() as u32);
+    let arrays: u64 = std::iter::once(manifest.side)
+        .chain(manifest.resolutions.iter().copied())
+        .map(|side| member(128 + voxels(side)))
+        .sum();
+    arrays + member(8192) + member(16)
+}
+
+/// The member compression a manifest asks for, `auto` resolved by the array size.
+fn member_compression(manifest: &Manifest) -> bettimill_shard::Compression {
+    use bettimill_manifest::CompressionSetting as Written;
+    use bettimill_shard::Compression;
+    match manifest.compression {
+        Written::Auto if manifest.voxels() >= AUTO_COMPRESSION_THRESHOLD => Compression::Gzip,
+        Written::Auto | Written::None => Compression::None,
+        Written::Gzip => Compression::Gzip,
+        Written::Zstd => Compression::Zstd,
+    }
+}
+
+/// The construction a class entry names, with every key written checked.
+fn resolve_class(manifest: &Manifest, class: &ClassSpec) -> Result<Family, ManifestError> {
+    let table = match &class.kind {
+        ClassKind::Betti(betti) => {
+            return Ok(Family::Betti {
+                betti: betti.clone(),
+            })
+        }
+        ClassKind::Family(table) => table,
+    };
+    let refuse = |reason: String| {
+        manifest.class_error(class.entry, format!("class {}: {reason}", class.entry))
+    };
+    let family = <Family as serde::Deserialize>::deserialize(toml::Value::Table(table.clone()))
+        .map_err(|err| refuse(err.to_string()))?;
+    // serde ignores extra keys next to a unit variant (`{ family = "ball", radius = 3 }`);
+    // a misspelt or unsupported parameter must never be silently dropped, so every key
+    // written must survive a round trip.
+    let known = toml::Value::try_from(&family)
+        .ok()
+        .and_then(|v| v.as_table().cloned())
+        .unwrap_or_default();
+    if let Some(extra) = table.keys().find(|k| !known.contains_key(*k)) {
+        return Err(refuse(format!(
+            "unknown field `{extra}` for family {}",
+            family.label()
+        )));
+    }
+    Ok(family)
+}
+
+/// The manifest's canonical JSON: every field, defaults filled in, fixed key order, the
+/// classes as resolved constructions. Comments, whitespace and the order of keys in the
+/// file do not change it.
+pub fn canonical_json(manifest: &Manifest, classes: &[Family]) -> String {
+    let head = manifest.json_without_classes();
+    let head = head
+        .strip_suffix("[]}")
+        .expect("`classes` is the manifest's last serialised field");
+    let classes = serde_json::to_string(classes).expect("families always serialise");
+    format!("{head}{classes}}}")
+}
+
+/// blake3 of [`canonical_json`], as 64 hex digits. Identifies the dataset.
+pub fn manifest_hash(manifest: &Manifest, classes: &[Family]) -> String {
+    blake3::hash(canonical_json(manifest, classes).as_bytes())
+        .to_hex()
+        .to_string()
 }
 
 /// Width of the zero-padded sample number in keys: at least 6 digits.
@@ -148,17 +239,60 @@ pub fn attempt_rng(sample_seed: &[u8; 32], attempt: u32) -> ChaCha8Rng {
 }
 
 impl Plan {
-    /// Expands a validated manifest.
+    /// Reads, validates and resolves the manifest file at `path`.
+    pub fn from_path(path: &std::path::Path) -> Result<Plan, PlanError> {
+        Plan::new(&Manifest::from_path(path)?)
+    }
+
+    /// Parses, validates and resolves manifest text; `path` is only used in error messages.
+    pub fn parse(text: &str, path: &std::path::Path) -> Result<Plan, PlanError> {
+        Plan::new(&Manifest::parse(text, path)?)
+    }
+
+    /// Resolves a validated manifest.
     pub fn new(manifest: &Manifest) -> Result<Plan, PlanError> {
-        let manifest_hash = manifest.canonical_hash();
-        let (strata, infeasible) = strata(manifest)?;
+        let mut classes: Vec<Family> = Vec::with_capacity(manifest.classes.len());
+        for class in &manifest.classes {
+            let family = resolve_class(manifest, class)?;
+            if let Some(first) = classes.iter().position(|c| *c == family) {
+                return Err(manifest
+                    .class_error(
+                        class.entry,
+                        format!(
+                            "class {} ({}) is listed twice (also class {})",
+                            classes.len() + 1,
+                            family.label(),
+                            first + 1
+                        ),
+                    )
+                    .into());
+            }
+            classes.push(family);
+        }
+        let manifest_hash = manifest_hash(manifest, &classes);
+        let (strata, infeasible) = strata(manifest, &classes)?;
         let mut deal_order: Vec<usize> = (0..strata.len()).collect();
         let mut rng = ChaCha8Rng::from_seed(derive_seed(
             "bettimill deal order v1",
             &[manifest_hash.as_bytes()],
         ));
         deal_order.shuffle(&mut rng);
-        let shard_size = manifest.samples_per_shard();
+        let sample_bytes = sample_bytes_estimate(manifest);
+        let shard_size = match (manifest.shard_size, manifest.shard_bytes) {
+            (Some(n), _) => n,
+            (None, Some(bytes)) if bytes < sample_bytes => {
+                return Err(manifest
+                    .error(
+                        "shard_bytes",
+                        format!(
+                            "{bytes} bytes cannot hold one sample (about {sample_bytes} bytes each)"
+                        ),
+                    )
+                    .into())
+            }
+            (None, Some(bytes)) => bytes / sample_bytes,
+            (None, None) => unreachable!("manifest validation requires shard_size or shard_bytes"),
+        };
         let splits = manifest.split_sizes();
         Ok(Plan {
             manifest_hash,
@@ -172,6 +306,10 @@ impl Plan {
             named_splits: manifest.splits.is_some(),
             shard_size,
             deal_order,
+            compression: member_compression(manifest),
+            resolutions: manifest.resolutions.clone(),
+            deform: manifest.deform.clone(),
+            sample_bytes,
         })
     }
 
@@ -320,8 +458,27 @@ impl Plan {
     }
 }
 
-/// Expands the strata axes, dropping (and listing) combinations that cannot be built.
-fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanError> {
+/// The class object repeated `copies` times: itself for one copy, else a scene (the
+/// objects of a scene class are repeated).
+pub fn class_with_copies(class: &Family, copies: u32) -> Family {
+    if copies == 1 {
+        return class.clone();
+    }
+    let one: Vec<Family> = match class {
+        Family::Scene { objects } => objects.clone(),
+        other => vec![other.clone()],
+    };
+    Family::Scene {
+        objects: (0..copies).flat_map(|_| one.iter().cloned()).collect(),
+    }
+}
+
+/// Expands the strata axes, dropping (and listing) combinations that cannot be built. A
+/// class that no combination can build is refused with every distinct reason.
+fn strata(
+    manifest: &Manifest,
+    classes: &[Family],
+) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanError> {
     let components = manifest.components.clone().unwrap_or_else(|| vec![1]);
     let bins: Vec<Option<(u64, u64)>> = {
         let bins = manifest.hypervolume_voxel_bins();
@@ -334,12 +491,21 @@ fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanEr
     let side = manifest.side as usize;
     let mut strata = Vec::new();
     let mut infeasible = Vec::new();
-    for (class_index, class) in manifest.classes.iter().enumerate() {
+    for (manifest_class, (class, spec)) in classes.iter().zip(&manifest.classes).enumerate() {
         let before = strata.len();
-        let mut last_reason = String::new();
+        let mut reasons: Vec<String> = Vec::new();
         for mode in manifest.mode.to_vec() {
             for &copies in &components {
-                let family = bettimill_manifest::class_with_copies(class, copies);
+                let family = class_with_copies(class, copies);
+                // Whether a combination can be built does not depend on the bin.
+                let checked = family
+                    .expected_betti(manifest.dimension, mode)
+                    .and_then(|betti| {
+                        family
+                            .check_fits(manifest.dimension, side, mode)
+                            .map(|_| betti)
+                    })
+                    .map_err(|err| err.to_string());
                 for &bin in &bins {
                     let mut label = format!("{}/{}", class.label(), mode_name(mode));
                     if manifest.components.is_some() {
@@ -348,30 +514,24 @@ fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanEr
                     if let Some((lo, hi)) = bin {
                         label.push_str(&format!("/hv{lo}-{hi}"));
                     }
-                    let checked =
-                        family
-                            .expected_betti(manifest.dimension, mode)
-                            .and_then(|betti| {
-                                family
-                                    .check_fits(manifest.dimension, side, mode)
-                                    .map(|_| betti)
-                            });
-                    match checked {
+                    match &checked {
                         Ok(betti) => strata.push(Stratum {
                             index: strata.len(),
-                            class_index,
+                            manifest_class,
                             label,
                             family: family.clone(),
                             mode,
                             components: copies,
                             hypervolume: bin,
-                            betti,
+                            betti: betti.clone(),
                         }),
-                        Err(err) => {
-                            last_reason = err.to_string();
+                        Err(reason) => {
+                            if !reasons.contains(reason) {
+                                reasons.push(reason.clone());
+                            }
                             infeasible.push(Infeasible {
                                 label,
-                                reason: last_reason.clone(),
+                                reason: reason.clone(),
                             });
                         }
                     }
@@ -379,11 +539,19 @@ fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanEr
             }
         }
         if strata.len() == before {
-            return Err(PlanError::ClassNeverFeasible {
-                class: class_index + 1,
-                label: class.label(),
-                reason: last_reason,
-            });
+            // Every reason, so that a class refused in two modes for two different reasons
+            // (too big here, impossible there) says both.
+            return Err(manifest
+                .class_error(
+                    spec.entry,
+                    format!(
+                        "class {} ({}): {}",
+                        manifest_class + 1,
+                        class.label(),
+                        reasons.join("; ")
+                    ),
+                )
+                .into());
         }
     }
     Ok((strata, infeasible))
@@ -391,16 +559,100 @@ fn strata(manifest: &Manifest) -> Result<(Vec<Stratum>, Vec<Infeasible>), PlanEr
 
 /// The manifest spelling of a mode.
 pub fn mode_name(mode: Mode) -> &'static str {
-    match mode {
-        Mode::Embed => "embed",
-        Mode::Carve => "carve",
-    }
+    mode.name()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::path::Path;
+
+    const GOOD: &str = r#"schema_version = 1
+name = "t"
+dimension = 3
+side = 24
+mode = "embed"
+samples = 10
+shard_size = 4
+seed = 1
+
+[[classes]]
+family = "ball"
+"#;
+
+    fn plan(text: &str) -> Result<Plan, PlanError> {
+        Plan::new(&Manifest::parse(text, Path::new("test.toml")).unwrap())
+    }
+
+    /// Asserts that planning `text` is refused at `line` of `field` with `needle` in the
+    /// reason.
+    fn check_refused(text: &str, field: &str, line: usize, needle: &str) {
+        match plan(text) {
+            Err(PlanError::Manifest(ManifestError::Invalid {
+                line: l,
+                field: f,
+                reason,
+                path,
+            })) => {
+                assert_eq!((f.as_str(), l), (field, line), "reason: {reason}");
+                assert_eq!(path, Path::new("test.toml"));
+                assert!(reason.contains(needle), "{reason}");
+            }
+            other => panic!("expected a refusal naming {field}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn auto_compression_resolves_by_array_size() {
+        assert_eq!(
+            plan(GOOD).unwrap().compression,
+            bettimill_shard::Compression::None
+        );
+        let big = plan(&GOOD.replace("side = 24", "side = 128")).unwrap();
+        assert_eq!(big.compression, bettimill_shard::Compression::Gzip);
+        let zstd = plan(&GOOD.replace("seed = 1", "seed = 1\ncompression = \"zstd\"")).unwrap();
+        assert_eq!(zstd.compression, bettimill_shard::Compression::Zstd);
+    }
+
+    #[test]
+    fn hash_ignores_comments_and_key_order() {
+        let a = plan(GOOD).unwrap();
+        let reordered = GOOD.replace("seed = 1\n", "").replace(
+            "schema_version = 1\n",
+            "schema_version = 1\nseed = 1 # the seed\n",
+        );
+        assert_eq!(a.manifest_hash, plan(&reordered).unwrap().manifest_hash);
+        let c = plan(&GOOD.replace("seed = 1", "seed = 2")).unwrap();
+        assert_ne!(a.manifest_hash, c.manifest_hash);
+    }
+
+    #[test]
+    fn a_class_that_never_fits_is_refused() {
+        check_refused(
+            &GOOD.replace("side = 24", "side = 8"),
+            "classes",
+            10,
+            "class 1 (ball)",
+        );
+    }
+
+    #[test]
+    fn class_errors_point_at_their_entry() {
+        let two = format!("{GOOD}\n[[classes]]\nfamily = \"ball\"\nradius = 3\n");
+        check_refused(&two, "classes", 13, "unknown field `radius`");
+        let twice = format!("{GOOD}\n[[classes]]\nfamily = \"ball\"\n");
+        check_refused(&twice, "classes", 13, "listed twice");
+        let unknown = GOOD.replace("\"ball\"", "\"blob\"");
+        check_refused(&unknown, "classes", 10, "unknown variant `blob`");
+    }
+
+    #[test]
+    fn shard_bytes_too_small_for_a_sample_is_refused() {
+        let text = GOOD.replace("shard_size = 4", "shard_bytes = 1000");
+        check_refused(&text, "shard_bytes", 7, "cannot hold one sample");
+        let fits = plan(&GOOD.replace("shard_size = 4", "shard_bytes = 100000")).unwrap();
+        assert_eq!(fits.shard_size, 100000 / fits.sample_bytes);
+    }
 
     fn manifest(samples: u64, shard_size: u64) -> Manifest {
         let text = bettimill_manifest::DEMO_MANIFEST

@@ -13,27 +13,27 @@ const GOLDEN: &[(&str, &str, &str)] = &[
     (
         "4d-mixed-128.toml",
         "0a569d549084b9b4769ee989a102a41083ef0a09629eea49d34c84284f7fcff6",
-        "de1066819e070086920f64ae6ceafa342c9b4ca7da9131816bdfffce092e67fc",
+        "3b05e753a19c53473fce33d78fe19807dbc6dc9600465030ae3e3d9e3e783acc",
     ),
     (
         "demo-2d.toml",
         "cc2354e39875e9c53d7fb5c6189489551e2077ce40d68d449fce53ccacd2d22c",
-        "189dbccf10cd5f30471616ed126bb3158429feaa63306434e6d2c76c429bf1cb",
+        "410d10f4017a8c489acce4fa4b745dab8500d4fc8b34c377624c6d6d13ed7608",
     ),
     (
         "demo-3d.toml",
         "cd84651b630c278590e533c4446138fc8450c1a2aa8a02cc16306832a37e04a3",
-        "5c3cebc6c51e1c3a957171c1ec8807504e0acf41a6cadcc856bae3054a7e5171",
+        "25fbb9791a6d7a55d3129afbffd4a687ccfd2f50c3e0bd3b7e534f2b5206d17e",
     ),
     (
         "demo-4d.toml",
         "7cde66fdff2b0f6b9510368e9df75b45f28d258d081e11aafdbbfeaf77d60678",
-        "c489fa9235f776b096ebdddd01458bde7c514e79dd41fa6ed1273c51252a7f73",
+        "29a3f52bd47961888298a1d6f534a6f72c2810924092c67f57dbc129406861b6",
     ),
     (
         "paper-figures.toml",
         "d70501597856eb02a72a5b63ecd1202512bdcd3d4132e1269d3ba75f7b65eb1c",
-        "f69b4d3e79a086ac0ac0296212f7ca2f7b308264fe192fa823a76157a63801da",
+        "19bfc5d54081bbc79043986ab240161459e365ef294f033602f7cdf63ba551cb",
     ),
 ];
 

@@ -1,7 +1,6 @@
 //! Times the stages of `make_sample` (generate, hypervolume targeting, homology,
 //! downscaling) for the first samples of a manifest, with the peak RSS after each stage.
 //! Usage: `cargo run --release -p bettimill-sample --example stages -- MANIFEST [N]`.
-use bettimill_manifest::Manifest;
 use bettimill_plan::{attempt_rng, derive_seed, Plan};
 use std::path::Path;
 use std::time::Instant;
@@ -42,9 +41,8 @@ fn fnv(data: &[u8]) -> u64 {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let manifest = Manifest::from_path(Path::new(&args[1])).expect("manifest");
     let n: usize = args.get(2).map_or(1, |s| s.parse().expect("N"));
-    let plan = Plan::new(&manifest).expect("plan");
+    let plan = Plan::from_path(Path::new(&args[1])).expect("plan");
     let side = plan.side as usize;
     let tasks: Vec<_> = plan
         .shards()
@@ -101,7 +99,7 @@ fn main() {
             cpu_seconds() - c,
             peak_rss_mib()
         );
-        for &r in &manifest.resolutions {
+        for &r in &plan.resolutions {
             let t = Instant::now();
             let small = bettimill_sample::downscale(&image, side / r as usize);
             let ds = t.elapsed();

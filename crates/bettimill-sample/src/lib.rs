@@ -5,11 +5,14 @@
 //! construction's analytic numbers; a mismatch is regenerated from the next attempt seed
 //! (see `bettimill_plan::attempt_rng`), so the result is still a pure function of the
 //! manifest and the sample index, and the number of attempts is recorded in the label.
+//!
+//! A sample is made from the plan and its task alone: the plan carries every resolved
+//! setting (deformation, resolutions), and the label a sample must carry is the plan's
+//! stratum's, decided once when the manifest was planned.
 
 pub use bettimill_format::{Label, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
 use bettimill_grid::BinaryImage;
-use bettimill_manifest::Manifest;
 use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask};
 
 /// How many attempts a sample gets before the build reports it as failed.
@@ -115,11 +118,7 @@ pub enum SampleError {
 }
 
 /// Makes and verifies one sample.
-pub fn make_sample(
-    manifest: &Manifest,
-    plan: &Plan,
-    task: &SampleTask,
-) -> Result<Sample, SampleError> {
+pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError> {
     let stratum = &plan.strata[task.stratum];
     let side = plan.side as usize;
     let mut last = String::new();
@@ -139,21 +138,9 @@ pub fn make_sample(
             }
         };
         let mut image = generated.image;
-        if let Some(spec) = &manifest.deform {
-            let settings = bettimill_deform::DeformSettings {
-                method: match spec.method {
-                    bettimill_manifest::DeformMethod::Moves => bettimill_deform::Method::Moves,
-                    bettimill_manifest::DeformMethod::Dilate => bettimill_deform::Method::Dilate,
-                    bettimill_manifest::DeformMethod::Erode => bettimill_deform::Method::Erode,
-                },
-                steps: spec.steps,
-                noise_frequency: spec.noise_frequency,
-                octaves: spec.octaves,
-                max_distance: spec.max_distance,
-                growth_probability: spec.growth_probability,
-            };
+        if let Some(settings) = &plan.deform {
             let seed = sub_seed("bettimill deform seed v1", &task.seed, attempt);
-            if let Err(err) = bettimill_deform::deform(&mut image, &settings, seed) {
+            if let Err(err) = bettimill_deform::deform(&mut image, settings, seed) {
                 last = format!("deformation failed: {err}");
                 continue;
             }
@@ -165,17 +152,23 @@ pub fn make_sample(
                 continue;
             }
         }
+        // The label is the plan's: the stratum's analytic numbers, decided once.
+        debug_assert_eq!(
+            generated.betti, stratum.betti,
+            "the construction and the plan disagree on {}",
+            stratum.label
+        );
         let topology = bettimill_homology::topology(&image);
-        if topology.betti != generated.betti {
+        if topology.betti != stratum.betti {
             last = format!(
-                "computed Betti numbers {:?}, the construction says {:?}",
-                topology.betti, generated.betti
+                "computed Betti numbers {:?}, the plan's stratum says {:?}",
+                topology.betti, stratum.betti
             );
             continue;
         }
         let mut downscaled = Vec::new();
         let mut resolutions = Vec::new();
-        for &r in &manifest.resolutions {
+        for &r in &plan.resolutions {
             let small = downscale(&image, side / r as usize);
             let t = bettimill_homology::topology(&small);
             resolutions.push(ResolutionLabel {
@@ -207,7 +200,7 @@ pub fn make_sample(
             manifest_hash: plan.manifest_hash.clone(),
             tool_version: TOOL_VERSION.to_string(),
             construction: generated.construction,
-            deform: manifest.deform.clone(),
+            deform: plan.deform.clone(),
             hypervolume_bin: stratum.hypervolume,
             resolutions,
         };

@@ -33,25 +33,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
-/// Where the objects go.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Mode {
-    /// Objects (foreground) in empty space.
-    Embed,
-    /// A solid cube filling the image except a one-voxel margin, with the objects removed
-    /// as cavities.
-    Carve,
-}
-
-impl fmt::Display for Mode {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Mode::Embed => "embed",
-            Mode::Carve => "carve",
-        })
-    }
-}
+pub use bettimill_grid::Mode;
 
 /// A knot: the core curve of a knotted solid torus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]

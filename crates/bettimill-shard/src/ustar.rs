@@ -52,6 +52,12 @@ use crate::ShardError;
 /// Size of a tar block.
 pub const BLOCK: u64 = 512;
 
+/// Bytes one member of `data_bytes` takes in an archive: its header block and its data
+/// padded to whole blocks.
+pub fn member_bytes(data_bytes: u64) -> u64 {
+    BLOCK + data_bytes.div_ceil(BLOCK) * BLOCK
+}
+
 /// Largest member size an 11-digit octal size field can hold.
 pub const MAX_USTAR_SIZE: u64 = 0o77777777777;
 
