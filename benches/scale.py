@@ -158,7 +158,7 @@ def main():
     binary = str(Path(args.bin).resolve())
     work = Path(args.work)
     rows = []
-    for samples in [int(s) for s in args.sizes.split(",")]:
+    for samples in [int(s) for s in args.sizes.split(",") if s]:
         row = one_size(binary, work, samples, args.shard_size)
         print(json.dumps(row), file=sys.stderr, flush=True)
         rows.append(row)
