@@ -195,3 +195,51 @@ fn a_directory_of_another_tool_version_is_refused_naming_both_versions() {
         "nothing is written into the other version's directory"
     );
 }
+
+#[test]
+fn verify_and_audit_of_an_index_of_format_version_1_say_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let manifest = tmp.path().join("m.toml");
+    std::fs::write(
+        &manifest,
+        "schema_version = 1\nname = \"v\"\ndimension = 2\nside = 16\nmode = [\"embed\"]\n\
+         samples = 4\nshard_size = 2\nseed = 1\n\n[[classes]]\nfamily = \"ball\"\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let (m, o) = (manifest.to_str().unwrap(), out.to_str().unwrap());
+    let built = bettimill(&["build", m, "--out", o, "--quiet", "--workers", "1"]);
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    assert!(bettimill(&["verify", o]).status.success());
+    // What bettimill 0.1.0 wrote before the index grew with shards: format_version 1, every
+    // member listed, no shard_count.
+    let index = out.join("index.json");
+    let text = std::fs::read_to_string(&index).unwrap();
+    let old = text
+        .replace("\"format_version\": 2", "\"format_version\": 1")
+        .replace("  \"shard_count\": 2,\n  \"samples\": 4,\n", "")
+        .replace("\"record_blake3\"", "\"members\": [], \"x\"");
+    assert_ne!(old, text);
+    std::fs::write(&index, &old).unwrap();
+    for args in [vec!["verify", o], vec!["audit", o, "--relabel"]] {
+        let refused = bettimill(&args);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert_eq!(refused.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("format_version 1") && stderr.contains("bettimill finalize"),
+            "{args:?}: {stderr}"
+        );
+    }
+    // finalize rewrites it from the records, byte for byte as before.
+    let finalized = bettimill(&["finalize", o, "--quiet"]);
+    assert!(
+        finalized.status.success(),
+        "{}",
+        String::from_utf8_lossy(&finalized.stderr)
+    );
+    assert_eq!(std::fs::read_to_string(&index).unwrap(), text);
+}
