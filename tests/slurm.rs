@@ -7,27 +7,15 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn bettimill(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bettimill"))
-        .args(args)
-        .output()
-        .expect("bettimill runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-fn required() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-        || std::env::var("BETTIMILL_SLURM_REQUIRED").is_ok_and(|v| v == "1")
-}
+mod common;
+use bettimill_testkit::skip_unless_ci;
+use common::{repo_root, run, text, Dir};
 
 /// Starts Slurm; `false` (skip) only outside CI.
 fn slurm_up() -> bool {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ci/slurm-up.sh");
+    let script = repo_root().join("ci/slurm-up.sh");
     let out = Command::new("bash").arg(&script).output();
     let reason = match out {
         Ok(out) if out.status.success() => return true,
@@ -41,14 +29,16 @@ fn slurm_up() -> bool {
         Err(err) => format!("cannot run {}: {err}", script.display()),
     };
     assert!(
-        !required(),
-        "Slurm is required here but unavailable: {reason}"
+        !std::env::var("BETTIMILL_SLURM_REQUIRED").is_ok_and(|v| v == "1"),
+        "Slurm is required here (BETTIMILL_SLURM_REQUIRED=1) but unavailable: {reason}"
     );
-    eprintln!("SKIPPED: Slurm is unavailable ({reason}); CI runs this test for real");
+    skip_unless_ci("Slurm", &reason);
     false
 }
 
-/// `sbatch --wait` of a script (up to 5 minutes); returns its exit code.
+/// `sbatch --wait` of a script (up to 5 minutes); returns its exit code. Its output goes to
+/// the test's stderr, for the diagnosis of a failing run.
+#[allow(clippy::print_stderr)]
 fn sbatch_wait(script: &Path, env: &[(&str, &str)]) -> Option<i32> {
     let mut command = Command::new("timeout");
     command
@@ -103,7 +93,7 @@ fn assert_same(local: &Path, cluster: &Path) {
 }
 
 fn status(dir: &Path) -> serde_json::Value {
-    let out = bettimill(&["status", dir.to_str().unwrap(), "--json"]);
+    let out = run(&["status", dir.to_str().unwrap(), "--json"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     serde_json::from_slice(&out.stdout).unwrap()
 }
@@ -113,10 +103,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     if !slurm_up() {
         return;
     }
-    let tmp = tempfile::Builder::new()
-        .prefix("bettimill-slurm-")
-        .tempdir_in("/tmp")
-        .unwrap();
+    let tmp = Dir::new_in("/tmp", "bettimill-slurm-");
     let manifest = tmp.path().join("s.toml");
     std::fs::write(
         &manifest,
@@ -127,7 +114,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     .unwrap();
     let m = manifest.to_str().unwrap();
     let local = tmp.path().join("local");
-    let out = bettimill(&[
+    let out = run(&[
         "build",
         m,
         "--out",
@@ -139,7 +126,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
 
     // 1. A clean array job: 6 shards over 3 tasks, at most 2 at once.
     let a = tmp.path().join("a");
-    let out = bettimill(&[
+    let out = run(&[
         "slurm",
         m,
         "--out",
@@ -155,7 +142,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     assert!(body.contains("#SBATCH --array=0,1,2%2"), "{body}");
     assert_eq!(sbatch_wait(&script, &[]), Some(0));
     assert_eq!(status(&a)["complete"].as_array().unwrap().len(), 6);
-    let out = bettimill(&["finalize", a.to_str().unwrap()]);
+    let out = run(&["finalize", a.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     assert_same(&local, &a);
     let logs = std::fs::read_dir(a.join("slurm/logs")).unwrap().count();
@@ -163,7 +150,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
 
     // 2. Task 1 fails before doing any work: its shards (1 and 4) stay missing.
     let b = tmp.path().join("b");
-    let out = bettimill(&["slurm", m, "--out", b.to_str().unwrap(), "--tasks", "3"]);
+    let out = run(&["slurm", m, "--out", b.to_str().unwrap(), "--tasks", "3"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     let code = sbatch_wait(
         &b.join("slurm/build.sbatch"),
@@ -177,7 +164,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         "{s}"
     );
     assert_eq!(s["complete"].as_array().unwrap().len(), 4, "{s}");
-    let out = bettimill(&["finalize", b.to_str().unwrap()]);
+    let out = run(&["finalize", b.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(
         text(&out.stderr).contains("s2d-000001, s2d-000004"),
@@ -188,7 +175,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     let before: BTreeMap<_, _> = dataset_files_partial(&b);
 
     // 3. Resubmission runs only task 1, then finalize (afterok), and waits for it.
-    let out = bettimill(&[
+    let out = run(&[
         "slurm",
         m,
         "--out",
@@ -216,7 +203,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         );
     }
     assert_same(&local, &b);
-    let out = bettimill(&["verify", b.to_str().unwrap()]);
+    let out = run(&["verify", b.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stdout));
 }
 

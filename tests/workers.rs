@@ -9,7 +9,7 @@ use std::time::Duration;
 
 mod common;
 use common::{
-    alive, assert_same, build, children, run, shard_files, spawn_build, text, wait_until,
+    alive, assert_same, build, children, run, shard_files, spawn_build, text, wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
@@ -62,7 +62,7 @@ fn finish(child: Child) -> (Option<i32>, String) {
 
 #[test]
 fn one_and_two_workers_build_identical_bytes() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 3, 18, 16, 3);
     let (one, two) = (tmp.path().join("one"), tmp.path().join("two"));
     let out = build(&m, &one, 1);
@@ -87,7 +87,7 @@ fn one_and_two_workers_build_identical_bytes() {
 
 #[test]
 fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identical() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // Shards of twelve 4D samples are slow enough for the kill to land inside a shard
     // (about 0.05 CPU-s per sample, so a shard takes several times the 15 ticks below).
     let m = manifest(tmp.path(), 4, 32, 24, 12);
@@ -120,7 +120,7 @@ fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identic
 
 #[test]
 fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resumes() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
@@ -173,7 +173,7 @@ fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resu
 
 #[test]
 fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // 12 one-sample 4D shards: slow enough that each kill lands inside the build.
     let m = manifest(tmp.path(), 4, 24, 12, 1);
     let clean = tmp.path().join("clean");
@@ -232,7 +232,7 @@ fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
 
 #[test]
 fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
     let out = tmp.path().join("out");
     let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_FAIL_SHARD", "1")]);
@@ -266,7 +266,7 @@ fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
 
 #[test]
 fn sigterm_stops_the_workers_and_says_how_to_resume() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
     let out = tmp.path().join("out");
     let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "60")]);
@@ -288,7 +288,7 @@ fn sigterm_stops_the_workers_and_says_how_to_resume() {
 
 #[test]
 fn a_worker_of_another_version_is_refused_with_what_to_do() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 6, 3);
     let out = tmp.path().join("out");
     let coordinator = spawn_build(&m, &out, 1, &[("BETTIMILL_TEST_WORKER_VERSION", "9.9.9")]);
