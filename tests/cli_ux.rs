@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
 mod common;
-use common::{bettimill, repo_root, run_in, text, Dir, BETTIMILL};
+use common::{repo_root, run_in, text, Dir, BETTIMILL};
 
 fn check_snapshot(name: &str, actual: &str) {
     let path = repo_root().join("tests/snapshots").join(name);
@@ -52,7 +52,7 @@ fn subcommands(tmp: &Path) -> Vec<String> {
 #[test]
 fn help_of_every_command_matches_its_snapshot_and_has_an_example() {
     let tmp = Dir::new();
-    let top = run_in(tmp.path(), &["--help"]);
+    let top = tmp.run(&["--help"]);
     assert_eq!(top.status.code(), Some(0));
     check_snapshot("help.txt", &text(&top.stdout));
     let commands = subcommands(tmp.path());
@@ -68,7 +68,7 @@ fn help_of_every_command_matches_its_snapshot_and_has_an_example() {
         assert!(commands.iter().any(|c| c == expected), "{expected} missing");
     }
     for command in &commands {
-        let out = run_in(tmp.path(), &[command, "--help"]);
+        let out = tmp.run(&[command, "--help"]);
         assert_eq!(out.status.code(), Some(0), "{command} --help");
         let help = text(&out.stdout);
         assert!(
@@ -468,7 +468,7 @@ fn verify_and_audit_draw_no_progress_when_stderr_is_not_a_terminal() {
 fn completions_exist_for_every_shell() {
     let tmp = Dir::new();
     for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {
-        let out = run_in(tmp.path(), &["completions", shell]);
+        let out = tmp.run(&["completions", shell]);
         assert!(out.status.success(), "{shell}: {}", text(&out.stderr));
         let script = text(&out.stdout);
         assert!(script.contains("bettimill"), "{shell}");
@@ -477,7 +477,7 @@ fn completions_exist_for_every_shell() {
             "{shell} completion lacks preview"
         );
     }
-    let out = run_in(tmp.path(), &["completions", "tcsh"]);
+    let out = tmp.run(&["completions", "tcsh"]);
     assert_eq!(out.status.code(), Some(2));
 }
 
@@ -584,9 +584,9 @@ fn the_committed_preview_figures_are_pngs() {
 fn a_reader_that_stops_early_is_not_a_crash() {
     // `bettimill completions bash | head -1`: the pipe closes before the script is written.
     let tmp = Dir::new();
-    let mut child = bettimill()
+    let mut child = tmp
+        .command()
         .args(["completions", "bash"])
-        .current_dir(tmp.path())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

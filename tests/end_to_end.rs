@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 mod common;
-use common::{bettimill, repo_root, run, snapshot, stderr, stdout, Dir};
+use common::{assert_exit, bettimill, repo_root, run, snapshot, stderr, stdout, Dir};
 
 /// A small manifest (fast to build) in `dir`.
 fn small_manifest(dir: &Path, dimension: u32, side: u32, samples: u32) -> PathBuf {
@@ -355,7 +355,7 @@ fn preset(name: &str) -> String {
 #[test]
 fn the_4d_mixed_128_preset_plans() {
     let out = run(&["plan", &preset("4d-mixed-128.toml")]);
-    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert_exit(&out, 0);
     let text = stdout(&out);
     assert!(text.contains("split val: 800 samples"), "{text}");
     assert!(
@@ -554,7 +554,7 @@ fn a_closed_stdout_pipe_is_not_a_panic() {
     child.stdout.take().unwrap().read_exact(&mut first).unwrap();
     // The read end is dropped here: the rest of the output meets a closed pipe.
     let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert_exit(&out, 0);
     assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
 }
 

@@ -26,8 +26,8 @@ use std::time::{Duration, Instant};
 mod common;
 use bettimill_testkit::{skip_unless_ci, Xorshift};
 use common::{
-    alive, assert_same, bettimill, build, children, run, shard_files, snapshot, spawn_build, text,
-    wait_until, Dir,
+    alive, assert_exit, assert_same, bettimill, build, children, run, shard_files, snapshot,
+    spawn_build, text, wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
@@ -245,7 +245,7 @@ fn verify_refuses_hostile_shards_and_indexes_and_writes_nothing() {
     let m = manifest(tmp.path(), 2, 16, 4, 2);
     let clean = tmp.path().join("clean");
     let out = build(&m, &clean, 1);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let index: serde_json::Value =
         serde_json::from_slice(&std::fs::read(clean.join("index.json")).unwrap()).unwrap();
     let shard_name = index["shards"][0]["name"].as_str().unwrap().to_string();
@@ -417,7 +417,7 @@ fn check_failed_then_resumed(m: &Path, out: &Path, clean: &Path, code: Option<i3
     assert!(!out.join("index.json").exists(), "{stderr}");
     assert_no_partial_shard_visible(out);
     let resumed = build(m, out, 2);
-    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    assert_exit(&resumed, 0);
     assert_same(clean, out);
 }
 
@@ -471,7 +471,7 @@ fn a_build_that_fills_the_disk_stops_cleanly_and_resumes_identically() {
     let m = manifest(tmp.path(), 2, 128, 192, 8);
     let clean = tmp.path().join("clean");
     let out = build(&m, &clean, 2);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let mount_point = tmp.path().join("small");
     std::fs::create_dir(&mount_point).unwrap();
     let mounted = Command::new("mount")
@@ -527,7 +527,7 @@ fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
         );
         assert_no_partial_shard_visible(&out);
         let rerun = build(&m, &out, 2);
-        assert_eq!(rerun.status.code(), Some(0), "{}", text(&rerun.stderr));
+        assert_exit(&rerun, 0);
         assert_same(&clean, &out);
     }
 }
@@ -597,7 +597,7 @@ fn soak(
                     report.coordinator_kills += 1;
                     completed = false;
                 } else {
-                    assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+                    assert_exit(&result, 0);
                     completed = true;
                 }
                 for worker in workers {
@@ -650,7 +650,7 @@ fn soak_test(dimension: u32, side: u32, samples: u32, shard_size: u32, kills: u3
     let clean = tmp.path().join("clean");
     let start = Instant::now();
     let out = build(&m, &clean, 2);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let clean_time = start.elapsed();
     let soaked = tmp.path().join("soaked");
     let report = soak(&m, &clean, &soaked, kills, clean_time, seed);
@@ -699,7 +699,7 @@ fn build_peaks_with(m: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) ->
         std::thread::sleep(Duration::from_millis(5));
     }
     let result = coordinator.wait_with_output().unwrap();
-    assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+    assert_exit(&result, 0);
     (coordinator_peak, worker_peak)
 }
 

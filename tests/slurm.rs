@@ -11,7 +11,7 @@ use std::process::Command;
 
 mod common;
 use bettimill_testkit::skip_unless_ci;
-use common::{repo_root, run, text, Dir};
+use common::{assert_exit, repo_root, run, text, Dir};
 
 /// Starts Slurm; `false` (skip) only outside CI.
 fn slurm_up() -> bool {
@@ -94,7 +94,7 @@ fn assert_same(local: &Path, cluster: &Path) {
 
 fn status(dir: &Path) -> serde_json::Value {
     let out = run(&["status", dir.to_str().unwrap(), "--json"]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
@@ -122,7 +122,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         "--workers",
         "2",
     ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
 
     // 1. A clean array job: 6 shards over 3 tasks, at most 2 at once.
     let a = tmp.path().join("a");
@@ -136,14 +136,14 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         "--throttle",
         "2",
     ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let script = a.join("slurm/build.sbatch");
     let body = std::fs::read_to_string(&script).unwrap();
     assert!(body.contains("#SBATCH --array=0,1,2%2"), "{body}");
     assert_eq!(sbatch_wait(&script, &[]), Some(0));
     assert_eq!(status(&a)["complete"].as_array().unwrap().len(), 6);
     let out = run(&["finalize", a.to_str().unwrap()]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     assert_same(&local, &a);
     let logs = std::fs::read_dir(a.join("slurm/logs")).unwrap().count();
     assert_eq!(logs, 3, "one log per array task");
@@ -151,7 +151,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     // 2. Task 1 fails before doing any work: its shards (1 and 4) stay missing.
     let b = tmp.path().join("b");
     let out = run(&["slurm", m, "--out", b.to_str().unwrap(), "--tasks", "3"]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let code = sbatch_wait(
         &b.join("slurm/build.sbatch"),
         &[("BETTIMILL_TEST_FAIL_TASK", "1")],

@@ -9,7 +9,8 @@ use std::time::Duration;
 
 mod common;
 use common::{
-    alive, assert_same, build, children, run, shard_files, spawn_build, text, wait_until, Dir,
+    alive, assert_exit, assert_same, build, children, run, shard_files, spawn_build, text,
+    wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
@@ -66,9 +67,9 @@ fn one_and_two_workers_build_identical_bytes() {
     let m = manifest(tmp.path(), 3, 18, 16, 3);
     let (one, two) = (tmp.path().join("one"), tmp.path().join("two"));
     let out = build(&m, &one, 1);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let out = build(&m, &two, 2);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     assert!(
         text(&out.stderr).contains("2 workers"),
         "{}",
@@ -162,12 +163,7 @@ fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resu
 
     // The lock died with its process: the same command resumes and matches a clean build.
     let out_resume = build(&m, &out, 2);
-    assert_eq!(
-        out_resume.status.code(),
-        Some(0),
-        "{}",
-        text(&out_resume.stderr)
-    );
+    assert_exit(&out_resume, 0);
     assert_same(&clean, &out);
 }
 
@@ -221,7 +217,7 @@ fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
         complete_counts.push(status["complete"].as_array().unwrap().len());
     }
     let resumed = build(&m, &out, 2);
-    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    assert_exit(&resumed, 0);
     assert_same(&clean, &out);
     // Progress survived the kills.
     assert!(
@@ -258,7 +254,7 @@ fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
 
     // With the cause gone, the same command finishes the dataset.
     let resumed = build(&m, &out, 2);
-    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    assert_exit(&resumed, 0);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
     assert_same(&clean, &out);

@@ -111,13 +111,6 @@ pub fn assert_exit(out: &Output, code: i32) {
     );
 }
 
-/// Asserts that a finished command exited with 0 and returns its stdout.
-#[track_caller]
-pub fn success_stdout(out: &Output) -> String {
-    assert_exit(out, 0);
-    stdout(out)
-}
-
 pub fn build(manifest: &Path, out: &Path, workers: u32) -> Output {
     run(&[
         "build",
