@@ -5,33 +5,15 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 mod common;
-use common::{assert_exit, bettimill, repo_root, run, snapshot, stderr, stdout, Dir};
+use common::{
+    assert_exit, ball_and_handle, bettimill, repo_root, run, snapshot, stderr, stdout, Dir,
+};
 
 /// A small manifest (fast to build) in `dir`.
 fn small_manifest(dir: &Path, dimension: u32, side: u32, samples: u32) -> PathBuf {
     let path = dir.join(format!("small-{dimension}d.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            r#"schema_version = 1
-name = "small{dimension}d"
-dimension = {dimension}
-side = {side}
-mode = ["embed", "carve"]
-samples = {samples}
-shard_size = 6
-seed = 3
-
-[[classes]]
-family = "ball"
-
-[[classes]]
-family = "handle"
-"#
-        ),
-    )
-    .unwrap();
-    path
+    let name = format!("small{dimension}d");
+    ball_and_handle(path, &name, dimension, side, samples, 6, 3)
 }
 
 fn build(manifest: Option<&Path>, out: &Path) -> Output {

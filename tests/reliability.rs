@@ -26,22 +26,14 @@ use std::time::{Duration, Instant};
 mod common;
 use bettimill_testkit::{skip_unless_ci, Xorshift};
 use common::{
-    alive, assert_exit, assert_same, bettimill, build, children, run, shard_files, snapshot,
-    spawn_build, text, wait_until, Dir,
+    alive, assert_exit, assert_same, ball_and_handle, bettimill, build, children, kill, run,
+    shard_files, snapshot, spawn_build, text, wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("r{dimension}d-{side}-{samples}-{shard_size}.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            "schema_version = 1\nname = \"r{dimension}d\"\ndimension = {dimension}\nside = {side}\n\
-             mode = [\"embed\", \"carve\"]\nsamples = {samples}\nshard_size = {shard_size}\nseed = 5\n\n\
-             [[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n"
-        ),
-    )
-    .unwrap();
-    path
+    let name = format!("r{dimension}d");
+    ball_and_handle(path, &name, dimension, side, samples, shard_size, 5)
 }
 
 /// Live processes whose command line is `bettimill worker --dir <out>` (any parent).
@@ -76,15 +68,6 @@ fn peak_kib(pid: u32) -> Option<u64> {
         .nth(1)?
         .parse()
         .ok()
-}
-
-fn kill(signal: &str, pid: u32) -> bool {
-    Command::new("kill")
-        .args([signal, &pid.to_string()])
-        .stderr(Stdio::null())
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
 }
 
 /// Every visible tar is a complete shard: `status` lists none as invalid.

@@ -11,7 +11,7 @@ use std::process::Command;
 
 mod common;
 use bettimill_testkit::skip_unless_ci;
-use common::{assert_exit, repo_root, run, text, Dir};
+use common::{assert_exit, ball_and_handle, repo_root, run, text, Dir};
 
 /// Starts Slurm; `false` (skip) only outside CI.
 fn slurm_up() -> bool {
@@ -104,14 +104,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         return;
     }
     let tmp = Dir::new_in("/tmp", "bettimill-slurm-");
-    let manifest = tmp.path().join("s.toml");
-    std::fs::write(
-        &manifest,
-        "schema_version = 1\nname = \"s2d\"\ndimension = 2\nside = 20\nmode = [\"embed\", \"carve\"]\n\
-         samples = 18\nshard_size = 3\nseed = 5\n\n[[classes]]\nfamily = \"ball\"\n\n\
-         [[classes]]\nfamily = \"handle\"\n",
-    )
-    .unwrap();
+    let manifest = ball_and_handle(tmp.join("s.toml"), "s2d", 2, 20, 18, 3, 5);
     let m = manifest.to_str().unwrap();
     let local = tmp.path().join("local");
     let out = run(&[

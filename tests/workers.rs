@@ -4,27 +4,19 @@
 //! and SIGTERM. Every finished directory must be byte-identical to a clean build.
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command};
+use std::process::Child;
 use std::time::Duration;
 
 mod common;
 use common::{
-    alive, assert_exit, assert_same, build, children, run, shard_files, spawn_build, text,
-    wait_until, Dir,
+    alive, assert_exit, assert_same, ball_and_handle, build, children, kill, run, shard_files,
+    spawn_build, text, wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("m{dimension}d-{side}-{samples}-{shard_size}.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            "schema_version = 1\nname = \"w{dimension}d\"\ndimension = {dimension}\nside = {side}\n\
-             mode = [\"embed\", \"carve\"]\nsamples = {samples}\nshard_size = {shard_size}\nseed = 11\n\n\
-             [[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n"
-        ),
-    )
-    .unwrap();
-    path
+    let name = format!("w{dimension}d");
+    ball_and_handle(path, &name, dimension, side, samples, shard_size, 11)
 }
 
 /// User plus system CPU time of a process in clock ticks (usually 1/100 s).
@@ -46,14 +38,6 @@ fn cpu_ticks(pid: u32) -> u64 {
             .unwrap_or(0)
     };
     field(14) + field(15)
-}
-
-fn kill(signal: &str, pid: u32) {
-    let status = Command::new("kill")
-        .args([signal, &pid.to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success(), "kill {signal} {pid}");
 }
 
 fn finish(child: Child) -> (Option<i32>, String) {
@@ -111,7 +95,7 @@ fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identic
         !shard_files(&out).iter().any(|n| n.ends_with(".tar")),
         "a shard finished before the kill; the test needs slower samples"
     );
-    kill("-9", first);
+    assert!(kill("-9", first), "kill -9 {}", first);
     let (code, stderr) = finish(coordinator);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stderr.contains("killed by signal 9"), "{stderr}");
@@ -143,7 +127,7 @@ fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resu
         text(&second.stderr)
     );
 
-    kill("-9", coordinator.id());
+    assert!(kill("-9", coordinator.id()), "kill -9 {}", coordinator.id());
     let _ = finish(coordinator);
     // Orphaned workers notice that their coordinator is gone and exit.
     for pid in workers {
@@ -193,7 +177,7 @@ fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
             children(coordinator.id()).len() == 2 && records(&out) >= target
         });
         let workers = children(coordinator.id());
-        kill("-9", coordinator.id());
+        assert!(kill("-9", coordinator.id()), "kill -9 {}", coordinator.id());
         let _ = finish(coordinator);
         for pid in workers {
             wait_until(
@@ -270,7 +254,11 @@ fn sigterm_stops_the_workers_and_says_how_to_resume() {
         shard_files(&out).iter().any(|n| n.contains(".tmp-"))
     });
     let workers = children(coordinator.id());
-    kill("-TERM", coordinator.id());
+    assert!(
+        kill("-TERM", coordinator.id()),
+        "kill -TERM {}",
+        coordinator.id()
+    );
     let (code, stderr) = finish(coordinator);
     assert_eq!(code, Some(130), "{stderr}");
     assert!(stderr.contains("interrupted"), "{stderr}");

@@ -82,6 +82,30 @@ impl Dir {
     }
 }
 
+/// The manifest most end-to-end tests build: balls and handles, embedded and carved,
+/// with the given dataset name, sizes and seed, written to `path` (returned).
+#[allow(clippy::too_many_arguments)]
+pub fn ball_and_handle(
+    path: PathBuf,
+    name: &str,
+    dimension: u32,
+    side: u32,
+    samples: u32,
+    shard_size: u32,
+    seed: u64,
+) -> PathBuf {
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"{name}\"\ndimension = {dimension}\nside = {side}\n\
+             mode = [\"embed\", \"carve\"]\nsamples = {samples}\nshard_size = {shard_size}\n\
+             seed = {seed}\n\n[[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
 /// Bytes as text (invalid UTF-8 replaced).
 pub fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()
@@ -205,6 +229,16 @@ pub fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str
         command.env(k, v);
     }
     command.spawn().unwrap()
+}
+
+/// Sends `signal` (`-9`, `-TERM`, ...) to process `pid` with kill(1); whether it was sent.
+pub fn kill(signal: &str, pid: u32) -> bool {
+    Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .stderr(Stdio::null())
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false)
 }
 
 /// Whether process `pid` is running (a zombie is dead for our purposes).
