@@ -228,8 +228,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
 pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Manifest)> {
     match path {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read manifest {}", path.display()))?;
+            let text = bettimill_manifest::read_text(path)?;
             let manifest = Manifest::parse(&text, path)?;
             Ok((text, manifest))
         }
