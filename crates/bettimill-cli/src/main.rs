@@ -22,10 +22,13 @@ macro_rules! outln {
 }
 
 mod audit;
+mod build;
+mod build_display;
 mod cluster;
 mod commands;
 mod completions;
 mod deform;
+mod directory;
 mod plan;
 mod preview;
 mod progress;
