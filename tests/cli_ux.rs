@@ -9,21 +9,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-fn bettimill_in(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bettimill"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the bettimill binary runs")
-}
-
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+mod common;
+use common::{repo_root, run_in, text, Dir, BETTIMILL};
 
 fn check_snapshot(name: &str, actual: &str) {
     let path = repo_root().join("tests/snapshots").join(name);
@@ -48,7 +35,7 @@ fn check_snapshot(name: &str, actual: &str) {
 
 /// The visible subcommands, read from the top-level help.
 fn subcommands(tmp: &Path) -> Vec<String> {
-    let help = text(&bettimill_in(tmp, &["--help"]).stdout);
+    let help = text(&run_in(tmp, &["--help"]).stdout);
     let section = help
         .split("Commands:\n")
         .nth(1)
@@ -64,8 +51,8 @@ fn subcommands(tmp: &Path) -> Vec<String> {
 
 #[test]
 fn help_of_every_command_matches_its_snapshot_and_has_an_example() {
-    let tmp = tempfile::tempdir().unwrap();
-    let top = bettimill_in(tmp.path(), &["--help"]);
+    let tmp = Dir::new();
+    let top = tmp.run(&["--help"]);
     assert_eq!(top.status.code(), Some(0));
     check_snapshot("help.txt", &text(&top.stdout));
     let commands = subcommands(tmp.path());
@@ -81,7 +68,7 @@ fn help_of_every_command_matches_its_snapshot_and_has_an_example() {
         assert!(commands.iter().any(|c| c == expected), "{expected} missing");
     }
     for command in &commands {
-        let out = bettimill_in(tmp.path(), &[command, "--help"]);
+        let out = tmp.run(&[command, "--help"]);
         assert_eq!(out.status.code(), Some(0), "{command} --help");
         let help = text(&out.stdout);
         assert!(
@@ -95,7 +82,7 @@ fn help_of_every_command_matches_its_snapshot_and_has_an_example() {
 /// Runs a command that must fail with exit code 2 and a one-line message on stderr
 /// containing every `needle`.
 fn check_one_line_error(dir: &Path, args: &[&str], needles: &[&str]) {
-    let out = bettimill_in(dir, args);
+    let out = run_in(dir, args);
     let stderr = text(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
     assert_eq!(
@@ -112,7 +99,7 @@ fn check_one_line_error(dir: &Path, args: &[&str], needles: &[&str]) {
 
 #[test]
 fn typical_mistakes_fail_with_exit_code_2_and_one_line() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let dir = tmp.path();
     check_one_line_error(
         dir,
@@ -162,7 +149,7 @@ fn typical_mistakes_fail_with_exit_code_2_and_one_line() {
     assert!(!dir.join("x.png").exists());
 
     // Usage errors are clap's (several lines with a usage hint) but exit with 2 too.
-    let out = bettimill_in(dir, &["bulid"]);
+    let out = run_in(dir, &["bulid"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("unrecognized subcommand"));
 }
@@ -187,7 +174,7 @@ fn small_manifest(dir: &Path, dimension: u32, side: u32) -> PathBuf {
 fn build_small(dir: &Path, dimension: u32, side: u32) -> PathBuf {
     let manifest = small_manifest(dir, dimension, side);
     let out_dir = dir.join(format!("out{dimension}"));
-    let out = bettimill_in(
+    let out = run_in(
         dir,
         &[
             "build",
@@ -215,10 +202,10 @@ fn check_keys(value: &serde_json::Value, keys: &[&str]) {
 
 #[test]
 fn json_outputs_parse_and_carry_their_keys() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let dir = tmp.path();
     let manifest = small_manifest(dir, 3, 18);
-    let plan = json(&bettimill_in(
+    let plan = json(&run_in(
         dir,
         &["plan", manifest.to_str().unwrap(), "--json"],
     ));
@@ -239,15 +226,15 @@ fn json_outputs_parse_and_carry_their_keys() {
 
     let out_dir = build_small(dir, 3, 18);
     let out_str = out_dir.to_str().unwrap();
-    let verify = json(&bettimill_in(dir, &["verify", out_str, "--json"]));
+    let verify = json(&run_in(dir, &["verify", out_str, "--json"]));
     check_keys(&verify, &["shards_checked", "samples_checked", "problems"]);
     assert_eq!(verify["samples_checked"], 8);
     assert_eq!(verify["problems"].as_array().unwrap().len(), 0);
 
-    let status = json(&bettimill_in(dir, &["status", out_str, "--json"]));
+    let status = json(&run_in(dir, &["status", out_str, "--json"]));
     assert!(status.is_object());
 
-    let stats = json(&bettimill_in(dir, &["stats", out_str, "--json"]));
+    let stats = json(&run_in(dir, &["stats", out_str, "--json"]));
     check_keys(
         &stats,
         &[
@@ -310,7 +297,7 @@ fn json_outputs_parse_and_carry_their_keys() {
         .find(|m| m.name == format!("{key}.json"))
         .unwrap();
     std::fs::write(dir.join("one.npy"), &npy.data).unwrap();
-    let betti = json(&bettimill_in(dir, &["betti", "one.npy", "--json"]));
+    let betti = json(&run_in(dir, &["betti", "one.npy", "--json"]));
     check_keys(&betti, &["betti", "euler", "shape", "hypervolume", "field"]);
     let label: serde_json::Value = serde_json::from_slice(&label.data).unwrap();
     assert_eq!(betti["betti"], label["betti"]);
@@ -329,7 +316,7 @@ fn png_size(bytes: &[u8]) -> (u32, u32) {
 
 #[test]
 fn previews_of_2d_3d_4d_samples_shards_and_images_are_deterministic_pngs() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let dir = tmp.path();
     for (dimension, side) in [(2, 16), (3, 18), (4, 18)] {
         let out_dir = build_small(dir, dimension, side);
@@ -337,7 +324,7 @@ fn previews_of_2d_3d_4d_samples_shards_and_images_are_deterministic_pngs() {
         let run = |args: &[&str], png: &str| -> Vec<u8> {
             let mut all = args.to_vec();
             all.extend(["--out", png]);
-            let out = bettimill_in(dir, &all);
+            let out = run_in(dir, &all);
             assert!(out.status.success(), "{all:?}: {}", text(&out.stderr));
             std::fs::read(dir.join(png)).unwrap()
         };
@@ -380,10 +367,10 @@ fn previews_of_2d_3d_4d_samples_shards_and_images_are_deterministic_pngs() {
 
 #[test]
 fn stats_plot_is_a_png_and_text_names_every_section() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let dir = tmp.path();
     let out_dir = build_small(dir, 2, 16);
-    let out = bettimill_in(
+    let out = run_in(
         dir,
         &["stats", out_dir.to_str().unwrap(), "--plot", "plot.png"],
     );
@@ -408,7 +395,7 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
     // An unfinished build (no index.json yet) still has statistics, splits from its
     // completion records.
     std::fs::remove_file(out_dir.join("index.json")).unwrap();
-    let out = bettimill_in(dir, &["stats", out_dir.to_str().unwrap(), "--json"]);
+    let out = run_in(dir, &["stats", out_dir.to_str().unwrap(), "--json"]);
     let stats = json(&out);
     assert_eq!(stats["samples"], 8);
     assert_eq!(stats["splits"]["train"], 4);
@@ -416,18 +403,18 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
     // Its build time so far ends at the newest completion record.
     assert_eq!(stats["build_time"]["finished"], false);
     assert!(stats["build_time"]["wall_seconds"].as_f64().unwrap() >= 0.0);
-    let out = bettimill_in(dir, &["stats", out_dir.to_str().unwrap()]);
+    let out = run_in(dir, &["stats", out_dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(text(&out.stdout).contains("build time so far (not finished)"));
 
     // Without build.json there is no start: the field is null and the text says so.
     std::fs::remove_file(out_dir.join("build.json")).unwrap();
-    let stats = json(&bettimill_in(
+    let stats = json(&run_in(
         dir,
         &["stats", out_dir.to_str().unwrap(), "--json"],
     ));
     assert!(stats["build_time"].is_null(), "{}", stats["build_time"]);
-    let out = bettimill_in(dir, &["stats", out_dir.to_str().unwrap()]);
+    let out = run_in(dir, &["stats", out_dir.to_str().unwrap()]);
     assert!(text(&out.stdout).contains("build time: not available"));
 }
 
@@ -444,7 +431,7 @@ fn check_no_progress(args: &[&str], stderr: &str) {
 
 #[test]
 fn verify_and_audit_draw_no_progress_when_stderr_is_not_a_terminal() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let dir = tmp.path();
     let out_dir = build_small(dir, 2, 16);
     let out_str = out_dir.to_str().unwrap();
@@ -457,7 +444,7 @@ fn verify_and_audit_draw_no_progress_when_stderr_is_not_a_terminal() {
         &["stats", out_str, "--json"],
     ];
     for args in runs {
-        let out = bettimill_in(dir, args);
+        let out = run_in(dir, args);
         let stderr = text(&out.stderr);
         assert_eq!(out.status.code(), Some(0), "{args:?}: {stderr}");
         check_no_progress(args, &stderr);
@@ -466,22 +453,22 @@ fn verify_and_audit_draw_no_progress_when_stderr_is_not_a_terminal() {
             json(&out);
         }
     }
-    let audit = json(&bettimill_in(
+    let audit = json(&run_in(
         dir,
         &["audit", out_str, "--rebuild", "1", "--relabel", "--json"],
     ));
     assert_eq!(audit["relabelled_samples"], 8);
     assert_eq!(audit["rebuilt"].as_array().unwrap().len(), 2);
     assert_eq!(audit["findings"].as_array().unwrap().len(), 0);
-    let verify = text(&bettimill_in(dir, &["verify", out_str]).stdout);
+    let verify = text(&run_in(dir, &["verify", out_str]).stdout);
     assert!(verify.starts_with("ok: 2 shards match"), "{verify}");
 }
 
 #[test]
 fn completions_exist_for_every_shell() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     for shell in ["bash", "zsh", "fish", "elvish", "powershell"] {
-        let out = bettimill_in(tmp.path(), &["completions", shell]);
+        let out = tmp.run(&["completions", shell]);
         assert!(out.status.success(), "{shell}: {}", text(&out.stderr));
         let script = text(&out.stdout);
         assert!(script.contains("bettimill"), "{shell}");
@@ -490,7 +477,7 @@ fn completions_exist_for_every_shell() {
             "{shell} completion lacks preview"
         );
     }
-    let out = bettimill_in(tmp.path(), &["completions", "tcsh"]);
+    let out = tmp.run(&["completions", "tcsh"]);
     assert_eq!(out.status.code(), Some(2));
 }
 
@@ -526,7 +513,7 @@ fn copy_dir(from: &Path, to: &Path) {
 
 #[test]
 fn the_readme_tour_runs_as_written() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let dir = tmp.path();
     // The tour runs from the repository root, where manifests/ is.
     copy_dir(&repo_root().join("manifests"), &dir.join("manifests"));
@@ -546,7 +533,7 @@ fn the_readme_tour_runs_as_written() {
             "the tour line {line:?} needs a shell; keep the tour to plain commands"
         );
         let program = match words[0] {
-            "bettimill" => env!("CARGO_BIN_EXE_bettimill"),
+            "bettimill" => BETTIMILL,
             other => other,
         };
         let mut command = Command::new(program);
@@ -596,10 +583,10 @@ fn the_committed_preview_figures_are_pngs() {
 #[test]
 fn a_reader_that_stops_early_is_not_a_crash() {
     // `bettimill completions bash | head -1`: the pipe closes before the script is written.
-    let tmp = tempfile::tempdir().unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_bettimill"))
+    let tmp = Dir::new();
+    let mut child = tmp
+        .command()
         .args(["completions", "bash"])
-        .current_dir(tmp.path())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

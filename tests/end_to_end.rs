@@ -2,51 +2,18 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
-use common::snapshot;
-
-fn bettimill(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bettimill"))
-        .args(args)
-        .output()
-        .expect("the bettimill binary runs")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn stdout(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+use common::{
+    assert_exit, ball_and_handle, bettimill, repo_root, run, snapshot, stderr, stdout, Dir,
+};
 
 /// A small manifest (fast to build) in `dir`.
 fn small_manifest(dir: &Path, dimension: u32, side: u32, samples: u32) -> PathBuf {
     let path = dir.join(format!("small-{dimension}d.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            r#"schema_version = 1
-name = "small{dimension}d"
-dimension = {dimension}
-side = {side}
-mode = ["embed", "carve"]
-samples = {samples}
-shard_size = 6
-seed = 3
-
-[[classes]]
-family = "ball"
-
-[[classes]]
-family = "handle"
-"#
-        ),
-    )
-    .unwrap();
-    path
+    let name = format!("small{dimension}d");
+    ball_and_handle(path, &name, dimension, side, samples, 6, 3)
 }
 
 fn build(manifest: Option<&Path>, out: &Path) -> Output {
@@ -54,12 +21,12 @@ fn build(manifest: Option<&Path>, out: &Path) -> Output {
     if let Some(m) = manifest {
         args.insert(1, m.to_str().unwrap());
     }
-    bettimill(&args)
+    run(&args)
 }
 
 #[test]
 fn two_builds_of_the_demo_are_byte_identical() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let a = tmp.path().join("a");
     let b = tmp.path().join("b");
     let out = build(None, &a);
@@ -84,13 +51,13 @@ fn two_builds_of_the_demo_are_byte_identical() {
         );
     }
     // The demo verifies.
-    let out = bettimill(&["verify", a.to_str().unwrap()]);
+    let out = run(&["verify", a.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(0), "{}", stdout(&out));
 }
 
 #[test]
 fn every_stored_label_matches_the_stored_voxels() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     for (dimension, side) in [(2, 20), (3, 18), (4, 18)] {
         let manifest = small_manifest(tmp.path(), dimension, side, 12);
         let out_dir = tmp.path().join(format!("out{dimension}"));
@@ -147,7 +114,7 @@ fn stored_labels_match_voxels(
 
 #[test]
 fn betti_vector_classes_build_with_exactly_their_label() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let manifest = tmp.path().join("betti.toml");
     std::fs::write(
         &manifest,
@@ -180,7 +147,7 @@ fn betti_vector_classes_build_with_exactly_their_label() {
     // cannot be both the shell that makes b2 = 1 and a solid torus.
     assert!(classes.contains("betti(1,1,1)/carve"), "{classes:?}");
     assert!(classes.contains("betti(1,1,0)/embed"), "{classes:?}");
-    let plan = bettimill(&["plan", manifest.to_str().unwrap()]);
+    let plan = run(&["plan", manifest.to_str().unwrap()]);
     assert!(
         stdout(&plan)
             .contains("betti(1,1,0)/carve: betti(1,1,0) is not available in 3D carve mode"),
@@ -200,7 +167,7 @@ fn only_shard(dir: &Path, n: usize) -> PathBuf {
 
 #[test]
 fn verify_detects_flips_truncation_and_missing_shards() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let manifest = small_manifest(tmp.path(), 2, 20, 18);
     let clean = tmp.path().join("clean");
     assert!(build(Some(&manifest), &clean).status.success());
@@ -219,7 +186,7 @@ fn verify_detects_flips_truncation_and_missing_shards() {
     let mut bytes = std::fs::read(&shard).unwrap();
     bytes[1500] ^= 0x20;
     std::fs::write(&shard, bytes).unwrap();
-    let out = bettimill(&["verify", flipped.to_str().unwrap()]);
+    let out = run(&["verify", flipped.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
     assert!(stdout(&out).contains("small2d-000001"), "{}", stdout(&out));
 
@@ -227,20 +194,20 @@ fn verify_detects_flips_truncation_and_missing_shards() {
     let shard = only_shard(&truncated, 2);
     let bytes = std::fs::read(&shard).unwrap();
     std::fs::write(&shard, &bytes[..bytes.len() - 1024]).unwrap();
-    let out = bettimill(&["verify", truncated.to_str().unwrap()]);
+    let out = run(&["verify", truncated.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
     assert!(stdout(&out).contains("small2d-000002"), "{}", stdout(&out));
 
     let missing = copy("missing");
     std::fs::remove_file(only_shard(&missing, 0)).unwrap();
-    let out = bettimill(&["verify", missing.to_str().unwrap()]);
+    let out = run(&["verify", missing.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
     assert!(stdout(&out).contains("small2d-000000"), "{}", stdout(&out));
 }
 
 #[test]
 fn rebuilding_into_the_same_directory_changes_nothing() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let manifest = small_manifest(tmp.path(), 3, 18, 12);
     let out_dir = tmp.path().join("out");
     assert!(build(Some(&manifest), &out_dir).status.success());
@@ -272,7 +239,7 @@ fn rebuilding_into_the_same_directory_changes_nothing() {
 
 #[test]
 fn a_foreign_directory_is_refused() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     std::fs::write(tmp.path().join("thesis.txt"), "precious").unwrap();
     let out = build(None, tmp.path());
     assert_eq!(out.status.code(), Some(2));
@@ -284,7 +251,7 @@ fn a_foreign_directory_is_refused() {
 /// and nothing written.
 #[test]
 fn bad_manifests_are_refused_with_field_and_line() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let good = std::fs::read_to_string(small_manifest(tmp.path(), 3, 18, 12)).unwrap();
     let cases = [
         (
@@ -330,7 +297,7 @@ fn bad_manifests_are_refused_with_field_and_line() {
 
 #[test]
 fn betti_reads_user_images() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // An annulus in 2D: one component, one hole.
     let mut image = bettimill_grid::BinaryImage::zeros(&[7, 7]).unwrap();
     for i in 1..6 {
@@ -346,22 +313,22 @@ fn betti_reads_user_images() {
         bettimill_grid::npy::write_bytes(&image, bettimill_grid::npy::Dtype::U8),
     )
     .unwrap();
-    let out = bettimill(&["betti", path.to_str().unwrap()]);
+    let out = run(&["betti", path.to_str().unwrap()]);
     assert_eq!(stdout(&out).trim(), "betti: [1, 1]  euler: 0");
-    let out = bettimill(&["betti", path.to_str().unwrap(), "--json"]);
+    let out = run(&["betti", path.to_str().unwrap(), "--json"]);
     let v: serde_json::Value = serde_json::from_str(&stdout(&out)).unwrap();
     assert_eq!(v["betti"], serde_json::json!([1, 1]));
 
     let bad = tmp.path().join("bad.npy");
     std::fs::write(&bad, b"not an npy file").unwrap();
-    let out = bettimill(&["betti", bad.to_str().unwrap()]);
+    let out = run(&["betti", bad.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("bad.npy"), "{}", stderr(&out));
 }
 
 fn preset(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../manifests")
+    repo_root()
+        .join("manifests")
         .join(name)
         .to_string_lossy()
         .into_owned()
@@ -369,15 +336,15 @@ fn preset(name: &str) -> String {
 
 #[test]
 fn the_4d_mixed_128_preset_plans() {
-    let out = bettimill(&["plan", &preset("4d-mixed-128.toml")]);
-    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let out = run(&["plan", &preset("4d-mixed-128.toml")]);
+    assert_exit(&out, 0);
     let text = stdout(&out);
     assert!(text.contains("split val: 800 samples"), "{text}");
     assert!(
         text.contains("differ by at most 1 within any shard"),
         "{text}"
     );
-    let out = bettimill(&["plan", &preset("4d-mixed-128.toml"), "--json"]);
+    let out = run(&["plan", &preset("4d-mixed-128.toml"), "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let strata = v["strata"].as_array().unwrap();
     // 13 cavity classes x 2 cavity counts x 4 hypervolume bins.
@@ -402,14 +369,14 @@ fn every_preset_plans() {
         "demo-4d.toml",
         "paper-figures.toml",
     ] {
-        let out = bettimill(&["plan", &preset(name), "--json"]);
+        let out = run(&["plan", &preset(name), "--json"]);
         assert_eq!(out.status.code(), Some(0), "{name}: {}", stderr(&out));
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         assert!(v["infeasible"].as_array().unwrap().is_empty(), "{name}");
     }
     // The manifests of BENCHMARKS.md's regeneration-rate builds plan too; what they
     // leave out (tunnels in embed mode, the largest sum carved at side 56) has a reason.
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../benches/regen");
+    let dir = repo_root().join("benches/regen");
     let mut manifests: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -417,7 +384,7 @@ fn every_preset_plans() {
     manifests.sort();
     assert!(manifests.len() >= 8, "{}", dir.display());
     for path in manifests {
-        let out = bettimill(&["plan", path.to_str().unwrap(), "--json"]);
+        let out = run(&["plan", path.to_str().unwrap(), "--json"]);
         let name = path.display();
         assert_eq!(out.status.code(), Some(0), "{name}: {}", stderr(&out));
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -433,12 +400,12 @@ fn every_preset_plans() {
 
 #[test]
 fn audit_names_the_tampered_shard_and_the_wrong_label() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let manifest = small_manifest(tmp.path(), 2, 20, 18);
     let dir = tmp.path().join("out");
     assert!(build(Some(&manifest), &dir).status.success());
     let d = dir.to_str().unwrap();
-    let out = bettimill(&["audit", d, "--rebuild", "1", "--relabel"]);
+    let out = run(&["audit", d, "--rebuild", "1", "--relabel"]);
     assert_eq!(out.status.code(), Some(0), "{}", stdout(&out));
 
     // Flip one voxel of a stored array and re-index nothing: verify catches the hash, the
@@ -452,7 +419,7 @@ fn audit_names_the_tampered_shard_and_the_wrong_label() {
     drop(members);
     bytes[offset] ^= 1;
     std::fs::write(&shard, &bytes).unwrap();
-    let out = bettimill(&["audit", d, "--shards", "2"]);
+    let out = run(&["audit", d, "--shards", "2"]);
     assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
     assert!(
         stdout(&out).contains(&format!(
@@ -472,7 +439,7 @@ fn audit_names_the_tampered_shard_and_the_wrong_label() {
         .expect("the first shard holds a disk");
     bytes[at + 9] = b'3';
     std::fs::write(&shard, &bytes).unwrap();
-    let out = bettimill(&["audit", d, "--shards", "0", "--relabel"]);
+    let out = run(&["audit", d, "--shards", "0", "--relabel"]);
     assert_eq!(out.status.code(), Some(1), "{}", stdout(&out));
     assert!(
         stdout(&out).contains("label says betti [3, 0], the voxels give [1, 0]"),
@@ -480,13 +447,13 @@ fn audit_names_the_tampered_shard_and_the_wrong_label() {
         stdout(&out)
     );
 
-    let out = bettimill(&["audit", d]);
+    let out = run(&["audit", d]);
     assert_eq!(out.status.code(), Some(2));
 }
 
 #[test]
 fn deform_keeps_topology_shape_and_dtype() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // An annulus in a 40x40 int16 image.
     let mut image = bettimill_grid::BinaryImage::zeros(&[40, 40]).unwrap();
     for i in 0..40i64 {
@@ -511,7 +478,7 @@ fn deform_keeps_topology_shape_and_dtype() {
         ("hit-or-miss", false),
     ] {
         let output = tmp.path().join(format!("{method}.npy"));
-        let out = bettimill(&[
+        let out = run(&[
             "deform",
             input.to_str().unwrap(),
             "--out",
@@ -540,7 +507,7 @@ fn deform_keeps_topology_shape_and_dtype() {
             assert_eq!(result.image.count_foreground(), image.count_foreground());
         }
     }
-    let out = bettimill(&[
+    let out = run(&[
         "deform",
         tmp.path().join("missing.npy").to_str().unwrap(),
         "--out",
@@ -559,7 +526,7 @@ fn deform_keeps_topology_shape_and_dtype() {
 #[test]
 fn a_closed_stdout_pipe_is_not_a_panic() {
     use std::io::Read;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_bettimill"))
+    let mut child = bettimill()
         .args(["plan", &preset("4d-mixed-128.toml"), "--json"])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
@@ -569,19 +536,19 @@ fn a_closed_stdout_pipe_is_not_a_panic() {
     child.stdout.take().unwrap().read_exact(&mut first).unwrap();
     // The read end is dropped here: the rest of the output meets a closed pipe.
     let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert_exit(&out, 0);
     assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
 }
 
 /// Thread count must not reach the bytes: the in-process pool (rayon) and the worker pools.
 #[test]
 fn thread_and_worker_counts_do_not_change_a_byte() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let manifest = small_manifest(tmp.path(), 3, 18, 24);
     let mut snapshots = Vec::new();
     for (threads, workers) in [("1", "1"), ("2", "2"), ("3", "1")] {
         let dir = tmp.path().join(format!("t{threads}w{workers}"));
-        let out = Command::new(env!("CARGO_BIN_EXE_bettimill"))
+        let out = bettimill()
             .args([
                 "build",
                 manifest.to_str().unwrap(),

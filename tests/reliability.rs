@@ -13,8 +13,8 @@
 //!   the rerun is byte-identical.
 //! - Soak: random SIGKILLs of the coordinator and of workers at random (seeded) moments,
 //!   rerun until the build completes; orphaned workers must exit on their own; the result
-//!   is byte-identical to a clean build. `BETTIMILL_SOAK_KILLS` sets the number of kills of
-//!   the ignored long run.
+//!   is byte-identical to a clean build. `BETTIMILL_SOAK_KILLS` turns the soak test into
+//!   the long run with that many kills.
 //! - Resources: the coordinator's peak memory for 2000 samples is less than twice that for
 //!   200; a worker's peak for a 32^4 sample stays within the documented per-voxel bound.
 
@@ -24,23 +24,16 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
+use bettimill_testkit::{skip_unless_ci, Xorshift};
 use common::{
-    alive, assert_same, bettimill, build, children, run, shard_files, snapshot, spawn_build, text,
-    wait_until,
+    alive, assert_exit, assert_same, ball_and_handle, bettimill, build, children, kill, run,
+    shard_files, snapshot, spawn_build, text, wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("r{dimension}d-{side}-{samples}-{shard_size}.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            "schema_version = 1\nname = \"r{dimension}d\"\ndimension = {dimension}\nside = {side}\n\
-             mode = [\"embed\", \"carve\"]\nsamples = {samples}\nshard_size = {shard_size}\nseed = 5\n\n\
-             [[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n"
-        ),
-    )
-    .unwrap();
-    path
+    let name = format!("r{dimension}d");
+    ball_and_handle(path, &name, dimension, side, samples, shard_size, 5)
 }
 
 /// Live processes whose command line is `bettimill worker --dir <out>` (any parent).
@@ -75,15 +68,6 @@ fn peak_kib(pid: u32) -> Option<u64> {
         .nth(1)?
         .parse()
         .ok()
-}
-
-fn kill(signal: &str, pid: u32) -> bool {
-    Command::new("kill")
-        .args([signal, &pid.to_string()])
-        .stderr(Stdio::null())
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
 }
 
 /// Every visible tar is a complete shard: `status` lists none as invalid.
@@ -129,7 +113,7 @@ fn npy(header: &str, data_len: usize) -> Vec<u8> {
 
 #[test]
 fn betti_refuses_npy_files_with_lying_headers() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let header = |descr: &str, shape: &str| {
         format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}")
     };
@@ -240,11 +224,11 @@ type IndexMutation = Box<dyn Fn(&mut serde_json::Value)>;
 
 #[test]
 fn verify_refuses_hostile_shards_and_indexes_and_writes_nothing() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 4, 2);
     let clean = tmp.path().join("clean");
     let out = build(&m, &clean, 1);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let index: serde_json::Value =
         serde_json::from_slice(&std::fs::read(clean.join("index.json")).unwrap()).unwrap();
     let shard_name = index["shards"][0]["name"].as_str().unwrap().to_string();
@@ -355,7 +339,7 @@ fn verify_refuses_hostile_shards_and_indexes_and_writes_nothing() {
 
 #[test]
 fn a_worker_fed_garbage_exits_with_an_error_instead_of_hanging() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 4, 2);
     let dir = tmp.path().join("ds");
     assert_eq!(build(&m, &dir, 1).status.code(), Some(0));
@@ -398,10 +382,6 @@ fn a_worker_fed_garbage_exits_with_an_error_instead_of_hanging() {
 
 // ---------------------------------------------------------------- disk full
 
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
-}
-
 fn is_root() -> bool {
     std::fs::read_to_string("/proc/self/status")
         .ok()
@@ -420,13 +400,13 @@ fn check_failed_then_resumed(m: &Path, out: &Path, clean: &Path, code: Option<i3
     assert!(!out.join("index.json").exists(), "{stderr}");
     assert_no_partial_shard_visible(out);
     let resumed = build(m, out, 2);
-    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    assert_exit(&resumed, 0);
     assert_same(clean, out);
 }
 
 #[test]
 fn a_build_over_the_file_size_limit_stops_cleanly_and_resumes_identically() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // Shards of about 24 KiB; every other file is far below the 12 KiB limit.
     let m = manifest(tmp.path(), 2, 64, 12, 4);
     let clean = tmp.path().join("clean");
@@ -440,7 +420,7 @@ fn a_build_over_the_file_size_limit_stops_cleanly_and_resumes_identically() {
             "trap '' XFSZ; exec prlimit --fsize=12288 -- \"$@\"",
             "sh",
         ])
-        .arg(env!("CARGO_BIN_EXE_bettimill"))
+        .arg(common::BETTIMILL)
         .args(["build", m.to_str().unwrap(), "--out", out.to_str().unwrap()])
         .args(["--workers", "2"])
         .output()
@@ -465,19 +445,16 @@ impl Drop for Mount {
 #[test]
 fn a_build_that_fills_the_disk_stops_cleanly_and_resumes_identically() {
     if !is_root() {
-        assert!(
-            !in_ci(),
-            "CI runs as root: the ENOSPC test must not be skipped"
-        );
-        eprintln!("skipped: mounting a small tmpfs needs root");
+        // CI runs as root: there the ENOSPC test must not be skipped.
+        skip_unless_ci("root", "mounting a small tmpfs needs root");
         return;
     }
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // About 3 MiB of shards (2D 128^2 samples of 16 KiB) into a 2 MiB file system.
     let m = manifest(tmp.path(), 2, 128, 192, 8);
     let clean = tmp.path().join("clean");
     let out = build(&m, &clean, 2);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let mount_point = tmp.path().join("small");
     std::fs::create_dir(&mount_point).unwrap();
     let mounted = Command::new("mount")
@@ -508,7 +485,7 @@ fn a_build_that_fills_the_disk_stops_cleanly_and_resumes_identically() {
 
 #[test]
 fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
@@ -533,24 +510,12 @@ fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
         );
         assert_no_partial_shard_visible(&out);
         let rerun = build(&m, &out, 2);
-        assert_eq!(rerun.status.code(), Some(0), "{}", text(&rerun.stderr));
+        assert_exit(&rerun, 0);
         assert_same(&clean, &out);
     }
 }
 
 // ---------------------------------------------------------------- soak
-
-/// A seeded generator for kill times and targets (xorshift64*).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-}
 
 struct SoakReport {
     coordinator_kills: u32,
@@ -572,7 +537,8 @@ fn soak(
     clean_time: Duration,
     seed: u64,
 ) -> SoakReport {
-    let mut rng = Rng(seed | 1);
+    // Kill times and targets come from a seeded generator.
+    let mut rng = Xorshift(seed | 1);
     let mut report = SoakReport {
         coordinator_kills: 0,
         worker_kills: 0,
@@ -592,8 +558,8 @@ fn soak(
             report.runs += 1;
             let coordinator = spawn_build(m, out, 2, &[]);
             let pid = coordinator.id();
-            let delay = clean_time.mul_f64((rng.next() % 1000) as f64 / 1000.0);
-            let kill_coordinator = rng.next().is_multiple_of(3);
+            let delay = clean_time.mul_f64((rng.next_u64() % 1000) as f64 / 1000.0);
+            let kill_coordinator = rng.next_u64().is_multiple_of(3);
             let start = Instant::now();
             while start.elapsed() < delay && alive(pid) {
                 std::thread::sleep(Duration::from_millis(2));
@@ -614,7 +580,7 @@ fn soak(
                     report.coordinator_kills += 1;
                     completed = false;
                 } else {
-                    assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+                    assert_exit(&result, 0);
                     completed = true;
                 }
                 for worker in workers {
@@ -626,7 +592,7 @@ fn soak(
                 }
             } else {
                 if !workers.is_empty() {
-                    let worker = workers[(rng.next() % workers.len() as u64) as usize];
+                    let worker = workers[(rng.next_u64() % workers.len() as u64) as usize];
                     kill("-KILL", worker);
                 }
                 let result = coordinator.wait_with_output().unwrap();
@@ -659,13 +625,15 @@ fn soak(
     report
 }
 
+/// Builds cleanly, soaks, and reports the kills survived on the test's stderr.
+#[allow(clippy::print_stderr)]
 fn soak_test(dimension: u32, side: u32, samples: u32, shard_size: u32, kills: u32, seed: u64) {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), dimension, side, samples, shard_size);
     let clean = tmp.path().join("clean");
     let start = Instant::now();
     let out = build(&m, &clean, 2);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let clean_time = start.elapsed();
     let soaked = tmp.path().join("soaked");
     let report = soak(&m, &clean, &soaked, kills, clean_time, seed);
@@ -676,22 +644,21 @@ fn soak_test(dimension: u32, side: u32, samples: u32, shard_size: u32, kills: u3
     assert!(report.coordinator_kills + report.worker_kills >= kills);
 }
 
+/// With `BETTIMILL_SOAK_KILLS=N` set this is the long soak (2000 samples in 100 shards, N
+/// kills; about 3 minutes per 120 kills on 2 cores): `BETTIMILL_SOAK_KILLS=200
+/// CARGO_TARGET_DIR=/tmp/target-rel cargo test -p bettimill-cli --release --test reliability
+/// -- random_kills --nocapture`. Without it, 8 kills over 300 samples.
 #[test]
 fn random_kills_of_coordinator_and_workers_end_byte_identical() {
-    soak_test(2, 32, 300, 10, 8, 2026);
-}
-
-/// The long soak (about 3 minutes per 120 kills on 2 cores): `BETTIMILL_SOAK_KILLS=200
-/// CARGO_TARGET_DIR=/tmp/target-rel cargo test -p bettimill-cli --release --test reliability
-/// -- --ignored long_soak --nocapture`.
-#[test]
-#[ignore]
-fn long_soak() {
-    let kills = std::env::var("BETTIMILL_SOAK_KILLS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(200);
-    soak_test(2, 32, 2000, 20, kills, 7);
+    match std::env::var("BETTIMILL_SOAK_KILLS") {
+        Ok(kills) => {
+            let kills = kills
+                .parse()
+                .unwrap_or_else(|e| panic!("BETTIMILL_SOAK_KILLS={kills:?}: {e}"));
+            soak_test(2, 32, 2000, 20, kills, 7);
+        }
+        Err(_) => soak_test(2, 32, 300, 10, 8, 2026),
+    }
 }
 
 // ---------------------------------------------------------------- resources
@@ -715,13 +682,13 @@ fn build_peaks_with(m: &Path, out: &Path, workers: u32, env: &[(&str, &str)]) ->
         std::thread::sleep(Duration::from_millis(5));
     }
     let result = coordinator.wait_with_output().unwrap();
-    assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+    assert_exit(&result, 0);
     (coordinator_peak, worker_peak)
 }
 
 #[test]
 fn the_coordinators_memory_does_not_grow_with_the_number_of_samples() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let small = manifest(tmp.path(), 2, 16, 200, 10);
     let large = manifest(tmp.path(), 2, 16, 2000, 10);
     let (small_peak, _) = build_peaks(&small, &tmp.path().join("small"), 2);
@@ -736,7 +703,7 @@ fn the_coordinators_memory_does_not_grow_with_the_number_of_samples() {
 
 #[test]
 fn a_workers_memory_for_a_32_4_sample_is_within_the_documented_bound() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 4, 32, 2, 1);
     let (_, worker_peak) = build_peaks(&m, &tmp.path().join("out"), 1);
     // docs/reliability.md: at most 100 bytes per voxel plus 64 MiB of fixed cost.
@@ -755,7 +722,7 @@ fn a_worker_holds_compressed_members_not_the_images_of_a_shard() {
     // Carved 4D 32^4 samples are 1 MiB each uncompressed (every page touched) and a few
     // KiB compressed: a worker that held a shard's images until the tar was written needed
     // ~58 MiB more for 64 samples than for 4; keeping only compressed members, <1 MiB.
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let write = |samples: u32| {
         let path = tmp.path().join(format!("z{samples}.toml"));
         std::fs::write(

@@ -7,27 +7,15 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn bettimill(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bettimill"))
-        .args(args)
-        .output()
-        .expect("bettimill runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
-
-fn required() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-        || std::env::var("BETTIMILL_SLURM_REQUIRED").is_ok_and(|v| v == "1")
-}
+mod common;
+use bettimill_testkit::skip_unless_ci;
+use common::{assert_exit, ball_and_handle, repo_root, run, text, Dir};
 
 /// Starts Slurm; `false` (skip) only outside CI.
 fn slurm_up() -> bool {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ci/slurm-up.sh");
+    let script = repo_root().join("ci/slurm-up.sh");
     let out = Command::new("bash").arg(&script).output();
     let reason = match out {
         Ok(out) if out.status.success() => return true,
@@ -41,14 +29,16 @@ fn slurm_up() -> bool {
         Err(err) => format!("cannot run {}: {err}", script.display()),
     };
     assert!(
-        !required(),
-        "Slurm is required here but unavailable: {reason}"
+        !std::env::var("BETTIMILL_SLURM_REQUIRED").is_ok_and(|v| v == "1"),
+        "Slurm is required here (BETTIMILL_SLURM_REQUIRED=1) but unavailable: {reason}"
     );
-    eprintln!("SKIPPED: Slurm is unavailable ({reason}); CI runs this test for real");
+    skip_unless_ci("Slurm", &reason);
     false
 }
 
-/// `sbatch --wait` of a script (up to 5 minutes); returns its exit code.
+/// `sbatch --wait` of a script (up to 5 minutes); returns its exit code. Its output goes to
+/// the test's stderr, for the diagnosis of a failing run.
+#[allow(clippy::print_stderr)]
 fn sbatch_wait(script: &Path, env: &[(&str, &str)]) -> Option<i32> {
     let mut command = Command::new("timeout");
     command
@@ -103,8 +93,8 @@ fn assert_same(local: &Path, cluster: &Path) {
 }
 
 fn status(dir: &Path) -> serde_json::Value {
-    let out = bettimill(&["status", dir.to_str().unwrap(), "--json"]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let out = run(&["status", dir.to_str().unwrap(), "--json"]);
+    assert_exit(&out, 0);
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
@@ -113,21 +103,11 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     if !slurm_up() {
         return;
     }
-    let tmp = tempfile::Builder::new()
-        .prefix("bettimill-slurm-")
-        .tempdir_in("/tmp")
-        .unwrap();
-    let manifest = tmp.path().join("s.toml");
-    std::fs::write(
-        &manifest,
-        "schema_version = 1\nname = \"s2d\"\ndimension = 2\nside = 20\nmode = [\"embed\", \"carve\"]\n\
-         samples = 18\nshard_size = 3\nseed = 5\n\n[[classes]]\nfamily = \"ball\"\n\n\
-         [[classes]]\nfamily = \"handle\"\n",
-    )
-    .unwrap();
+    let tmp = Dir::new_in("/tmp", "bettimill-slurm-");
+    let manifest = ball_and_handle(tmp.join("s.toml"), "s2d", 2, 20, 18, 3, 5);
     let m = manifest.to_str().unwrap();
     let local = tmp.path().join("local");
-    let out = bettimill(&[
+    let out = run(&[
         "build",
         m,
         "--out",
@@ -135,11 +115,11 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         "--workers",
         "2",
     ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
 
     // 1. A clean array job: 6 shards over 3 tasks, at most 2 at once.
     let a = tmp.path().join("a");
-    let out = bettimill(&[
+    let out = run(&[
         "slurm",
         m,
         "--out",
@@ -149,22 +129,22 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         "--throttle",
         "2",
     ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let script = a.join("slurm/build.sbatch");
     let body = std::fs::read_to_string(&script).unwrap();
     assert!(body.contains("#SBATCH --array=0,1,2%2"), "{body}");
     assert_eq!(sbatch_wait(&script, &[]), Some(0));
     assert_eq!(status(&a)["complete"].as_array().unwrap().len(), 6);
-    let out = bettimill(&["finalize", a.to_str().unwrap()]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let out = run(&["finalize", a.to_str().unwrap()]);
+    assert_exit(&out, 0);
     assert_same(&local, &a);
     let logs = std::fs::read_dir(a.join("slurm/logs")).unwrap().count();
     assert_eq!(logs, 3, "one log per array task");
 
     // 2. Task 1 fails before doing any work: its shards (1 and 4) stay missing.
     let b = tmp.path().join("b");
-    let out = bettimill(&["slurm", m, "--out", b.to_str().unwrap(), "--tasks", "3"]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let out = run(&["slurm", m, "--out", b.to_str().unwrap(), "--tasks", "3"]);
+    assert_exit(&out, 0);
     let code = sbatch_wait(
         &b.join("slurm/build.sbatch"),
         &[("BETTIMILL_TEST_FAIL_TASK", "1")],
@@ -177,7 +157,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         "{s}"
     );
     assert_eq!(s["complete"].as_array().unwrap().len(), 4, "{s}");
-    let out = bettimill(&["finalize", b.to_str().unwrap()]);
+    let out = run(&["finalize", b.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(
         text(&out.stderr).contains("s2d-000001, s2d-000004"),
@@ -188,7 +168,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     let before: BTreeMap<_, _> = dataset_files_partial(&b);
 
     // 3. Resubmission runs only task 1, then finalize (afterok), and waits for it.
-    let out = bettimill(&[
+    let out = run(&[
         "slurm",
         m,
         "--out",
@@ -216,7 +196,7 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
         );
     }
     assert_same(&local, &b);
-    let out = bettimill(&["verify", b.to_str().unwrap()]);
+    let out = run(&["verify", b.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stdout));
 }
 

@@ -1,13 +1,22 @@
 //! Tidy checks: invariants of ARCHITECTURE.md enforced as tests, not only prose.
+//!
+//! - Dependency directions come from `cargo metadata` (the resolved manifests, not text).
+//! - "Only the CLI prints" is enforced by clippy (`print_stdout`, `print_stderr` denied in
+//!   `[workspace.lints]`, `std::io::stdout`/`stderr` in clippy.toml's `disallowed-methods`);
+//!   this file checks that every crate inherits those lints and that no library crate
+//!   allows them anywhere in its sources.
+//! - Every Rust file opens with a `//!` doc; the crates are on the code map.
 
 use std::path::{Path, PathBuf};
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+mod common;
+use common::repo_root;
 
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in std::fs::read_dir(dir).unwrap() {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries {
         let path = entry.unwrap().path();
         if path.is_dir() {
             rust_files(&path, out);
@@ -17,96 +26,258 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-fn crates() -> Vec<PathBuf> {
-    let mut out: Vec<PathBuf> = std::fs::read_dir(root().join("crates"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.join("Cargo.toml").exists())
-        .collect();
-    out.sort();
-    out
+/// One workspace member as `cargo metadata` describes it.
+struct Package {
+    name: String,
+    /// The directory of its Cargo.toml.
+    dir: PathBuf,
+    /// (dependency name, kind: "normal", "build" or "dev").
+    dependencies: Vec<(String, String)>,
 }
 
+impl Package {
+    /// The workspace crates it depends on outside its tests (normal and build dependencies).
+    fn internal_deps(&self) -> Vec<&str> {
+        let mut out: Vec<&str> = self
+            .dependencies
+            .iter()
+            .filter(|(name, kind)| name.starts_with("bettimill-") && kind != "dev")
+            .map(|(name, _)| name.as_str())
+            .collect();
+        out.sort();
+        out.dedup();
+        out
+    }
+}
+
+/// The workspace members, from `cargo metadata --format-version 1 --offline --no-deps`.
+fn packages() -> Vec<Package> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = std::process::Command::new(cargo)
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--offline",
+            "--no-deps",
+        ])
+        .arg("--manifest-path")
+        .arg(repo_root().join("Cargo.toml"))
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        out.status.success(),
+        "cargo metadata: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let metadata: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mut packages: Vec<Package> = metadata["packages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| Package {
+            name: p["name"].as_str().unwrap().to_string(),
+            dir: Path::new(p["manifest_path"].as_str().unwrap())
+                .parent()
+                .unwrap()
+                .to_path_buf(),
+            dependencies: p["dependencies"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|d| {
+                    (
+                        d["name"].as_str().unwrap().to_string(),
+                        d["kind"].as_str().unwrap_or("normal").to_string(),
+                    )
+                })
+                .collect(),
+        })
+        .collect();
+    packages.sort_by(|a, b| a.name.cmp(&b.name));
+    assert!(packages.len() >= 14, "only {} members", packages.len());
+    packages
+}
+
+fn package<'a>(packages: &'a [Package], name: &str) -> &'a Package {
+    packages
+        .iter()
+        .find(|p| p.name == name)
+        .unwrap_or_else(|| panic!("{name} is not a workspace member"))
+}
+
+/// A rule on the workspace's dependency graph (normal and build dependencies only: tests
+/// may use anything).
+enum Rule {
+    /// The crate depends on exactly these workspace crates.
+    Only(&'static str, &'static [&'static str]),
+    /// The crate does not depend on the other.
+    Not(&'static str, &'static str),
+}
+
+const RULES: &[Rule] = &[
+    // The verifier shares no code with the constructions it checks.
+    Rule::Only("bettimill-homology", &["bettimill-grid"]),
+    Rule::Not("bettimill-shapes", "bettimill-homology"),
+    // The manifest knows syntax and ranges; what the classes mean is the plan's to decide.
+    Rule::Not("bettimill-manifest", "bettimill-shapes"),
+    // A sample is made from the plan and its task alone.
+    Rule::Not("bettimill-sample", "bettimill-manifest"),
+];
+
 #[test]
-fn every_module_opens_with_a_doc_comment() {
-    let mut missing = Vec::new();
-    for krate in crates() {
-        let mut files = Vec::new();
-        rust_files(&krate.join("src"), &mut files);
-        for file in files {
-            let text = std::fs::read_to_string(&file).unwrap();
-            let is_test_module = file.file_name().is_some_and(|n| n == "tests.rs");
-            if !is_test_module && !text.trim_start().starts_with("//!") {
-                missing.push(file.display().to_string());
+fn dependency_directions_hold() {
+    let packages = packages();
+    let mut broken = Vec::new();
+    for rule in RULES {
+        match rule {
+            Rule::Only(name, allowed) => {
+                let deps = package(&packages, name).internal_deps();
+                if deps != *allowed {
+                    broken.push(format!(
+                        "{name} must depend only on {allowed:?}, not {deps:?}"
+                    ));
+                }
+            }
+            Rule::Not(name, other) => {
+                package(&packages, other);
+                if package(&packages, name).internal_deps().contains(other) {
+                    broken.push(format!("{name} must not depend on {other}"));
+                }
             }
         }
     }
-    assert!(
-        missing.is_empty(),
-        "modules without a //! doc: {missing:#?}"
-    );
+    assert!(broken.is_empty(), "{broken:#?}");
 }
 
 #[test]
-fn only_the_cli_prints() {
+fn the_testkit_is_only_a_dev_dependency_and_anyhow_only_the_clis() {
+    for p in packages() {
+        for (dep, kind) in &p.dependencies {
+            if dep == "bettimill-testkit" {
+                assert_eq!(kind, "dev", "{} depends on {dep} outside its tests", p.name);
+            }
+            if dep == "anyhow" && kind != "dev" {
+                assert_eq!(p.name, "bettimill-cli", "{} depends on anyhow", p.name);
+            }
+        }
+    }
+}
+
+/// Printing is a clippy error outside the CLI: the workspace denies the print lints, every
+/// crate inherits the workspace lints, clippy.toml disallows `std::io::stdout`/`stderr`, and
+/// no library crate allows any of them anywhere in its sources (whole files, tests
+/// included). Examples and benchmarks may allow them (they print reports), and so may the
+/// CLI and the test helper crate.
+#[test]
+fn printing_is_denied_outside_the_cli() {
+    let root = repo_root();
+    let read_toml = |path: &Path| -> toml::Value {
+        toml::from_str(&std::fs::read_to_string(path).unwrap())
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    };
+    let workspace = read_toml(&root.join("Cargo.toml"));
+    let clippy = &workspace["workspace"]["lints"]["clippy"];
+    for lint in ["print_stdout", "print_stderr"] {
+        assert_eq!(
+            clippy.get(lint).and_then(|l| l.as_str()),
+            Some("deny"),
+            "[workspace.lints.clippy] {lint}"
+        );
+    }
+    let config = read_toml(&root.join("clippy.toml"));
+    let disallowed: Vec<&str> = config["disallowed-methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|m| m.get("path").and_then(|p| p.as_str()))
+        .collect();
+    for method in ["std::io::stdout", "std::io::stderr"] {
+        assert!(disallowed.contains(&method), "clippy.toml: {disallowed:?}");
+    }
     let mut offenders = Vec::new();
-    for krate in crates() {
-        if krate.ends_with("bettimill-cli") {
+    for p in packages() {
+        let manifest = read_toml(&p.dir.join("Cargo.toml"));
+        let inherits = manifest
+            .get("lints")
+            .and_then(|l| l.get("workspace"))
+            .and_then(|w| w.as_bool());
+        assert_eq!(inherits, Some(true), "{}: [lints] workspace = true", p.name);
+        if p.name == "bettimill-cli" || p.name == "bettimill-testkit" {
             continue;
         }
         let mut files = Vec::new();
-        rust_files(&krate.join("src"), &mut files);
+        rust_files(&p.dir.join("src"), &mut files);
+        if p.dir.join("lib.rs").exists() {
+            // benches/lib.rs: the library of the benchmark crate.
+            files.push(p.dir.join("lib.rs"));
+        }
         for file in files {
-            if file.file_name().is_some_and(|n| n == "tests.rs") {
-                continue;
-            }
             let text = std::fs::read_to_string(&file).unwrap();
-            // Unit tests may print; library code may not.
-            let code = text.split("#[cfg(test)]").next().unwrap_or("");
-            for needle in ["println!(", "eprintln!(", "print!(", "eprint!("] {
-                if code.contains(needle) {
-                    offenders.push(format!("{}: {needle}", file.display()));
+            for lint in [
+                "clippy::print_stdout",
+                "clippy::print_stderr",
+                "clippy::disallowed_methods",
+            ] {
+                if text.contains(lint) {
+                    offenders.push(format!("{}: {lint}", file.display()));
                 }
             }
         }
     }
     assert!(
         offenders.is_empty(),
-        "library code that prints: {offenders:#?}"
+        "library code that allows printing: {offenders:#?}"
     );
 }
 
+/// Every Rust file of the workspace (sources, tests, examples, benchmarks) opens with a
+/// `//!` doc, except the `tests.rs` unit-test modules of `src/`.
 #[test]
-fn the_verifier_depends_only_on_the_grid() {
-    let text =
-        std::fs::read_to_string(root().join("crates/bettimill-homology/Cargo.toml")).unwrap();
-    let deps = text
-        .split("[dependencies]")
-        .nth(1)
-        .unwrap()
-        .split("\n[")
-        .next()
-        .unwrap();
-    let internal: Vec<&str> = deps
-        .lines()
-        .filter(|l| l.trim_start().starts_with("bettimill-"))
-        .collect();
-    assert_eq!(internal, vec!["bettimill-grid.workspace = true"]);
+fn every_rust_file_opens_with_a_doc_comment() {
+    let root = repo_root();
+    let mut files = Vec::new();
+    for p in packages() {
+        for dir in ["src", "tests", "examples", "benches"] {
+            rust_files(&p.dir.join(dir), &mut files);
+        }
+        if p.dir.join("lib.rs").exists() {
+            files.push(p.dir.join("lib.rs"));
+        }
+    }
+    rust_files(&root.join("tests"), &mut files);
+    files.sort();
+    files.dedup();
+    assert!(files.len() > 80, "only {} files", files.len());
+    let mut missing = Vec::new();
+    for file in files {
+        let unit_tests = file.file_name().is_some_and(|n| n == "tests.rs")
+            && file.components().any(|c| c.as_os_str() == "src");
+        let text = std::fs::read_to_string(&file).unwrap();
+        if !unit_tests && !text.trim_start().starts_with("//!") {
+            missing.push(file.display().to_string());
+        }
+    }
+    assert!(missing.is_empty(), "files without a //! doc: {missing:#?}");
 }
 
 #[test]
 fn every_crate_is_on_the_code_map() {
-    let architecture = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
-    let readme = std::fs::read_to_string(root().join("crates/README.md")).unwrap();
-    for krate in crates() {
-        let name = krate.file_name().unwrap().to_string_lossy().into_owned();
+    let architecture = std::fs::read_to_string(repo_root().join("ARCHITECTURE.md")).unwrap();
+    let readme = std::fs::read_to_string(repo_root().join("crates/README.md")).unwrap();
+    for p in packages() {
+        if p.name == "bettimill-benches" {
+            continue;
+        }
         assert!(
-            architecture.contains(&format!("### `{name}`")),
-            "ARCHITECTURE.md has no code-map heading for {name}"
+            architecture.contains(&format!("### `{}`", p.name)),
+            "ARCHITECTURE.md has no code-map heading for {}",
+            p.name
         );
         assert!(
-            readme.contains(&format!("`{name}`")),
-            "crates/README.md has no line for {name}"
+            readme.contains(&format!("`{}`", p.name)),
+            "crates/README.md has no line for {}",
+            p.name
         );
     }
 }

@@ -4,26 +4,19 @@
 //! and SIGTERM. Every finished directory must be byte-identical to a clean build.
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command};
+use std::process::Child;
 use std::time::Duration;
 
 mod common;
 use common::{
-    alive, assert_same, build, children, run, shard_files, spawn_build, text, wait_until,
+    alive, assert_exit, assert_same, ball_and_handle, build, children, kill, run, shard_files,
+    spawn_build, text, wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
     let path = dir.join(format!("m{dimension}d-{side}-{samples}-{shard_size}.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            "schema_version = 1\nname = \"w{dimension}d\"\ndimension = {dimension}\nside = {side}\n\
-             mode = [\"embed\", \"carve\"]\nsamples = {samples}\nshard_size = {shard_size}\nseed = 11\n\n\
-             [[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n"
-        ),
-    )
-    .unwrap();
-    path
+    let name = format!("w{dimension}d");
+    ball_and_handle(path, &name, dimension, side, samples, shard_size, 11)
 }
 
 /// User plus system CPU time of a process in clock ticks (usually 1/100 s).
@@ -47,14 +40,6 @@ fn cpu_ticks(pid: u32) -> u64 {
     field(14) + field(15)
 }
 
-fn kill(signal: &str, pid: u32) {
-    let status = Command::new("kill")
-        .args([signal, &pid.to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success(), "kill {signal} {pid}");
-}
-
 fn finish(child: Child) -> (Option<i32>, String) {
     let out = child.wait_with_output().unwrap();
     (out.status.code(), text(&out.stderr))
@@ -62,13 +47,13 @@ fn finish(child: Child) -> (Option<i32>, String) {
 
 #[test]
 fn one_and_two_workers_build_identical_bytes() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 3, 18, 16, 3);
     let (one, two) = (tmp.path().join("one"), tmp.path().join("two"));
     let out = build(&m, &one, 1);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     let out = build(&m, &two, 2);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert_exit(&out, 0);
     assert!(
         text(&out.stderr).contains("2 workers"),
         "{}",
@@ -87,7 +72,7 @@ fn one_and_two_workers_build_identical_bytes() {
 
 #[test]
 fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identical() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // Shards of twelve 4D samples are slow enough for the kill to land inside a shard
     // (about 0.05 CPU-s per sample, so a shard takes several times the 15 ticks below).
     let m = manifest(tmp.path(), 4, 32, 24, 12);
@@ -110,7 +95,7 @@ fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identic
         !shard_files(&out).iter().any(|n| n.ends_with(".tar")),
         "a shard finished before the kill; the test needs slower samples"
     );
-    kill("-9", first);
+    assert!(kill("-9", first), "kill -9 {}", first);
     let (code, stderr) = finish(coordinator);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stderr.contains("killed by signal 9"), "{stderr}");
@@ -120,7 +105,7 @@ fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identic
 
 #[test]
 fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resumes() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
@@ -142,7 +127,7 @@ fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resu
         text(&second.stderr)
     );
 
-    kill("-9", coordinator.id());
+    assert!(kill("-9", coordinator.id()), "kill -9 {}", coordinator.id());
     let _ = finish(coordinator);
     // Orphaned workers notice that their coordinator is gone and exit.
     for pid in workers {
@@ -162,18 +147,13 @@ fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resu
 
     // The lock died with its process: the same command resumes and matches a clean build.
     let out_resume = build(&m, &out, 2);
-    assert_eq!(
-        out_resume.status.code(),
-        Some(0),
-        "{}",
-        text(&out_resume.stderr)
-    );
+    assert_exit(&out_resume, 0);
     assert_same(&clean, &out);
 }
 
 #[test]
 fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     // 12 one-sample 4D shards: slow enough that each kill lands inside the build.
     let m = manifest(tmp.path(), 4, 24, 12, 1);
     let clean = tmp.path().join("clean");
@@ -197,7 +177,7 @@ fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
             children(coordinator.id()).len() == 2 && records(&out) >= target
         });
         let workers = children(coordinator.id());
-        kill("-9", coordinator.id());
+        assert!(kill("-9", coordinator.id()), "kill -9 {}", coordinator.id());
         let _ = finish(coordinator);
         for pid in workers {
             wait_until(
@@ -221,7 +201,7 @@ fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
         complete_counts.push(status["complete"].as_array().unwrap().len());
     }
     let resumed = build(&m, &out, 2);
-    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    assert_exit(&resumed, 0);
     assert_same(&clean, &out);
     // Progress survived the kills.
     assert!(
@@ -232,7 +212,7 @@ fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
 
 #[test]
 fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
     let out = tmp.path().join("out");
     let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_FAIL_SHARD", "1")]);
@@ -258,7 +238,7 @@ fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
 
     // With the cause gone, the same command finishes the dataset.
     let resumed = build(&m, &out, 2);
-    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed.stderr));
+    assert_exit(&resumed, 0);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
     assert_same(&clean, &out);
@@ -266,7 +246,7 @@ fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
 
 #[test]
 fn sigterm_stops_the_workers_and_says_how_to_resume() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
     let out = tmp.path().join("out");
     let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "60")]);
@@ -274,7 +254,11 @@ fn sigterm_stops_the_workers_and_says_how_to_resume() {
         shard_files(&out).iter().any(|n| n.contains(".tmp-"))
     });
     let workers = children(coordinator.id());
-    kill("-TERM", coordinator.id());
+    assert!(
+        kill("-TERM", coordinator.id()),
+        "kill -TERM {}",
+        coordinator.id()
+    );
     let (code, stderr) = finish(coordinator);
     assert_eq!(code, Some(130), "{stderr}");
     assert!(stderr.contains("interrupted"), "{stderr}");
@@ -288,7 +272,7 @@ fn sigterm_stops_the_workers_and_says_how_to_resume() {
 
 #[test]
 fn a_worker_of_another_version_is_refused_with_what_to_do() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 6, 3);
     let out = tmp.path().join("out");
     let coordinator = spawn_build(&m, &out, 1, &[("BETTIMILL_TEST_WORKER_VERSION", "9.9.9")]);

@@ -6,6 +6,9 @@
 //! of the voxels are foreground and the topology is rich. Everything is seeded ChaCha8, so
 //! every run measures the same images.
 
+// `criterion_group!` writes an undocumented `pub fn`.
+#![allow(missing_docs)]
+
 use bettimill_grid::{BinaryImage, Dim};
 use bettimill_homology::simple::SimpleTester;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};

@@ -1,6 +1,10 @@
-//! Helpers shared by the process-level test files (`workers.rs`, `reliability.rs`,
-//! `end_to_end.rs`): run the real `bettimill` binary and look at its child processes and
-//! output directory.
+//! The one harness of the end-to-end test files in `tests/` (`cli_ux.rs`, `end_to_end.rs`,
+//! `reliability.rs`, `slurm.rs`, `tidy.rs`, `workers.rs`; ripgrep's `tests/util.rs` in
+//! spirit): start the real `bettimill` binary, in a fresh temporary directory when the
+//! working directory matters, compare its exit code, stdout and stderr, and look at its
+//! child processes and output directory. Helpers shared with the tests of other crates
+//! (the fuzz runner, the seeded generator, fail-in-CI for missing tools) live in
+//! `bettimill-testkit`.
 //!
 //! Each test binary uses a different subset, so unused ones are expected.
 #![allow(dead_code)]
@@ -10,16 +14,125 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-pub fn bettimill() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bettimill"))
+/// The binary under test.
+pub const BETTIMILL: &str = env!("CARGO_BIN_EXE_bettimill");
+
+/// The repository root.
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// A `bettimill` command (working directory inherited: give it absolute paths, or use
+/// [`Dir::command`]).
+pub fn bettimill() -> Command {
+    Command::new(BETTIMILL)
+}
+
+/// Runs `bettimill ARGS` to its end.
 pub fn run(args: &[&str]) -> Output {
     bettimill().args(args).output().expect("bettimill runs")
 }
 
+/// Runs `bettimill ARGS` to its end with `dir` as its working directory.
+pub fn run_in(dir: &Path, args: &[&str]) -> Output {
+    bettimill()
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("bettimill runs")
+}
+
+/// A fresh temporary directory, removed when dropped; the commands it makes run in it.
+pub struct Dir(tempfile::TempDir);
+
+impl Dir {
+    /// A fresh directory under the system's temporary directory.
+    pub fn new() -> Dir {
+        Dir(tempfile::tempdir().expect("a temporary directory"))
+    }
+
+    /// A fresh directory under `parent`, its name starting with `prefix`.
+    pub fn new_in(parent: &str, prefix: &str) -> Dir {
+        Dir(tempfile::Builder::new()
+            .prefix(prefix)
+            .tempdir_in(parent)
+            .expect("a temporary directory"))
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        self.0.path()
+    }
+
+    /// A path inside the directory.
+    pub fn join(&self, name: impl AsRef<Path>) -> PathBuf {
+        self.0.path().join(name)
+    }
+
+    /// A `bettimill` command whose working directory is this one.
+    pub fn command(&self) -> Command {
+        let mut command = bettimill();
+        command.current_dir(self.path());
+        command
+    }
+
+    /// Runs `bettimill ARGS` to its end in this directory.
+    pub fn run(&self, args: &[&str]) -> Output {
+        run_in(self.path(), args)
+    }
+}
+
+/// The manifest most end-to-end tests build: balls and handles, embedded and carved,
+/// with the given dataset name, sizes and seed, written to `path` (returned).
+#[allow(clippy::too_many_arguments)]
+pub fn ball_and_handle(
+    path: PathBuf,
+    name: &str,
+    dimension: u32,
+    side: u32,
+    samples: u32,
+    shard_size: u32,
+    seed: u64,
+) -> PathBuf {
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"{name}\"\ndimension = {dimension}\nside = {side}\n\
+             mode = [\"embed\", \"carve\"]\nsamples = {samples}\nshard_size = {shard_size}\n\
+             seed = {seed}\n\n[[classes]]\nfamily = \"ball\"\n\n[[classes]]\nfamily = \"handle\"\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+/// Bytes as text (invalid UTF-8 replaced).
 pub fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// A finished command's stdout as text.
+pub fn stdout(out: &Output) -> String {
+    text(&out.stdout)
+}
+
+/// A finished command's stderr as text.
+pub fn stderr(out: &Output) -> String {
+    text(&out.stderr)
+}
+
+/// Asserts that a finished command exited with `code`; the failure message shows its
+/// stdout and stderr.
+#[track_caller]
+pub fn assert_exit(out: &Output, code: i32) {
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "exit status {}, expected {code}\n--- stdout\n{}\n--- stderr\n{}",
+        out.status,
+        stdout(out),
+        stderr(out)
+    );
 }
 
 pub fn build(manifest: &Path, out: &Path, workers: u32) -> Output {
@@ -116,6 +229,16 @@ pub fn spawn_build(manifest: &Path, out: &Path, workers: u32, env: &[(&str, &str
         command.env(k, v);
     }
     command.spawn().unwrap()
+}
+
+/// Sends `signal` (`-9`, `-TERM`, ...) to process `pid` with kill(1); whether it was sent.
+pub fn kill(signal: &str, pid: u32) -> bool {
+    Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .stderr(Stdio::null())
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false)
 }
 
 /// Whether process `pid` is running (a zombie is dead for our purposes).

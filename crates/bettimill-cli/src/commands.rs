@@ -186,7 +186,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
             out,
             workers,
             max_shard_failures,
-        } => crate::cluster::build(
+        } => crate::build::build(
             manifest.as_deref(),
             &out,
             workers,
@@ -196,8 +196,8 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
         Command::Worker(args) => crate::cluster::worker(args, cli.quiet),
         Command::Slurm(args) => crate::cluster::slurm(args, cli.quiet),
         Command::K8s(args) => crate::cluster::kubernetes(args),
-        Command::Finalize { dir } => crate::cluster::finalize(&dir, cli.quiet),
-        Command::Status { dir, json } => crate::cluster::status(&dir, json),
+        Command::Finalize { dir } => crate::directory::finalize(&dir, cli.quiet),
+        Command::Status { dir, json } => crate::directory::status(&dir, json),
         Command::Audit(args) => crate::audit::run(&args, cli.quiet),
         Command::Verify { dir, json } => verify(&dir, json, cli.quiet),
         Command::Deform(args) => crate::deform::run(&args),
@@ -228,8 +228,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
 pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Manifest)> {
     match path {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read manifest {}", path.display()))?;
+            let text = bettimill_manifest::read_text(path)?;
             let manifest = Manifest::parse(&text, path)?;
             Ok((text, manifest))
         }

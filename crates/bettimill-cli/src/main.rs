@@ -5,6 +5,10 @@
 //! 130 interrupted (resumable). Everything else lives in library crates; this crate
 //! is the only one that prints.
 
+// This crate is the one place that prints or writes to stdout/stderr (the workspace denies
+// it everywhere else: Cargo.toml [workspace.lints], clippy.toml).
+#![allow(clippy::print_stdout, clippy::print_stderr, clippy::disallowed_methods)]
+
 /// `println!` for data on stdout that ends quietly when the reader closes the pipe
 /// (`bettimill plan | head`) instead of panicking; see `stats::write_stdout`. Only usable
 /// in functions that return `anyhow::Result`.
@@ -18,10 +22,13 @@ macro_rules! outln {
 }
 
 mod audit;
+mod build;
+mod build_display;
 mod cluster;
 mod commands;
 mod completions;
 mod deform;
+mod directory;
 mod plan;
 mod preview;
 mod progress;

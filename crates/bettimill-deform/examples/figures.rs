@@ -13,6 +13,9 @@
 //! written by hand (greyscale, one IDAT chunk compressed with flate2), so the example needs
 //! no image crate.
 
+// An example for people: printing is its purpose (only library code must not print).
+#![allow(clippy::print_stdout, clippy::print_stderr)]
+
 use bettimill_deform::seeds::{random_scene, SceneSpec};
 use bettimill_deform::{deform, DeformSettings, Method};
 use bettimill_grid::BinaryImage;

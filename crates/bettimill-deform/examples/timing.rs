@@ -1,4 +1,7 @@
 //! Prints wall-clock timings and reports of the benchmark workloads (one run each).
+
+// An example for people: printing is its purpose (only library code must not print).
+#![allow(clippy::print_stdout, clippy::print_stderr)]
 use bettimill_deform::seeds::{random_scene, SceneSpec};
 use bettimill_deform::{deform, DeformSettings, Method};
 use bettimill_grid::{BinaryImage, Dim};

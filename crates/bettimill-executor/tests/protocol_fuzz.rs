@@ -1,5 +1,5 @@
-//! Fuzzing the coordinator-worker frame decoder (cargo-fuzz needs a nightly toolchain, and
-//! this crate has no proptest, so inputs come from a seeded xorshift generator: every run
+//! Fuzzing the coordinator-worker frame decoder (cargo-fuzz needs a nightly toolchain; inputs
+//! come from the seeded xorshift generator of `bettimill-testkit`, not proptest: every run
 //! sees the same inputs, and a failure names the case's seed).
 //!
 //! Inputs: random byte streams; valid sessions (handshake and messages in both directions)
@@ -14,26 +14,9 @@
 use bettimill_executor::protocol::{
     encode_frame, read_frame, FromWorker, Handshake, ProtocolError, ToWorker, MAX_FRAME_LEN,
 };
+use bettimill_testkit::{fuzz_scale, Xorshift};
 use serde::de::DeserializeOwned;
 use std::io::Read;
-
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        // xorshift64*
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-    fn bytes(&mut self, n: usize) -> Vec<u8> {
-        (0..n).map(|_| self.next() as u8).collect()
-    }
-}
 
 /// A pipe-like reader: returns at most `chunk` bytes per call.
 struct ShortReads<'a> {
@@ -75,11 +58,11 @@ fn drain<T: DeserializeOwned>(bytes: &[u8], chunk: usize) -> u64 {
     }
 }
 
-fn valid_session(rng: &mut Rng) -> (Vec<u8>, Vec<u8>) {
+fn valid_session(rng: &mut Xorshift) -> (Vec<u8>, Vec<u8>) {
     let handshake = Handshake {
-        protocol_version: rng.next() as u32 % 3,
+        protocol_version: rng.next_u64() as u32 % 3,
         tool_version: "0.1.0".into(),
-        plan_hash: format!("{:016x}", rng.next()),
+        plan_hash: format!("{:016x}", rng.next_u64()),
     };
     let mut to_worker = encode_frame(&handshake);
     let mut from_worker = encode_frame(&handshake);
@@ -88,22 +71,22 @@ fn valid_session(rng: &mut Rng) -> (Vec<u8>, Vec<u8>) {
             ToWorker::Shutdown
         } else {
             ToWorker::Build {
-                shard_index: rng.next() >> rng.below(64),
+                shard_index: rng.next_u64() >> rng.below(64),
             }
         };
         to_worker.extend(encode_frame(&message));
         let reply = match rng.below(3) {
             0 => FromWorker::Progress {
-                shard_index: rng.next(),
-                regenerations: rng.next() as u32,
+                shard_index: rng.next_u64(),
+                regenerations: rng.next_u64() as u32,
             },
             1 => FromWorker::Done {
-                shard_index: rng.next(),
-                regenerations: rng.next(),
-                bytes: rng.next(),
+                shard_index: rng.next_u64(),
+                regenerations: rng.next_u64(),
+                bytes: rng.next_u64(),
             },
             _ => FromWorker::Failed {
-                shard_index: rng.next(),
+                shard_index: rng.next_u64(),
                 reason: {
                     let n = rng.below(40);
                     String::from_utf8_lossy(&rng.bytes(n)).into_owned()
@@ -115,12 +98,12 @@ fn valid_session(rng: &mut Rng) -> (Vec<u8>, Vec<u8>) {
     (to_worker, from_worker)
 }
 
-fn damage(rng: &mut Rng, mut bytes: Vec<u8>) -> Vec<u8> {
+fn damage(rng: &mut Xorshift, mut bytes: Vec<u8>) -> Vec<u8> {
     for _ in 0..1 + rng.below(4) {
         match rng.below(4) {
             0 if !bytes.is_empty() => {
                 let i = rng.below(bytes.len());
-                bytes[i] = rng.next() as u8;
+                bytes[i] = rng.next_u64() as u8;
             }
             1 => {
                 let cut = rng.below(bytes.len() + 1);
@@ -135,7 +118,7 @@ fn damage(rng: &mut Rng, mut bytes: Vec<u8>) -> Vec<u8> {
             _ => {
                 // A length prefix with a random (often huge) value.
                 let at = rng.below(bytes.len() + 1);
-                let length = (rng.next() as u32) >> rng.below(32);
+                let length = (rng.next_u64() as u32) >> rng.below(32);
                 bytes.splice(at..at, length.to_le_bytes());
             }
         }
@@ -151,15 +134,12 @@ fn all_types(bytes: &[u8], chunk: usize) -> u64 {
 
 #[test]
 fn the_frame_decoder_survives_random_and_damaged_streams() {
-    let scale: u64 = std::env::var("BETTIMILL_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1);
-    let cases = 20_000 * scale;
+    let cases = 20_000 * u64::from(fuzz_scale());
     let mut executions = 0u64;
     let mut frames = 0u64;
     for case in 0..cases {
-        let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ (case + 1).wrapping_mul(0xBF58_476D_1CE4_E5B9));
+        let mut rng =
+            Xorshift(0x9E37_79B9_7F4A_7C15 ^ (case + 1).wrapping_mul(0xBF58_476D_1CE4_E5B9));
         let chunk = 1 + rng.below(9);
         let stream = match case % 3 {
             0 => {

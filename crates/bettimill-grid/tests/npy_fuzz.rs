@@ -12,40 +12,8 @@
 
 use bettimill_grid::npy::{read_bytes, write_bytes, Dtype, NpyError};
 use bettimill_grid::BinaryImage;
+use bettimill_testkit::fuzz;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestRunner};
-
-fn scale() -> u32 {
-    std::env::var("BETTIMILL_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1)
-}
-
-/// Runs `cases * scale()` inputs from `strategy` through `check` and returns the count.
-fn fuzz<S: Strategy>(
-    name: &str,
-    cases: u32,
-    strategy: S,
-    check: impl Fn(S::Value) -> Result<(), TestCaseError>,
-) -> u64 {
-    let count = std::sync::atomic::AtomicU64::new(0);
-    let mut runner = TestRunner::new(Config {
-        cases: cases * scale(),
-        failure_persistence: None,
-        ..Config::default()
-    });
-    let result = runner.run(&strategy, |value| {
-        count.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        check(value)
-    });
-    if let Err(err) = result {
-        panic!("{name}: {err}");
-    }
-    let n = count.into_inner();
-    eprintln!("fuzz {name}: {n} executions");
-    n
-}
 
 fn dtype_strategy() -> impl Strategy<Value = Dtype> {
     (

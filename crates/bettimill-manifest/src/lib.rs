@@ -343,14 +343,45 @@ impl Source<'_> {
     }
 }
 
-impl Manifest {
-    /// Reads and validates a manifest file.
-    pub fn from_path(path: &Path) -> Result<Manifest, ManifestError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ManifestError::Io {
+/// The largest manifest file read: 1 MiB. A manifest is a few kilobytes (the biggest preset
+/// is under 4 KiB); anything larger is refused before it is read whole.
+pub const MAX_MANIFEST_BYTES: u64 = 1 << 20;
+
+/// Reads a manifest file's text, refusing files over [`MAX_MANIFEST_BYTES`] (`/dev/zero`
+/// included) after reading at most one byte more than the limit, and text that is not UTF-8.
+pub fn read_text(path: &Path) -> Result<String, ManifestError> {
+    use std::io::Read;
+    let io = |source| ManifestError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let mut bytes = Vec::new();
+    file.take(MAX_MANIFEST_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_MANIFEST_BYTES {
+        return Err(ManifestError::Invalid {
             path: path.to_path_buf(),
-            source,
-        })?;
-        Manifest::parse(&text, path)
+            line: 0,
+            field: "(file)".to_string(),
+            reason: format!(
+                "is larger than {MAX_MANIFEST_BYTES} bytes; a manifest is a short TOML file"
+            ),
+        });
+    }
+    String::from_utf8(bytes).map_err(|err| ManifestError::Invalid {
+        path: path.to_path_buf(),
+        line: 0,
+        field: "(file)".to_string(),
+        reason: format!("is not UTF-8 text ({err})"),
+    })
+}
+
+impl Manifest {
+    /// Reads and validates a manifest file (at most [`MAX_MANIFEST_BYTES`]).
+    pub fn from_path(path: &Path) -> Result<Manifest, ManifestError> {
+        Manifest::parse(&read_text(path)?, path)
     }
 
     /// Parses and validates manifest text; `path` is only used in error messages.

@@ -190,3 +190,37 @@ fn ranges_expand_into_classes() {
     let m = parse(&text).unwrap();
     assert_eq!(m.classes.len(), 2);
 }
+
+#[test]
+fn a_manifest_file_larger_than_the_limit_is_refused_without_reading_it_whole() {
+    // /dev/zero once read 4.2 GB before running out of memory.
+    if Path::new("/dev/zero").exists() {
+        let err = Manifest::from_path(Path::new("/dev/zero")).unwrap_err();
+        assert!(
+            err.to_string().contains("larger than 1048576 bytes"),
+            "{err}"
+        );
+    }
+    let dir = std::env::temp_dir().join(format!("bettimill-big-manifest-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let big = dir.join("big.toml");
+    let mut text = GOOD.to_string();
+    while text.len() as u64 <= MAX_MANIFEST_BYTES {
+        text.push_str("# padding padding padding padding padding padding padding padding\n");
+    }
+    std::fs::write(&big, &text).unwrap();
+    let err = Manifest::from_path(&big).unwrap_err();
+    assert!(
+        matches!(err, ManifestError::Invalid { ref field, .. } if field == "(file)"),
+        "{err}"
+    );
+    let small = dir.join("small.toml");
+    std::fs::write(&small, GOOD).unwrap();
+    assert!(Manifest::from_path(&small).is_ok());
+    std::fs::write(&small, b"name = \"\xff\"\n").unwrap();
+    assert!(Manifest::from_path(&small)
+        .unwrap_err()
+        .to_string()
+        .contains("not UTF-8"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

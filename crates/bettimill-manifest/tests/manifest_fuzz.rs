@@ -11,8 +11,8 @@
 //! Each test prints how many inputs it ran; `BETTIMILL_FUZZ_CASES=N` multiplies them.
 
 use bettimill_manifest::{Manifest, ManifestError};
+use bettimill_testkit::fuzz;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestRunner};
 use std::path::Path;
 
 /// Presets that parse in well under a millisecond.
@@ -55,34 +55,6 @@ const HOSTILE_VALUES: [&str; 24] = [
     "1979-05-27T07:32:00Z",
     "[\"ball\", \"ball\", \"ball\", \"ball\", \"ball\", \"ball\", \"ball\", \"ball\"]",
 ];
-
-fn fuzz<S: Strategy>(
-    name: &str,
-    cases: u32,
-    strategy: S,
-    check: impl Fn(S::Value) -> Result<(), TestCaseError>,
-) -> u64 {
-    let scale: u32 = std::env::var("BETTIMILL_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1);
-    let count = std::sync::atomic::AtomicU64::new(0);
-    let mut runner = TestRunner::new(Config {
-        cases: cases * scale,
-        failure_persistence: None,
-        ..Config::default()
-    });
-    let result = runner.run(&strategy, |value| {
-        count.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        check(value)
-    });
-    if let Err(err) = result {
-        panic!("{name}: {err}");
-    }
-    let n = count.into_inner();
-    eprintln!("fuzz {name}: {n} executions");
-    n
-}
 
 fn check(text: &str) -> Result<(), TestCaseError> {
     let path = Path::new("fuzz.toml");

@@ -13,27 +13,27 @@ const GOLDEN: &[(&str, &str, &str)] = &[
     (
         "4d-mixed-128.toml",
         "0a569d549084b9b4769ee989a102a41083ef0a09629eea49d34c84284f7fcff6",
-        "3b05e753a19c53473fce33d78fe19807dbc6dc9600465030ae3e3d9e3e783acc",
+        "18a4e67205e80126bc17d1b7b9a5d3d6aaad57d119fea70a685d15c41fd68a47",
     ),
     (
         "demo-2d.toml",
         "cc2354e39875e9c53d7fb5c6189489551e2077ce40d68d449fce53ccacd2d22c",
-        "410d10f4017a8c489acce4fa4b745dab8500d4fc8b34c377624c6d6d13ed7608",
+        "c616738139d6d8d86d7bf33953ee9ecc898320a3f900bbbaddbbebe0a70b8870",
     ),
     (
         "demo-3d.toml",
         "cd84651b630c278590e533c4446138fc8450c1a2aa8a02cc16306832a37e04a3",
-        "25fbb9791a6d7a55d3129afbffd4a687ccfd2f50c3e0bd3b7e534f2b5206d17e",
+        "d1710307f8f24afae489c3c8caf466e0178f38345b32f5c6129f251ce92f733c",
     ),
     (
         "demo-4d.toml",
         "7cde66fdff2b0f6b9510368e9df75b45f28d258d081e11aafdbbfeaf77d60678",
-        "29a3f52bd47961888298a1d6f534a6f72c2810924092c67f57dbc129406861b6",
+        "cc0abbf760278291266688436f0d9b88e13ad0404c4ea6202f7b242ce56aaabb",
     ),
     (
         "paper-figures.toml",
         "d70501597856eb02a72a5b63ecd1202512bdcd3d4132e1269d3ba75f7b65eb1c",
-        "19bfc5d54081bbc79043986ab240161459e365ef294f033602f7cdf63ba551cb",
+        "293d41b49a29fe63ebc01c040af8e1d7b7f44fb9dd2d0587d4dafbd3f41de4b6",
     ),
 ];
 

@@ -1,6 +1,9 @@
 //! Times the stages of `make_sample` (generate, hypervolume targeting, homology,
 //! downscaling) for the first samples of a manifest, with the peak RSS after each stage.
 //! Usage: `cargo run --release -p bettimill-sample --example stages -- MANIFEST [N]`.
+
+// An example for people: printing is its purpose (only library code must not print).
+#![allow(clippy::print_stdout, clippy::print_stderr)]
 use bettimill_plan::{attempt_rng, derive_seed, Plan};
 use std::path::Path;
 use std::time::Instant;

@@ -13,6 +13,9 @@
 //! `KEY = SPLIT/sNNNNNN`. The images are random noise: the Betti numbers in the labels are
 //! placeholders, marked so in the `construction` field. Same arguments, same bytes.
 
+// An example for people: printing is its purpose (only library code must not print).
+#![allow(clippy::print_stdout, clippy::print_stderr)]
+
 use bettimill_grid::npy::{self, Dtype};
 use bettimill_grid::BinaryImage;
 use bettimill_shard::{

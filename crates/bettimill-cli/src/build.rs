@@ -1,0 +1,120 @@
+//! `bettimill build`: a local build, in this process or with worker processes (the
+//! coordinator), rendered by [`crate::build_display`]. Exit codes: 0 success, 2 a failed
+//! build or a refused directory, 130 interrupted (rerun to resume).
+
+use crate::build_display::Display;
+use crate::commands::{load_manifest, Status};
+use anyhow::{bail, Context};
+use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
+use bettimill_executor::Dataset;
+use std::ffi::OsString;
+use std::path::Path;
+
+/// `bettimill build`.
+pub fn build(
+    manifest: Option<&Path>,
+    out: &Path,
+    workers: Option<usize>,
+    max_shard_failures: u32,
+    quiet: bool,
+) -> anyhow::Result<Status> {
+    let manifest_path = manifest;
+    let (text, manifest) = load_manifest(manifest)?;
+    let dataset = Dataset::create(out, &text, manifest)?;
+    let workers = workers.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    if workers == 0 {
+        bail!("--workers must be at least 1");
+    }
+    let program = std::env::current_exe().context("cannot find the running bettimill binary")?;
+    let options = BuildOptions {
+        workers,
+        max_shard_failures,
+        worker_program: program,
+        worker_args: vec![
+            OsString::from("worker"),
+            OsString::from("--dir"),
+            out.as_os_str().to_owned(),
+        ],
+    };
+    let started = std::time::Instant::now();
+    let mut display = Display::new(quiet);
+    let control = async {
+        #[cfg(unix)]
+        {
+            use tokio::signal::unix::{signal, SignalKind};
+            match signal(SignalKind::terminate()) {
+                Ok(mut term) => {
+                    tokio::select! {
+                        _ = tokio::signal::ctrl_c() => {}
+                        _ = term.recv() => {}
+                    }
+                }
+                Err(_) => {
+                    let _ = tokio::signal::ctrl_c().await;
+                }
+            }
+        }
+        #[cfg(not(unix))]
+        let _ = tokio::signal::ctrl_c().await;
+        BuildControl::Interrupt
+    };
+    let report = coordinator::run(&dataset, &options, control, |event| display.event(event))?;
+    display.finish();
+    let seconds = started.elapsed().as_secs_f64();
+    let resume = format!(
+        "bettimill build {}--out {}",
+        manifest_path
+            .map(|m| format!("{} ", m.display()))
+            .unwrap_or_default(),
+        out.display()
+    );
+    if report.interrupted {
+        eprintln!(
+            "interrupted: {} of {} shards complete, nothing partial is visible; resume with: {resume}",
+            report.complete, report.shards
+        );
+        return Ok(Status::Interrupted);
+    }
+    if !report.failed.is_empty() {
+        eprintln!(
+            "error: {} shard(s) failed {} times and were given up ({} of {} shards complete; index.json not written):",
+            report.failed.len(),
+            max_shard_failures,
+            report.complete,
+            report.shards
+        );
+        for failed in &report.failed {
+            eprintln!(
+                "  {}: {}",
+                failed.shard,
+                failed.reasons.last().map(String::as_str).unwrap_or("")
+            );
+        }
+        eprintln!("fix the cause, then resume with: {resume}");
+        return Ok(Status::Failure);
+    }
+    if !quiet {
+        let rate = if seconds > 0.0 {
+            report.samples as f64 / seconds
+        } else {
+            0.0
+        };
+        eprintln!(
+            "built {} shards, skipped {} complete ones; {} samples in {:.1} s ({:.2} samples/s, {} workers), {} regenerations, {} retried shard attempts\n{}",
+            report.built,
+            report.skipped,
+            report.samples,
+            seconds,
+            rate,
+            display.workers,
+            report.regenerations,
+            report.retries,
+            dataset.layout().index_path().display()
+        );
+    }
+    Ok(Status::Success)
+}

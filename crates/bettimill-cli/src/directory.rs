@@ -1,0 +1,101 @@
+//! Commands on a dataset directory built elsewhere (by array tasks, or interrupted):
+//! `finalize` (write the index once every shard is complete) and `status` (judge every
+//! shard from the directory alone). Exit code 2 when the dataset is incomplete.
+
+use crate::commands::Status;
+use anyhow::{bail, Context};
+use bettimill_executor::cluster::{self};
+use bettimill_executor::Dataset;
+use std::path::Path;
+
+/// `bettimill finalize DIR`.
+pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
+    let dataset = Dataset::open(dir)?;
+    let status = cluster::status(&dataset);
+    let incomplete: Vec<&str> = status
+        .missing
+        .iter()
+        .map(String::as_str)
+        .chain(status.invalid.iter().map(|s| s.shard.as_str()))
+        .collect();
+    if !incomplete.is_empty() {
+        const SHOWN: usize = 20;
+        let mut names = incomplete[..incomplete.len().min(SHOWN)].join(", ");
+        if incomplete.len() > SHOWN {
+            names.push_str(&format!(
+                " and {} more (`bettimill status {}` lists them all)",
+                incomplete.len() - SHOWN,
+                dir.display()
+            ));
+        }
+        eprintln!(
+            "error: {} of {} shards are not complete: {}\nindex.json not written; build them (resubmit `bettimill slurm ... --submit`, or run `bettimill build ... --out {}`), then finalize again",
+            incomplete.len(),
+            status.shards,
+            names,
+            dir.display()
+        );
+        return Ok(Status::Failure);
+    }
+    // Every shard is complete, so no writer has work left: leftovers of killed ones can go.
+    dataset.remove_temporaries()?;
+    // `status` has just hashed every shard: finalize checks their records and sizes only,
+    // so a standalone finalize reads every byte once, not twice.
+    let checked: std::collections::BTreeSet<&str> =
+        status.complete.iter().map(String::as_str).collect();
+    dataset.finalize_checked(&|shard| checked.contains(shard.name.as_str()))?;
+    if !quiet {
+        eprintln!(
+            "{} shards complete; wrote {}",
+            status.shards,
+            dataset.layout().index_path().display()
+        );
+    }
+    Ok(Status::Success)
+}
+
+/// `bettimill status DIR`.
+pub fn status(dir: &Path, json: bool) -> anyhow::Result<Status> {
+    if !bettimill_format::DatasetDir::new(dir).has_build_info() {
+        bail!(
+            "{} holds no bettimill dataset (no build.json)",
+            dir.display()
+        );
+    }
+    let dataset = Dataset::open(dir)?;
+    let report = cluster::status(&dataset);
+    let mut text = String::new();
+    if json {
+        text = serde_json::to_string_pretty(&report)?;
+        text.push('\n');
+    } else {
+        text.push_str(&format!(
+            "{}: {} of {} shards complete, {} missing, {} invalid; index.json {}\n",
+            dir.display(),
+            report.complete.len(),
+            report.shards,
+            report.missing.len(),
+            report.invalid.len(),
+            if report.finalized {
+                "written"
+            } else {
+                "not written"
+            }
+        ));
+        for name in &report.missing {
+            text.push_str(&format!("missing {name}\n"));
+        }
+        for invalid in &report.invalid {
+            text.push_str(&format!("invalid {}: {}\n", invalid.shard, invalid.reason));
+        }
+    }
+    // A reader that stops early (`| head`) is not an error.
+    let mut stdout = std::io::stdout().lock();
+    match std::io::Write::write_all(&mut stdout, text.as_bytes()) {
+        Err(err) if err.kind() != std::io::ErrorKind::BrokenPipe => {
+            return Err(err).context("cannot write to stdout")
+        }
+        _ => {}
+    }
+    Ok(Status::Success)
+}
