@@ -1,6 +1,6 @@
 //! `bettimill audit`: rebuild chosen shards and compare bytes, and/or recompute labels.
 
-use crate::commands::Status;
+use crate::commands::ExitStatus;
 use bettimill_audit::{AuditReport, Selection};
 use bettimill_executor::Dataset;
 use clap::Args;
@@ -30,7 +30,7 @@ pub struct AuditArgs {
 }
 
 /// Runs an audit, with a progress bar per sample on stderr (see `crate::progress`).
-pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<Status> {
+pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     let dataset = Dataset::open(&args.dir)?;
     let selection = match (&args.rebuild, &args.shards) {
         (Some(fraction), _) => Some(Selection::Fraction {
@@ -86,8 +86,8 @@ pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<Status> {
         );
     }
     Ok(if report.findings.is_empty() {
-        Status::Success
+        ExitStatus::Success
     } else {
-        Status::Differs
+        ExitStatus::Differs
     })
 }

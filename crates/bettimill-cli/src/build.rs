@@ -3,7 +3,7 @@
 //! build or a refused directory, 130 interrupted (rerun to resume).
 
 use crate::build_display::Display;
-use crate::commands::{load_manifest, Status};
+use crate::commands::{load_manifest, ExitStatus};
 use anyhow::{bail, Context};
 use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
 use bettimill_executor::Dataset;
@@ -17,7 +17,7 @@ pub fn build(
     workers: Option<usize>,
     max_shard_failures: u32,
     quiet: bool,
-) -> anyhow::Result<Status> {
+) -> anyhow::Result<ExitStatus> {
     let manifest_path = manifest;
     let (text, manifest) = load_manifest(manifest)?;
     let dataset = Dataset::create(out, &text, manifest)?;
@@ -77,7 +77,7 @@ pub fn build(
             "interrupted: {} of {} shards complete, nothing partial is visible; resume with: {resume}",
             report.complete, report.shards
         );
-        return Ok(Status::Interrupted);
+        return Ok(ExitStatus::Interrupted);
     }
     if !report.failed.is_empty() {
         eprintln!(
@@ -95,7 +95,7 @@ pub fn build(
             );
         }
         eprintln!("fix the cause, then resume with: {resume}");
-        return Ok(Status::Failure);
+        return Ok(ExitStatus::Failure);
     }
     if !quiet {
         let rate = if seconds > 0.0 {
@@ -116,5 +116,5 @@ pub fn build(
             out.join("index.json").display()
         );
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

@@ -1,4 +1,4 @@
-//! Subcommands. Each returns a [`Status`] or an error that `main` reports with exit code 2.
+//! Subcommands. Each returns an [`ExitStatus`] or an error that `main` reports with exit code 2.
 
 use anyhow::Context;
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
@@ -153,7 +153,7 @@ enum Command {
 }
 
 /// How a command ended.
-pub enum Status {
+pub enum ExitStatus {
     /// Exit 0.
     Success,
     /// Exit 1: a check found differences.
@@ -166,20 +166,20 @@ pub enum Status {
     Code(u8),
 }
 
-impl From<Status> for ExitCode {
-    fn from(status: Status) -> ExitCode {
+impl From<ExitStatus> for ExitCode {
+    fn from(status: ExitStatus) -> ExitCode {
         ExitCode::from(match status {
-            Status::Success => 0,
-            Status::Differs => 1,
-            Status::Failure => 2,
-            Status::Interrupted => 130,
-            Status::Code(code) => code,
+            ExitStatus::Success => 0,
+            ExitStatus::Differs => 1,
+            ExitStatus::Failure => 2,
+            ExitStatus::Interrupted => 130,
+            ExitStatus::Code(code) => code,
         })
     }
 }
 
 /// Runs a parsed command line.
-pub fn run(cli: Cli) -> anyhow::Result<Status> {
+pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
     match cli.command {
         Command::Build {
             manifest,
@@ -209,7 +209,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
         Command::Plan { manifest, json } => {
             let (_, manifest) = load_manifest(manifest.as_deref())?;
             crate::plan::show(&manifest, json)?;
-            Ok(Status::Success)
+            Ok(ExitStatus::Success)
         }
         Command::Preview { input, key, n, out } => crate::preview::run(&crate::preview::Request {
             input: &input,
@@ -239,7 +239,7 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
     }
 }
 
-fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<Status> {
+fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
     // The bar appears once the index is read and the number of shards known.
     let mut bar = None;
     let report = bettimill_shard::verify_with_progress(dir, &mut |done, total| {
@@ -265,13 +265,13 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<Status> {
         outln!("{} problem(s) found", report.problems.len());
     }
     Ok(if report.problems.is_empty() {
-        Status::Success
+        ExitStatus::Success
     } else {
-        Status::Differs
+        ExitStatus::Differs
     })
 }
 
-fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<Status> {
+fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<ExitStatus> {
     let npy = bettimill_grid::npy::read_path(path, strict)
         .with_context(|| format!("cannot use {} as an image", path.display()))?;
     let topology = bettimill_homology::topology(&npy.image);
@@ -288,5 +288,5 @@ fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<Status> {
         let betti: Vec<String> = topology.betti.iter().map(|b| b.to_string()).collect();
         outln!("betti: [{}]  euler: {}", betti.join(", "), topology.euler);
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }
