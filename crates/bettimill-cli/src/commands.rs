@@ -35,6 +35,10 @@ enum Command {
         /// Give a shard up after this many failed attempts (worker deaths included).
         #[arg(long, default_value_t = bettimill_executor::coordinator::DEFAULT_MAX_SHARD_FAILURES)]
         max_shard_failures: u32,
+        /// Seconds between plain progress lines on stderr when it is not a terminal (a
+        /// cluster log, nohup, CI); on a terminal a progress bar is drawn instead.
+        #[arg(long, default_value_t = 10.0)]
+        progress_interval: f64,
     },
     /// Internal: a build worker (started by `build`, or as an array task on a cluster).
     #[command(hide = true)]
@@ -186,11 +190,13 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             out,
             workers,
             max_shard_failures,
+            progress_interval,
         } => crate::build::build(
             manifest.as_deref(),
             &out,
             workers,
             max_shard_failures,
+            progress_interval,
             cli.quiet,
         ),
         Command::Worker(args) => crate::cluster::worker(args, cli.quiet),
