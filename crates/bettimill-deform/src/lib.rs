@@ -36,7 +36,6 @@ mod field;
 pub mod hitmiss;
 mod morphology;
 mod moves;
-mod simple_memo;
 
 use bettimill_grid::BinaryImage;
 use serde::{Deserialize, Serialize};
