@@ -25,6 +25,8 @@ fn objects_of(family: &Family) -> Vec<Family> {
     }
 }
 
+/// Plan-time feasibility ([`crate::Family::check_fits`]): the label exists, every object
+/// fits on its own, and all of them fit together.
 pub(crate) fn check_fits(
     family: &Family,
     dim: Dim,
@@ -114,6 +116,7 @@ fn object_minima(
         .collect()
 }
 
+/// One random instance with its label ([`crate::generate`]).
 pub(crate) fn generate(
     family: &Family,
     dim: Dim,

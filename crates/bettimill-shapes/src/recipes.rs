@@ -9,8 +9,9 @@
 //! links and open curves are polylines built in `curves.rs`.
 
 use crate::curves;
-use crate::geometry::uniform;
-use crate::geometry::{add, axis, Piece, Solid, INNER_GAP, ORIGIN, P, SHELL_MIN, TUBE_MIN};
+use crate::geometry::{
+    add, axis, uniform, Piece, Solid, INNER_GAP, ORIGIN, P, SHELL_MIN, TUBE_MIN,
+};
 use crate::labels::tunnel_cycles;
 use crate::Family;
 use rand_chacha::ChaCha8Rng;
