@@ -3,9 +3,10 @@
 //! - `moves/disc_64x64_600`: 600 hypervolume-preserving moves on a 64^2 disc (the paper's
 //!   Figure; its Python took about fifty minutes). Target < 10 ms.
 //! - `dilate/scene_128^3_3_iterations`: three iterations of the modified (simple-point)
-//!   dilation of a 3D seed scene (the paper's 3D figure took about five minutes).
-//!   Target < 1 s.
-//! - `moves/scene_32^4_10000`: 10,000 moves on a grown 4D seed scene. Target < 0.1 s.
+//!   dilation of the paper's 3D seed scene (`bettimill_shapes::paper_scene_3d`; the
+//!   paper's 3D figure took about five minutes). Target < 1 s.
+//! - `moves/scene_32^4_10000`: 10,000 moves on a grown 4D scene of the shape library
+//!   (S1xB3, S2xB2, T2xB2 and a curve). Target < 0.1 s.
 //! - `noise/field_*`: full fractal noise fields, for scale.
 //!
 //! Every deformation is timed on a fresh clone of its input (cloning is excluded), and
@@ -14,11 +15,13 @@
 // `criterion_group!` in its long form (for the config) writes an undocumented `pub fn`.
 #![allow(missing_docs)]
 
-use bettimill_deform::seeds::{random_scene, SceneSpec};
 use bettimill_deform::{deform, DeformSettings, Method};
 use bettimill_grid::{BinaryImage, Dim};
 use bettimill_homology::simple::SimpleTester;
+use bettimill_shapes::{generate, paper_scene_3d, Family, Mode};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 
 fn disc(side: usize, radius: f64) -> BinaryImage {
@@ -36,32 +39,18 @@ fn disc(side: usize, radius: f64) -> BinaryImage {
 }
 
 fn scene_3d() -> BinaryImage {
-    let spec = SceneSpec {
-        curves: 4,
-        circles: 6,
-        knots: 2,
-        bridges: 2,
-        tentacles: 6,
-        spheres: 1,
-        tori: 2,
-    };
-    random_scene(&[128, 128, 128], &spec, 1)
-        .expect("valid shape")
+    paper_scene_3d(128, &mut ChaCha8Rng::seed_from_u64(1))
+        .expect("the paper scene fits 128^3")
         .image
 }
 
 fn scene_4d() -> BinaryImage {
-    let spec = SceneSpec {
-        curves: 2,
-        circles: 3,
-        spheres: 1,
-        tori: 1,
-        tentacles: 2,
-        bridges: 1,
-        ..SceneSpec::default()
+    let family = Family::Scene {
+        objects: vec![Family::Handle, Family::S2xB2, Family::T2xB2, Family::Curve],
     };
-    let mut image = random_scene(&[32, 32, 32, 32], &spec, 2)
-        .expect("valid shape")
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let mut image = generate(&family, Dim::Four, 32, Mode::Embed, &mut rng)
+        .expect("the scene fits 32^4")
         .image;
     let grow = DeformSettings {
         method: Method::Dilate,

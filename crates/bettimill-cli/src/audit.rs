@@ -1,6 +1,6 @@
 //! `bettimill audit`: rebuild chosen shards and compare bytes, and/or recompute labels.
 
-use crate::commands::Status;
+use crate::commands::ExitStatus;
 use bettimill_audit::{AuditReport, Selection};
 use bettimill_executor::Dataset;
 use clap::Args;
@@ -30,7 +30,7 @@ pub struct AuditArgs {
 }
 
 /// Runs an audit, with a progress bar per sample on stderr (see `crate::progress`).
-pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<Status> {
+pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     // An index of an older format is named as such before the plan is compared.
     bettimill_format::DatasetDir::new(&args.dir).check_index()?;
     let dataset = Dataset::open(&args.dir)?;
@@ -88,8 +88,8 @@ pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<Status> {
         );
     }
     Ok(if report.findings.is_empty() {
-        Status::Success
+        ExitStatus::Success
     } else {
-        Status::Differs
+        ExitStatus::Differs
     })
 }

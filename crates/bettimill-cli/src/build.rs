@@ -3,7 +3,7 @@
 //! build or a refused directory, 130 interrupted (rerun to resume).
 
 use crate::build_display::Display;
-use crate::commands::{load_manifest, Status};
+use crate::commands::{load_manifest, ExitStatus};
 use anyhow::{bail, Context};
 use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
 use bettimill_executor::Dataset;
@@ -16,11 +16,30 @@ pub fn build(
     out: &Path,
     workers: Option<usize>,
     max_shard_failures: u32,
+    progress_interval: f64,
     quiet: bool,
-) -> anyhow::Result<Status> {
+) -> anyhow::Result<ExitStatus> {
+    if !(progress_interval.is_finite() && progress_interval > 0.0) {
+        bail!("--progress-interval must be a positive number of seconds, got {progress_interval}");
+    }
     let manifest_path = manifest;
     let (text, manifest) = load_manifest(manifest)?;
     let dataset = Dataset::create(out, &text, manifest)?;
+    if !quiet && !dataset.plan.infeasible.is_empty() {
+        // Said at the start, not only by `plan`: a researcher should know what the dataset
+        // will not contain before it is built.
+        eprintln!(
+            "left out of the plan ({} that cannot be built; the dataset card lists them too):",
+            if dataset.plan.infeasible.len() == 1 {
+                "1 combination".to_string()
+            } else {
+                format!("{} combinations", dataset.plan.infeasible.len())
+            }
+        );
+        for item in &dataset.plan.infeasible {
+            eprintln!("  {}: {}", item.label, item.reason);
+        }
+    }
     let workers = workers.unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -41,7 +60,7 @@ pub fn build(
         ],
     };
     let started = std::time::Instant::now();
-    let mut display = Display::new(quiet);
+    let mut display = Display::new(quiet, std::time::Duration::from_secs_f64(progress_interval));
     let control = async {
         #[cfg(unix)]
         {
@@ -77,7 +96,7 @@ pub fn build(
             "interrupted: {} of {} shards complete, nothing partial is visible; resume with: {resume}",
             report.complete, report.shards
         );
-        return Ok(Status::Interrupted);
+        return Ok(ExitStatus::Interrupted);
     }
     if !report.failed.is_empty() {
         eprintln!(
@@ -95,26 +114,21 @@ pub fn build(
             );
         }
         eprintln!("fix the cause, then resume with: {resume}");
-        return Ok(Status::Failure);
+        return Ok(ExitStatus::Failure);
     }
     if !quiet {
-        let rate = if seconds > 0.0 {
-            report.samples as f64 / seconds
-        } else {
-            0.0
-        };
         eprintln!(
-            "built {} shards, skipped {} complete ones; {} samples in {:.1} s ({:.2} samples/s, {} workers), {} regenerations, {} retried shard attempts\n{}",
+            "built {} shards, skipped {} complete ones; {} samples in {} ({}, {} workers), {} regenerations, {} retried shard attempts\n{}",
             report.built,
             report.skipped,
             report.samples,
-            seconds,
-            rate,
+            crate::build_display::human_seconds(seconds),
+            crate::build_display::rate(report.samples, seconds),
             display.workers,
             report.regenerations,
             report.retries,
             dataset.layout().index_path().display()
         );
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

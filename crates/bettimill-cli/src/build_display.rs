@@ -1,9 +1,133 @@
-//! The progress display of `bettimill build`: one bar for samples and shards, one line per
-//! worker, drawn with indicatif on stderr (hidden when stderr is not a terminal or with
-//! --quiet), fed by the coordinator's [`BuildEvent`]s.
+//! The progress display of `bettimill build`, fed by the coordinator's [`BuildEvent`]s.
+//!
+//! On a terminal: one bar for the samples and one line per worker (indicatif, on stderr).
+//! When stderr is not a terminal (a Slurm job's log, `nohup`, CI), bars would draw nothing,
+//! so a plain line is written at a steady interval instead, from a thread of its own so that
+//! it keeps coming while one big sample takes minutes: samples and shards done of the total,
+//! the rate, the time left and the regenerations so far. `--quiet` silences both.
 
 use bettimill_executor::coordinator::BuildEvent;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+/// What the plain progress lines report, shared with their thread.
+#[derive(Default)]
+struct Counts {
+    samples_done: u64,
+    samples_total: u64,
+    shards_done: u64,
+    shards_total: u64,
+    regenerations: u64,
+    failures: u64,
+    finished: bool,
+}
+
+/// The thread that writes a plain progress line every interval until the build ends.
+struct PlainLines {
+    counts: Arc<(Mutex<Counts>, Condvar)>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl PlainLines {
+    fn start(interval: Duration) -> PlainLines {
+        let counts = Arc::new((Mutex::new(Counts::default()), Condvar::new()));
+        let shared = counts.clone();
+        let started = Instant::now();
+        let thread = std::thread::spawn(move || {
+            let (lock, wake) = &*shared;
+            let mut counts = lock.lock().unwrap_or_else(|e| e.into_inner());
+            loop {
+                let (next, _) = wake
+                    .wait_timeout(counts, interval)
+                    .unwrap_or_else(|e| e.into_inner());
+                counts = next;
+                if counts.finished {
+                    return;
+                }
+                eprintln!("{}", progress_line(&counts, started.elapsed()));
+            }
+        });
+        PlainLines {
+            counts,
+            thread: Some(thread),
+        }
+    }
+
+    fn update(&self, change: impl FnOnce(&mut Counts)) {
+        change(&mut self.counts.0.lock().unwrap_or_else(|e| e.into_inner()));
+    }
+}
+
+impl Drop for PlainLines {
+    fn drop(&mut self) {
+        self.update(|c| c.finished = true);
+        self.counts.1.notify_all();
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+/// `progress: 120/9600 samples, 3/1371 shards, 1.2 samples/s, about 2.2 h left, 0
+/// regenerations, 0 failed attempts, 1 min 40 s elapsed`.
+fn progress_line(c: &Counts, elapsed: Duration) -> String {
+    let seconds = elapsed.as_secs_f64();
+    let left = if c.samples_done > 0 && c.samples_total > c.samples_done {
+        let per_sample = seconds / c.samples_done as f64;
+        format!(
+            ", about {} left",
+            human_seconds(per_sample * (c.samples_total - c.samples_done) as f64)
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "progress: {}/{} samples, {}/{} shards, {}{left}, {} regenerations, {} failed attempts, {} elapsed",
+        c.samples_done,
+        c.samples_total,
+        c.shards_done,
+        c.shards_total,
+        rate(c.samples_done, seconds),
+        c.regenerations,
+        c.failures,
+        human_seconds(seconds),
+    )
+}
+
+/// A sample rate a person can read: `31.4 samples/s`, `0.52 samples/s`, `77 s per sample`,
+/// or `no sample built yet`.
+pub(crate) fn rate(samples: u64, seconds: f64) -> String {
+    if samples == 0 || seconds <= 0.0 {
+        return "no sample built yet".to_string();
+    }
+    let per_second = samples as f64 / seconds;
+    if per_second >= 100.0 {
+        format!("{per_second:.0} samples/s")
+    } else if per_second >= 1.0 {
+        format!("{per_second:.1} samples/s")
+    } else if per_second >= 0.1 {
+        format!("{per_second:.2} samples/s")
+    } else {
+        format!("{:.0} s per sample", 1.0 / per_second)
+    }
+}
+
+/// `42 s`, `3 min 5 s`, `2.2 h`.
+pub(crate) fn human_seconds(seconds: f64) -> String {
+    if seconds < 60.0 {
+        format!("{seconds:.0} s")
+    } else if seconds < 3600.0 {
+        format!(
+            "{} min {} s",
+            (seconds / 60.0) as u64,
+            (seconds % 60.0) as u64
+        )
+    } else {
+        format!("{:.1} h", seconds / 3600.0)
+    }
+}
 
 /// Progress bars for a build.
 pub(crate) struct Display {
@@ -15,10 +139,17 @@ pub(crate) struct Display {
     quiet: bool,
     /// Worker processes (or 0 for an in-process build), for the closing summary.
     pub(crate) workers: usize,
+    /// Plain progress lines, when stderr is not a terminal and not `--quiet`.
+    plain: Option<PlainLines>,
 }
 
 impl Display {
-    pub(crate) fn new(quiet: bool) -> Display {
+    /// A display; `interval` is the time between plain progress lines (used when stderr is
+    /// not a terminal).
+    #[allow(clippy::disallowed_methods)] // asks whether stderr is a terminal; writes nothing
+    pub(crate) fn new(quiet: bool, interval: Duration) -> Display {
+        let plain =
+            (!quiet && !std::io::stderr().is_terminal()).then(|| PlainLines::start(interval));
         Display {
             multi: MultiProgress::with_draw_target(crate::progress::target(quiet)),
             overall: None,
@@ -27,6 +158,13 @@ impl Display {
             failures: 0,
             quiet,
             workers: 0,
+            plain,
+        }
+    }
+
+    fn count(&self, change: impl FnOnce(&mut Counts)) {
+        if let Some(plain) = &self.plain {
+            plain.update(change);
         }
     }
 
@@ -46,6 +184,10 @@ impl Display {
                 workers,
             } => {
                 self.workers = workers;
+                self.count(|c| {
+                    c.samples_total = samples;
+                    c.shards_total = shards - skipped;
+                });
                 if !self.quiet && skipped > 0 {
                     let _ = self
                         .multi
@@ -87,6 +229,10 @@ impl Display {
                 regenerations,
             } => {
                 self.regenerations += u64::from(regenerations);
+                self.count(|c| {
+                    c.samples_done += 1;
+                    c.regenerations += u64::from(regenerations);
+                });
                 if let Some(bar) = self.slots.get(slot) {
                     bar.inc(1);
                 }
@@ -96,6 +242,7 @@ impl Display {
                 }
             }
             BuildEvent::ShardDone { slot, shard } => {
+                self.count(|c| c.shards_done += 1);
                 if let Some(bar) = self.slots.get(slot) {
                     bar.set_message(format!("{shard} done"));
                 }
@@ -109,6 +256,10 @@ impl Display {
                 ..
             } => {
                 self.failures += 1;
+                self.count(|c| {
+                    c.failures += 1;
+                    c.samples_done = c.samples_done.saturating_sub(samples_lost);
+                });
                 if let Some(overall) = &self.overall {
                     overall.set_position(overall.position().saturating_sub(samples_lost));
                     overall.set_message(self.message());
@@ -138,12 +289,44 @@ impl Display {
         }
     }
 
-    pub(crate) fn finish(&self) {
+    pub(crate) fn finish(&mut self) {
+        // Stops the plain lines' thread before the summary is printed.
+        self.plain = None;
         for bar in &self.slots {
             bar.finish_and_clear();
         }
         if let Some(overall) = &self.overall {
             overall.finish_and_clear();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rates_and_durations_read_sensibly() {
+        assert_eq!(rate(0, 0.2), "no sample built yet");
+        assert_eq!(rate(314, 10.0), "31.4 samples/s");
+        assert_eq!(rate(52, 100.0), "0.52 samples/s");
+        assert_eq!(rate(4, 308.0), "77 s per sample");
+        assert_eq!(rate(5000, 10.0), "500 samples/s");
+        assert_eq!(human_seconds(42.4), "42 s");
+        assert_eq!(human_seconds(185.0), "3 min 5 s");
+        let line = progress_line(
+            &Counts {
+                samples_done: 10,
+                samples_total: 40,
+                shards_done: 1,
+                shards_total: 4,
+                ..Counts::default()
+            },
+            Duration::from_secs(20),
+        );
+        assert_eq!(
+            line,
+            "progress: 10/40 samples, 1/4 shards, 0.50 samples/s, about 1 min 0 s left, 0 regenerations, 0 failed attempts, 20 s elapsed"
+        );
     }
 }

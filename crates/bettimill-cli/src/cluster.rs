@@ -3,7 +3,7 @@
 //! argument handling and printing lives in `bettimill_executor` (`worker`, `cluster`).
 //! Exit codes: 0 success, 2 failure, 3 an array task failed on purpose (test hook).
 
-use crate::commands::{load_manifest, Status};
+use crate::commands::{load_manifest, ExitStatus};
 use anyhow::{bail, Context};
 use bettimill_executor::cluster::{self, KubernetesOptions, SlurmOptions};
 use bettimill_executor::worker::{self, WorkerError};
@@ -32,14 +32,14 @@ pub struct WorkerArgs {
 }
 
 /// `bettimill worker`.
-pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<Status> {
+pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     let dataset = Dataset::open(&args.dir)?;
     let Some(count) = args.task_count else {
         // Served by a coordinator: exit as soon as it goes away (its pipe closes).
         worker::serve(&dataset, std::io::stdin(), std::io::stdout(), || {
             std::process::exit(0)
         })?;
-        return Ok(Status::Success);
+        return Ok(ExitStatus::Success);
     };
     if count == 0 {
         bail!("--task-count must be at least 1");
@@ -75,7 +75,7 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<Status> {
         Ok(report) => report,
         Err(err @ WorkerError::InjectedTaskFailure { .. }) => {
             eprintln!("error: {err}");
-            return Ok(Status::Code(3));
+            return Ok(ExitStatus::Code(3));
         }
         Err(err) => return Err(err.into()),
     };
@@ -88,9 +88,9 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<Status> {
         );
     }
     Ok(if report.failed.is_empty() {
-        Status::Success
+        ExitStatus::Success
     } else {
-        Status::Failure
+        ExitStatus::Failure
     })
 }
 
@@ -125,7 +125,7 @@ pub struct SlurmArgs {
 }
 
 /// `bettimill slurm`.
-pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
+pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
     let dataset = Dataset::create(&args.out, &text, manifest)?;
     let tasks = args
@@ -171,7 +171,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
                 scripts.finalize.display()
             );
         }
-        return Ok(Status::Success);
+        return Ok(ExitStatus::Success);
     }
     let mut finalize_args = Vec::new();
     if let Some(build) = &scripts.build {
@@ -187,7 +187,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
     match cluster::sbatch(&scripts.finalize, &finalize_args) {
         Ok(job) => {
             outln!("finalize job {job}");
-            Ok(Status::Success)
+            Ok(ExitStatus::Success)
         }
         Err(err) if args.wait => {
             eprintln!(
@@ -195,7 +195,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<Status> {
                 args.out.display(),
                 args.out.join("slurm/logs").display()
             );
-            Ok(Status::Failure)
+            Ok(ExitStatus::Failure)
         }
         Err(err) => Err(err.into()),
     }
@@ -224,7 +224,7 @@ pub struct KubernetesArgs {
 }
 
 /// `bettimill k8s`: prints the Indexed Job on stdout.
-pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<Status> {
+pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
     let dataset = Dataset::create(&args.out, &text, manifest)?;
     let yaml = cluster::kubernetes_job(
@@ -237,5 +237,5 @@ pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<Status> {
         },
     )?;
     print!("{yaml}");
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

@@ -1,4 +1,4 @@
-//! Subcommands. Each returns a [`Status`] or an error that `main` reports with exit code 2.
+//! Subcommands. Each returns an [`ExitStatus`] or an error that `main` reports with exit code 2.
 
 use anyhow::Context;
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
@@ -35,6 +35,10 @@ enum Command {
         /// Give a shard up after this many failed attempts (worker deaths included).
         #[arg(long, default_value_t = bettimill_executor::coordinator::DEFAULT_MAX_SHARD_FAILURES)]
         max_shard_failures: u32,
+        /// Seconds between plain progress lines on stderr when it is not a terminal (a
+        /// cluster log, nohup, CI); on a terminal a progress bar is drawn instead.
+        #[arg(long, default_value_t = 10.0)]
+        progress_interval: f64,
     },
     /// Internal: a build worker (started by `build`, or as an array task on a cluster).
     #[command(hide = true)]
@@ -153,7 +157,7 @@ enum Command {
 }
 
 /// How a command ended.
-pub enum Status {
+pub enum ExitStatus {
     /// Exit 0.
     Success,
     /// Exit 1: a check found differences.
@@ -166,31 +170,33 @@ pub enum Status {
     Code(u8),
 }
 
-impl From<Status> for ExitCode {
-    fn from(status: Status) -> ExitCode {
+impl From<ExitStatus> for ExitCode {
+    fn from(status: ExitStatus) -> ExitCode {
         ExitCode::from(match status {
-            Status::Success => 0,
-            Status::Differs => 1,
-            Status::Failure => 2,
-            Status::Interrupted => 130,
-            Status::Code(code) => code,
+            ExitStatus::Success => 0,
+            ExitStatus::Differs => 1,
+            ExitStatus::Failure => 2,
+            ExitStatus::Interrupted => 130,
+            ExitStatus::Code(code) => code,
         })
     }
 }
 
 /// Runs a parsed command line.
-pub fn run(cli: Cli) -> anyhow::Result<Status> {
+pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
     match cli.command {
         Command::Build {
             manifest,
             out,
             workers,
             max_shard_failures,
+            progress_interval,
         } => crate::build::build(
             manifest.as_deref(),
             &out,
             workers,
             max_shard_failures,
+            progress_interval,
             cli.quiet,
         ),
         Command::Worker(args) => crate::cluster::worker(args, cli.quiet),
@@ -209,7 +215,7 @@ pub fn run(cli: Cli) -> anyhow::Result<Status> {
         Command::Plan { manifest, json } => {
             let (_, manifest) = load_manifest(manifest.as_deref())?;
             crate::plan::show(&manifest, json)?;
-            Ok(Status::Success)
+            Ok(ExitStatus::Success)
         }
         Command::Preview { input, key, n, out } => crate::preview::run(&crate::preview::Request {
             input: &input,
@@ -239,7 +245,7 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
     }
 }
 
-fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<Status> {
+fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
     // The bar appears once the index is read and the number of shards known.
     let mut bar = None;
     let report = bettimill_format::DatasetDir::new(dir).verify(&mut |done, total| {
@@ -267,13 +273,13 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<Status> {
         outln!("{} problem(s) found", report.problems.len());
     }
     Ok(if report.problems.is_empty() {
-        Status::Success
+        ExitStatus::Success
     } else {
-        Status::Differs
+        ExitStatus::Differs
     })
 }
 
-fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<Status> {
+fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<ExitStatus> {
     let npy = bettimill_grid::npy::read_path(path, strict)
         .with_context(|| format!("cannot use {} as an image", path.display()))?;
     let topology = bettimill_homology::topology(&npy.image);
@@ -290,5 +296,5 @@ fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<Status> {
         let betti: Vec<String> = topology.betti.iter().map(|b| b.to_string()).collect();
         outln!("betti: [{}]  euler: {}", betti.join(", "), topology.euler);
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

@@ -1,16 +1,16 @@
 //! `bettimill completions SHELL`: a shell completion script on stdout.
 
-use crate::commands::{Cli, Status};
+use crate::commands::{Cli, ExitStatus};
 use clap::CommandFactory;
 use clap_complete::Shell;
 
 /// Writes the completion script for `shell` to stdout.
-pub fn run(shell: Shell) -> anyhow::Result<Status> {
+pub fn run(shell: Shell) -> anyhow::Result<ExitStatus> {
     let mut command = Cli::command();
     // Generated into memory first: clap_complete panics when its writer fails, and stdout
     // can be a closed pipe.
     let mut script = Vec::new();
     clap_complete::generate(shell, &mut command, "bettimill", &mut script);
     crate::stats::write_stdout(&script)?;
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

@@ -1,6 +1,6 @@
 //! `bettimill deform`: topology-preserving deformation of a user's own `.npy` image.
 
-use crate::commands::Status;
+use crate::commands::ExitStatus;
 use anyhow::Context;
 use bettimill_deform::{DeformSettings, Method};
 use clap::{Args, ValueEnum};
@@ -60,7 +60,7 @@ pub struct DeformArgs {
 }
 
 /// Runs `bettimill deform`.
-pub fn run(args: &DeformArgs) -> anyhow::Result<Status> {
+pub fn run(args: &DeformArgs) -> anyhow::Result<ExitStatus> {
     let input = bettimill_grid::npy::read_path(&args.image, args.strict)
         .with_context(|| format!("cannot use {} as an image", args.image.display()))?;
     let method = match args.method {
@@ -116,5 +116,5 @@ pub fn run(args: &DeformArgs) -> anyhow::Result<Status> {
             after.betti
         );
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

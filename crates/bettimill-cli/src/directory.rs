@@ -2,14 +2,14 @@
 //! `finalize` (write the index once every shard is complete) and `status` (judge every
 //! shard from the directory alone). Exit code 2 when the dataset is incomplete.
 
-use crate::commands::Status;
+use crate::commands::ExitStatus;
 use anyhow::{bail, Context};
 use bettimill_executor::cluster::{self};
 use bettimill_executor::Dataset;
 use std::path::Path;
 
 /// `bettimill finalize DIR`.
-pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
+pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
     let dataset = Dataset::open(dir)?;
     let status = cluster::status(&dataset);
     let incomplete: Vec<&str> = status
@@ -35,7 +35,7 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
             names,
             dir.display()
         );
-        return Ok(Status::Failure);
+        return Ok(ExitStatus::Failure);
     }
     // Every shard is complete, so no writer has work left: leftovers of killed ones can go.
     dataset.remove_temporaries()?;
@@ -51,11 +51,11 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<Status> {
             dataset.layout().index_path().display()
         );
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }
 
 /// `bettimill status DIR`.
-pub fn status(dir: &Path, json: bool) -> anyhow::Result<Status> {
+pub fn status(dir: &Path, json: bool) -> anyhow::Result<ExitStatus> {
     if !bettimill_format::DatasetDir::new(dir).has_build_info() {
         bail!(
             "{} holds no bettimill dataset (no build.json)",
@@ -97,5 +97,5 @@ pub fn status(dir: &Path, json: bool) -> anyhow::Result<Status> {
         }
         _ => {}
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

@@ -43,7 +43,7 @@ fn main() -> ExitCode {
         Ok(status) => status.into(),
         Err(err) => {
             eprintln!("error: {err:#}");
-            commands::Status::Failure.into()
+            commands::ExitStatus::Failure.into()
         }
     }
 }

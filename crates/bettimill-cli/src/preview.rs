@@ -1,7 +1,7 @@
 //! `bettimill preview`: a PNG of one sample (or a contact sheet of several) from a dataset
 //! directory, one shard, or a plain `.npy` image.
 
-use crate::commands::Status;
+use crate::commands::ExitStatus;
 use anyhow::{bail, Context};
 use bettimill_format::DatasetDir;
 use bettimill_preview::{caption, contact_sheet, render_sample, samples_in_tar, short_caption};
@@ -58,7 +58,7 @@ fn read_shard(path: &Path) -> anyhow::Result<Vec<u8>> {
 }
 
 /// Runs `bettimill preview`.
-pub fn run(request: &Request) -> anyhow::Result<Status> {
+pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
     let input = request.input;
     let is_npy = input.extension().is_some_and(|e| e == "npy");
     let canvas = if is_npy {
@@ -151,5 +151,5 @@ pub fn run(request: &Request) -> anyhow::Result<Status> {
             canvas.height()
         );
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }

@@ -2,7 +2,7 @@
 //! hypervolume; regeneration rates; build time (from file modification times); an optional
 //! histogram PNG.
 
-use crate::commands::Status;
+use crate::commands::ExitStatus;
 use anyhow::{bail, Context};
 use bettimill_format::DatasetDir;
 use bettimill_preview::{labels_in_tar, plot, BuildTime, Stats};
@@ -14,7 +14,7 @@ pub fn run(
     json: bool,
     plot_path: Option<&Path>,
     quiet: bool,
-) -> anyhow::Result<Status> {
+) -> anyhow::Result<ExitStatus> {
     if !dir.is_dir() {
         bail!(
             "{} is not a directory: give a dataset directory written by `bettimill build --out DIR`",
@@ -58,7 +58,7 @@ pub fn run(
             eprintln!("wrote {}", path.display());
         }
     }
-    Ok(Status::Success)
+    Ok(ExitStatus::Success)
 }
 
 /// Writes data to stdout. A reader that stops early (`bettimill stats DIR | head`) closes

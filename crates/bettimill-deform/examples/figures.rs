@@ -2,12 +2,15 @@
 //!
 //! - `moves_disc_64.png`, `moves_figure_eight_64.png`: a 64^2 seed (left) and the result of
 //!   600 hypervolume-preserving moves (right).
-//! - `morphology_2d.png`: curves and circles (some joined, some with tentacles; left),
-//!   three iterations of simple-point dilation (middle) and a lumpy variant where only
-//!   half of the frontier, at the highest noise, grows (right).
-//! - `morphology_3d.png`: a 96^3 seed scene (curves, circles, a knot, bridges, tentacles,
-//!   a sphere and a torus; top) and the result of three iterations (bottom), each as
-//!   depth-shaded views along two axes.
+//! - `morphology_2d.png`: a scene of the shape library (curves, annuli, disks with two
+//!   holes, some with tentacles) thinned by simple-point erosion (left: a one-voxel-thin
+//!   remnant with the same Betti numbers; contractible objects end as single voxels),
+//!   three iterations of simple-point dilation of that remnant (middle) and a lumpy
+//!   variant where only half of the frontier, at the highest noise, grows (right).
+//! - `morphology_3d.png`: the paper's 3D seed scene (`bettimill_shapes::paper_scene_3d`: a
+//!   curve, two connected circles, a Hopf link and a trefoil, some with tentacles) at
+//!   96^3, thinned the same way (top), and the result of three iterations (bottom),
+//!   each as depth-shaded views along two axes.
 //!
 //! Run with `cargo run --release -p bettimill-deform --example figures [DIR]`. PNG is
 //! written by hand (greyscale, one IDAT chunk compressed with flate2), so the example needs
@@ -16,10 +19,12 @@
 // An example for people: printing is its purpose (only library code must not print).
 #![allow(clippy::print_stdout, clippy::print_stderr)]
 
-use bettimill_deform::seeds::{random_scene, SceneSpec};
 use bettimill_deform::{deform, DeformSettings, Method};
 use bettimill_grid::BinaryImage;
 use bettimill_homology::topology;
+use bettimill_shapes::{generate, paper_scene_3d, Dim, Family, Generated, Mode};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::io::Write;
 use std::path::Path;
 
@@ -204,6 +209,27 @@ fn figure_eight(side: usize) -> BinaryImage {
     image
 }
 
+fn tentacled(object: Family, tentacles: u32) -> Family {
+    Family::Tentacled {
+        object: Box::new(object),
+        tentacles,
+    }
+}
+
+/// A scene's image after 200 iterations of simple-point erosion (a thin remnant with the
+/// scene's Betti numbers: the seed to grow), and those Betti numbers.
+fn thinned(scene: Generated) -> Result<(BinaryImage, Vec<u64>), Box<dyn std::error::Error>> {
+    let mut image = scene.image;
+    let erode = DeformSettings {
+        method: Method::Erode,
+        steps: 200,
+        ..DeformSettings::default()
+    };
+    deform(&mut image, &erode, 1)?;
+    assert_eq!(topology(&image).betti, scene.betti);
+    Ok((image, scene.betti))
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = std::env::args()
         .nth(1)
@@ -228,22 +254,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         write_png(&dir.join(name), &picture)?;
     }
 
-    let spec_2d = SceneSpec {
-        curves: 5,
-        circles: 6,
-        bridges: 2,
-        tentacles: 5,
-        ..SceneSpec::default()
+    let objects_2d = Family::Scene {
+        objects: vec![
+            tentacled(Family::Curve, 1),
+            Family::Curve,
+            tentacled(Family::Handle, 2),
+            Family::Handle,
+            Family::Handlebody { genus: 2 },
+            tentacled(Family::Handlebody { genus: 2 }, 1),
+        ],
     };
-    let scene = random_scene(&[128, 128], &spec_2d, 3)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let (seed_2d, betti_2d) =
+        thinned(generate(&objects_2d, Dim::Two, 128, Mode::Embed, &mut rng)?)?;
     let dilate = DeformSettings {
         method: Method::Dilate,
         steps: 3,
         ..DeformSettings::default()
     };
-    let mut full = scene.image.clone();
+    let mut full = seed_2d.clone();
     deform(&mut full, &dilate, 3)?;
-    let mut lumpy = scene.image.clone();
+    let mut lumpy = seed_2d.clone();
     let lumpy_settings = DeformSettings {
         growth_probability: 0.5,
         steps: 6,
@@ -251,38 +282,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     deform(&mut lumpy, &lumpy_settings, 3)?;
     for image in [&full, &lumpy] {
-        assert_eq!(topology(image).betti, scene.betti);
+        assert_eq!(topology(image).betti, betti_2d);
     }
-    eprintln!(
-        "morphology_2d: betti {:?}, placed {:?}",
-        scene.betti, scene.placed
-    );
+    eprintln!("morphology_2d: betti {betti_2d:?}");
     let picture = row(&[
-        render_2d(&scene.image, 3),
+        render_2d(&seed_2d, 3),
         render_2d(&full, 3),
         render_2d(&lumpy, 3),
     ]);
     write_png(&dir.join("morphology_2d.png"), &picture)?;
 
-    let spec_3d = SceneSpec {
-        curves: 2,
-        circles: 4,
-        knots: 1,
-        bridges: 1,
-        tentacles: 4,
-        spheres: 1,
-        tori: 1,
-    };
-    let scene = random_scene(&[96, 96, 96], &spec_3d, 5)?;
-    let mut grown = scene.image.clone();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (seed_3d, betti_3d) = thinned(paper_scene_3d(96, &mut rng)?)?;
+    let mut grown = seed_3d.clone();
     deform(&mut grown, &dilate, 5)?;
-    assert_eq!(topology(&grown).betti, scene.betti);
-    eprintln!(
-        "morphology_3d: betti {:?}, placed {:?}",
-        scene.betti, scene.placed
-    );
+    assert_eq!(topology(&grown).betti, betti_3d);
+    eprintln!("morphology_3d: betti {betti_3d:?}");
     let picture = column(&[
-        row(&[render_3d(&scene.image, 0, 3), render_3d(&scene.image, 2, 3)]),
+        row(&[render_3d(&seed_3d, 0, 3), render_3d(&seed_3d, 2, 3)]),
         row(&[render_3d(&grown, 0, 3), render_3d(&grown, 2, 3)]),
     ]);
     write_png(&dir.join("morphology_3d.png"), &picture)?;

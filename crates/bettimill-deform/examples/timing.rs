@@ -1,10 +1,15 @@
 //! Prints wall-clock timings and reports of the benchmark workloads (one run each).
+//!
+//! The scenes come from the shape library: a 4D scene of S1xB3, S2xB2, T2xB2 and a curve
+//! at 32^4, and the paper's 3D seed scene at 128^3.
 
 // An example for people: printing is its purpose (only library code must not print).
 #![allow(clippy::print_stdout, clippy::print_stderr)]
-use bettimill_deform::seeds::{random_scene, SceneSpec};
 use bettimill_deform::{deform, DeformSettings, Method};
 use bettimill_grid::{BinaryImage, Dim};
+use bettimill_shapes::{generate, paper_scene_3d, Family, Mode};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
 
 fn main() {
@@ -31,21 +36,16 @@ fn main() {
         let r = deform(&mut img, &moves(600), 7).unwrap();
         println!("2D disc 600 moves: {:?} {r:?}", t.elapsed());
     }
-    let spec = SceneSpec {
-        curves: 2,
-        circles: 3,
-        spheres: 1,
-        tori: 1,
-        tentacles: 2,
-        bridges: 1,
-        ..SceneSpec::default()
+    let family = Family::Scene {
+        objects: vec![Family::Handle, Family::S2xB2, Family::T2xB2, Family::Curve],
     };
     let t = Instant::now();
-    let scene = random_scene(&[32, 32, 32, 32], &spec, 2).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let scene = generate(&family, Dim::Four, 32, Mode::Embed, &mut rng).unwrap();
     println!(
-        "4D scene: {:?} placed {:?} betti {:?}",
+        "4D scene: {:?} {} betti {:?}",
         t.elapsed(),
-        scene.placed,
+        family,
         scene.betti
     );
     let mut img = scene.image;
@@ -63,23 +63,9 @@ fn main() {
         let r = deform(&mut m, &moves(10_000), 7).unwrap();
         println!("4D 10000 moves: {:?} {r:?}", t.elapsed());
     }
-    let spec3 = SceneSpec {
-        curves: 4,
-        circles: 6,
-        knots: 2,
-        bridges: 2,
-        tentacles: 6,
-        spheres: 1,
-        tori: 2,
-    };
     let t = Instant::now();
-    let scene = random_scene(&[128, 128, 128], &spec3, 1).unwrap();
-    println!(
-        "3D scene: {:?} placed {:?} betti {:?}",
-        t.elapsed(),
-        scene.placed,
-        scene.betti
-    );
+    let scene = paper_scene_3d(128, &mut ChaCha8Rng::seed_from_u64(1)).unwrap();
+    println!("3D scene: {:?} betti {:?}", t.elapsed(), scene.betti);
     for p in [1.0, 0.5] {
         let mut img = scene.image.clone();
         let s = DeformSettings {

@@ -1,4 +1,4 @@
-//! Topology-preserving deformations of binary images, and seed objects to deform.
+//! Topology-preserving deformations of binary images.
 //!
 //! This crate implements the two deformations of the paper's "roadmap towards 4D
 //! deformations" for 2D, 3D and 4D images, on top of the exact simple-point test of
@@ -18,8 +18,9 @@
 //!   and 4D without enumerating structuring elements.
 //! - [`target_hypervolume`] brings the foreground count into `[lo, hi]` by the same
 //!   topology-preserving growth or shrinking.
-//! - [`seeds`] draws curves, circles, knots, bridges between objects, tentacles, and thin
-//!   2-spheres and tori, tracking their Betti numbers exactly as it goes.
+//!
+//! The objects to deform come from the shape library, `bettimill-shapes` (a
+//! dev-dependency here: the tests, examples and benchmarks deform its scenes).
 //!
 //! Invariants shared by everything here:
 //! - Topology is never changed: every flip is a simple-point flip applied to the image as
@@ -35,8 +36,6 @@ mod field;
 pub mod hitmiss;
 mod morphology;
 mod moves;
-pub mod seeds;
-mod simple_memo;
 
 use bettimill_grid::BinaryImage;
 use serde::{Deserialize, Serialize};

@@ -18,11 +18,10 @@
 //! applied, with the same outcome as applying them one by one, on any number of threads.
 
 use crate::field::NoiseCache;
-use crate::simple_memo::FastSimple;
 use crate::{DeformError, DeformReport};
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::BinaryImage;
-use bettimill_homology::simple::SimpleTester;
+use bettimill_homology::simple::{SimpleCache, SimpleTester};
 use bettimill_noise::Fractal;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
@@ -188,7 +187,11 @@ pub(crate) fn target(
         DEFAULT_TARGET_OCTAVES,
     )?;
     let tester = SimpleTester::new(image.dim());
-    let mut fast = FastSimple::new(image, &tester);
+    // The configuration is read straight from the voxel bytes (only interior voxels are
+    // ever candidates) and the answers are memoised: both are pure functions of the
+    // image, so they change no result, only its cost.
+    let strides = image.strides().to_vec();
+    let mut memo = SimpleCache::new(MEMO_BITS);
     let layout = Layout::new(image);
     // Voxels flipped so far (to undo them on failure) and voxels already queued for the
     // next iteration (to queue each once): bitsets, 1/8 byte per voxel each.
@@ -215,12 +218,12 @@ pub(crate) fn target(
                 let ahead = &order[(k + LOOKAHEAD).min(order.len())..];
                 let mut sink = 0u128;
                 for &u in ahead.iter().take(LOOKAHEAD) {
-                    sink ^= fast.touch(data, u);
+                    sink ^= tester.configuration_in(data, &strides, u);
                 }
                 std::hint::black_box(sink);
             }
             let data = image.data_mut();
-            if fast.is_simple(data, v) {
+            if memo.is_simple(&tester, tester.configuration_in(data, &strides, v)) {
                 data[v] = flip_to;
                 flipped_set.insert(v);
                 count = if grow { count + 1 } else { count - 1 };
@@ -265,6 +268,9 @@ pub(crate) fn target(
 
 /// How many candidates ahead the targeting loop touches memory for.
 const LOOKAHEAD: usize = 16;
+
+/// log2 of the targeting loop's simple-point memo slots.
+const MEMO_BITS: u32 = 12;
 
 /// Flat-index geometry of an image for the targeting loop.
 struct Layout {

@@ -14,48 +14,12 @@
 //! revisit the survivors whose neighbourhood changed since their last test. The first
 //! sweep slides the 3^d block along the last axis, reading one new column per voxel
 //! instead of the whole block, and reads the columns sixteen at a time.
-//! The 4D test has no table, so its answers are memoised in a small direct-mapped cache
-//! (a pure function memoised: it cannot change a result).
+//! The 4D test has no table, so its answers are memoised in a small direct-mapped cache,
+//! [`SimpleCache`] (a pure function memoised: it cannot change a result).
 
-use crate::simple::SimpleTester;
+use crate::simple::{SimpleCache, SimpleTester};
 use bettimill_grid::neighbourhood::flat_offsets;
 use bettimill_grid::BinaryImage;
-
-/// Direct-mapped memo of the simple-point test, keyed by `SimpleTester::memo_key` (in 4D
-/// the attachment set, at most 80 face bits) with bit 126 marking the slot used and bit 127
-/// the answer.
-struct SimpleCache {
-    entries: Vec<u128>,
-    shift: u32,
-}
-
-impl SimpleCache {
-    const USED: u128 = 1 << 126;
-    const ANSWER: u128 = 1 << 127;
-
-    fn new(bits: u32) -> SimpleCache {
-        SimpleCache {
-            entries: vec![0; 1 << bits],
-            shift: 64 - bits,
-        }
-    }
-
-    /// Whether the voxel with configuration `config` is simple; memoised on the tester's
-    /// memo key (a pure function of the configuration).
-    #[inline]
-    fn is_simple(&mut self, tester: &SimpleTester, config: u128) -> bool {
-        let config = tester.memo_key(config);
-        let folded = (config as u64) ^ ((config >> 64) as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93);
-        let slot = (folded.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
-        let entry = self.entries[slot];
-        if entry & !Self::ANSWER == config | Self::USED {
-            return entry & Self::ANSWER != 0;
-        }
-        let answer = tester.is_simple_key(config);
-        self.entries[slot] = config | Self::USED | if answer { Self::ANSWER } else { 0 };
-        answer
-    }
-}
 
 /// One raster sweep over the voxels `range` of the slab `data` (C order, laid out with the
 /// full image's strides), deleting simple ones; pushes the foreground survivors, shifted by

@@ -9,9 +9,9 @@
 //! `sigma * (2r + INNER_GAP)` for a constant `sigma` per curve, computed once by a sweep
 //! over "forbidden scale intervals" of all point pairs and cached.
 
-use crate::families::INNER_GAP;
-use crate::families::TUBE_MIN;
-use crate::geometry::{add, dot, norm, scale, sub, uniform, Piece, Solid, P};
+use crate::geometry::{
+    add, dot, gcd, norm, scale, sub, uniform, Piece, Solid, INNER_GAP, P, TUBE_MIN,
+};
 use crate::{KnotKind, LinkKind};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
@@ -89,7 +89,7 @@ fn centred(components: Vec<Vec<P>>) -> CurveSet {
 /// Torus knot or link T(p, q) on the torus with radii 2 and 1: the components of
 /// {q theta - p psi in 2 pi Z}, one per residue m < gcd(p, q), shifted by 2 pi m / q.
 fn torus_components(p: u32, q: u32) -> Vec<Vec<P>> {
-    let c = crate::families::gcd(p, q);
+    let c = gcd(p, q);
     let (pp, qq) = ((p / c) as f64, (q / c) as f64);
     (0..c)
         .map(|m| {

@@ -19,6 +19,28 @@ pub(crate) type P = [f64; 4];
 
 pub(crate) const ORIGIN: P = [0.0; 4];
 
+// Minimum sizes, shared by every construction: tubes have radius >= 2 voxels, shells
+// half-thickness >= 1.5, and two parts of one object that must stay apart (the two sides
+// of a hole, two strands of a knot) keep a gap of at least `INNER_GAP` = 2.5 between their
+// surfaces. 2.5 exceeds the diagonal of a 4D voxel (2), so the foreground never bridges a
+// gap, and exceeds the L1 width a digital plane needs to separate background in 4D.
+
+/// Smallest tube radius (labels note: tubes need a radius of at least 2 voxels).
+pub(crate) const TUBE_MIN: f64 = 2.0;
+/// Smallest half-thickness of a shell.
+pub(crate) const SHELL_MIN: f64 = 1.5;
+/// Smallest gap between surfaces of two parts of one object that must not touch.
+pub(crate) const INNER_GAP: f64 = 2.5;
+
+/// Greatest common divisor (the number of components of the torus link T(a, b)).
+pub(crate) fn gcd(a: u32, b: u32) -> u32 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
 pub(crate) fn sub(a: P, b: P) -> P {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]]
 }

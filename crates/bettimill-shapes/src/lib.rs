@@ -21,13 +21,15 @@
 
 mod betti_class;
 mod curves;
-mod families;
+mod generate;
 mod geometry;
+mod labels;
 mod place;
-pub mod placement;
+mod recipes;
+mod sizing;
 
 pub use bettimill_grid::{BinaryImage, Dim};
-pub use families::{paper_scene_3d, paper_scene_family};
+pub use generate::{paper_scene_3d, paper_scene_family};
 
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -274,23 +276,23 @@ impl Family {
     /// Analytic Betti numbers over Z/2 for this family in `dim` and `mode`; Err if the
     /// family does not exist in that dimension.
     pub fn expected_betti(&self, dim: Dim, mode: Mode) -> Result<Vec<u64>, ShapeError> {
-        families::expected(self, dim, mode).map(|(z2, _)| z2)
+        labels::expected(self, dim, mode).map(|(z2, _)| z2)
     }
 
     /// Analytic Betti numbers over Q (differ from Z/2 only for the Klein bottle).
     pub fn expected_betti_rational(&self, dim: Dim, mode: Mode) -> Result<Vec<u64>, ShapeError> {
-        families::expected(self, dim, mode).map(|(z2, q)| q.unwrap_or(z2))
+        labels::expected(self, dim, mode).map(|(z2, q)| q.unwrap_or(z2))
     }
 
     /// Plan-time feasibility: Err with a clear reason if the construction cannot fit at
     /// this side length (never an endless retry later).
     pub fn check_fits(&self, dim: Dim, side: usize, mode: Mode) -> Result<(), ShapeError> {
-        families::check_fits(self, dim, side, mode)
+        generate::check_fits(self, dim, side, mode)
     }
 
     /// The smallest side length at which [`Family::check_fits`] succeeds (up to 1024).
     pub fn min_side(&self, dim: Dim, mode: Mode) -> Result<usize, ShapeError> {
-        families::expected(self, dim, mode)?;
+        labels::expected(self, dim, mode)?;
         (4..=1024)
             .find(|&side| self.check_fits(dim, side, mode).is_ok())
             .ok_or_else(|| ShapeError::DoesNotFit {
@@ -363,7 +365,7 @@ pub fn generate(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    families::generate(family, dim, side, mode, rng)
+    generate::generate(family, dim, side, mode, rng)
 }
 
 #[cfg(test)]

@@ -1,4 +1,5 @@
-//! Placing objects in the image: rasterisation, margins and minimum gaps.
+//! Placing objects in the image: rasterisation, margins, minimum gaps and the layout
+//! search.
 //!
 //! An object is rasterised by testing every voxel centre in its bounding box against its
 //! solid (after undoing its rotation and translation). Several objects are placed one by
@@ -7,9 +8,17 @@
 //! none of its voxels falls into that dilation. With a gap of 2 any two objects keep at
 //! least two background voxels between them in every direction, which is what the
 //! labels note asks for (touching cavities gave wrong labels).
+//!
+//! The layout search ([`place_objects`]) tries random sizes, rotations and positions,
+//! largest object first, for a few rounds (the later ones at minimum sizes); then falls
+//! back to one object per cell of a grid, or, where the grid cannot hold them, to a
+//! canonical layout found with fixed seeds ([`canonical_layout`]), so a request that
+//! passed plan-time feasibility always produces a sample. Tunnels, which run from face to
+//! face, have their own placement ([`place_tunnel`]).
 
-use crate::geometry::{add, round6, sub, uniform, Rotation, Solid, P};
-use crate::Mode;
+use crate::geometry::{add, round6, sub, uniform, uniform_int, Rotation, Solid, P};
+use crate::sizing::{build, draw_target, min_extent};
+use crate::{Family, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
@@ -75,13 +84,7 @@ impl Placed {
 
 /// Draws a centre so that the bounding ball of radius `extent` stays in `[lo, hi]` on
 /// every axis; `None` if it cannot.
-pub(crate) fn random_centre(
-    dim: usize,
-    lo: i64,
-    hi: i64,
-    extent: f64,
-    rng: &mut ChaCha8Rng,
-) -> Option<P> {
+fn random_centre(dim: usize, lo: i64, hi: i64, extent: f64, rng: &mut ChaCha8Rng) -> Option<P> {
     let low = lo as f64 + extent;
     let high = hi as f64 - extent;
     if low > high {
@@ -96,13 +99,7 @@ pub(crate) fn random_centre(
 
 /// Flat indices (ascending) of the voxels whose centres lie in the placed solid, within
 /// the inclusive box `[box_lo, box_hi]` on every axis.
-pub(crate) fn rasterise(
-    placed: &Placed,
-    dim: usize,
-    side: usize,
-    box_lo: i64,
-    box_hi: i64,
-) -> Vec<usize> {
+fn rasterise(placed: &Placed, dim: usize, side: usize, box_lo: i64, box_hi: i64) -> Vec<usize> {
     rasterise_unless_blocked(placed, dim, side, box_lo, box_hi, None).unwrap_or_default()
 }
 
@@ -110,7 +107,7 @@ pub(crate) fn rasterise(
 /// placements cost little). Tube solids are scanned part by part, each over the box of
 /// its own bounding ball, which for spread-out objects (rows of summands, links,
 /// tentacles) visits far fewer voxels than the box of the whole object.
-pub(crate) fn rasterise_unless_blocked(
+fn rasterise_unless_blocked(
     placed: &Placed,
     dim: usize,
     side: usize,
@@ -218,14 +215,14 @@ fn scan_box(
 }
 
 /// The occupied set dilated by the gap, grown object by object.
-pub(crate) struct Occupancy {
+struct Occupancy {
     dim: usize,
     side: usize,
     blocked: Vec<bool>,
 }
 
 impl Occupancy {
-    pub(crate) fn new(dim: usize, side: usize) -> Occupancy {
+    fn new(dim: usize, side: usize) -> Occupancy {
         Occupancy {
             dim,
             side,
@@ -234,7 +231,7 @@ impl Occupancy {
     }
 
     /// Marks every voxel within Chebyshev distance `GAP` of the given ones.
-    pub(crate) fn add(&mut self, voxels: &[usize]) {
+    fn add(&mut self, voxels: &[usize]) {
         let side = self.side as i64;
         let dim = self.dim;
         let span = (2 * GAP + 1).pow(dim as u32);
@@ -269,12 +266,7 @@ impl Occupancy {
 
 /// The sub-box of one cell when the region is cut into `per_axis^dim` cells separated by
 /// the gap. Used as the deterministic fallback when random placement keeps failing.
-pub(crate) fn grid_cell(
-    region: Region,
-    per_axis: i64,
-    cell: [i64; 4],
-    dim: usize,
-) -> ([i64; 4], [i64; 4]) {
+fn grid_cell(region: Region, per_axis: i64, cell: [i64; 4], dim: usize) -> ([i64; 4], [i64; 4]) {
     let width = cell_width(region, per_axis);
     let mut lo = [0i64; 4];
     let mut hi = [0i64; 4];
@@ -287,15 +279,317 @@ pub(crate) fn grid_cell(
 
 /// Voxels per cell edge when the region is split into `per_axis` cells per axis with
 /// `GAP` background voxels between cells.
-pub(crate) fn cell_width(region: Region, per_axis: i64) -> i64 {
+fn cell_width(region: Region, per_axis: i64) -> i64 {
     (region.width() + GAP) / per_axis - GAP
 }
 
 /// The smallest number of cells per axis that holds `count` cells in `dim` dimensions.
-pub(crate) fn cells_per_axis(count: usize, dim: usize) -> i64 {
+fn cells_per_axis(count: usize, dim: usize) -> i64 {
     let mut m = 1i64;
     while (m as usize).pow(dim as u32) < count {
         m += 1;
     }
     m
+}
+
+/// Random placements tried per object in one round.
+const PLACEMENT_ATTEMPTS: usize = 40;
+/// Rounds of random placement before the grid or canonical fallback.
+const RANDOM_ROUNDS: usize = 6;
+
+/// Whether one object per grid cell fits, every object at its minimum size.
+pub(crate) fn grid_fits(minima: &[f64], dim: usize, region: Region) -> bool {
+    let per_axis = cells_per_axis(minima.len(), dim);
+    let width = cell_width(region, per_axis);
+    let budget = (width - 1) as f64 / 2.0;
+    width > 0 && minima.iter().all(|&m| m <= budget)
+}
+
+/// Seeds of the canonical layout search (fixed, so feasibility is a pure function of the
+/// request).
+const CANONICAL_SEEDS: u64 = 6;
+
+/// A layout found with fixed seeds, every object at its minimum size, largest first.
+/// Plan-time feasibility for scenes that the grid cannot hold, and the generation-time
+/// fallback for them: a request that passed `check_fits` always produces a sample.
+pub(crate) fn canonical_layout(
+    objects: &[Family],
+    minima: &[f64],
+    dim: usize,
+    side: usize,
+    region: Region,
+) -> Option<Vec<PlacedObject>> {
+    use rand::SeedableRng;
+    let mut order: Vec<usize> = (0..objects.len()).collect();
+    order.sort_by(|&a, &b| minima[b].total_cmp(&minima[a]).then(a.cmp(&b)));
+    let sorted_objects: Vec<Family> = order.iter().map(|&k| objects[k].clone()).collect();
+    let sorted_minima: Vec<f64> = order.iter().map(|&k| minima[k]).collect();
+    (0..CANONICAL_SEEDS).find_map(|seed| {
+        let mut rng = ChaCha8Rng::seed_from_u64(0xB377_1000 + seed);
+        place_random(
+            &sorted_objects,
+            &sorted_minima,
+            dim,
+            side,
+            region,
+            &mut rng,
+            true,
+        )
+    })
+}
+
+/// Local axes that may rotate: all of them, except the interval axes of a tunnel.
+fn free_axes(family: &Family, dim: usize) -> Vec<usize> {
+    match family {
+        Family::Tunnel { intervals, .. } => (0..dim - *intervals as usize).collect(),
+        _ => (0..dim).collect(),
+    }
+}
+
+type PlacedObject = (Family, Placed, Value, Vec<usize>);
+
+pub(crate) fn place_tunnel(
+    family: &Family,
+    dim: usize,
+    side: usize,
+    region: Region,
+    rng: &mut ChaCha8Rng,
+) -> Result<PlacedObject, ShapeError> {
+    let Family::Tunnel { intervals, .. } = family else {
+        unreachable!("place_tunnel is only called for tunnels")
+    };
+    let a = *intervals as usize;
+    let budget = region.budget();
+    let minimum = min_extent(family, dim).unwrap_or(f64::INFINITY);
+    let target = uniform(rng, minimum, budget);
+    let (solid, params) =
+        build(family, dim, target, rng).ok_or_else(|| ShapeError::DoesNotFit {
+            family: family.label(),
+            dim,
+            side,
+            mode: Mode::Carve,
+            reason: "no cross-section fits".into(),
+        })?;
+    // Choose which image axes the tunnel runs along: a random permutation maps local
+    // axes (cross-section first, intervals last) to image axes.
+    let mut perm: Vec<usize> = (0..dim).collect();
+    for k in (1..dim).rev() {
+        let j = uniform_int(rng, 0, k as u64) as usize;
+        perm.swap(k, j);
+    }
+    let mut rotation = Rotation::permutation(&perm);
+    let cross: Vec<usize> = perm[..dim - a].to_vec();
+    rotation.randomise(&cross, rng);
+    let through: Vec<usize> = perm[dim - a..].to_vec();
+    let extent = solid.extent();
+    let mut centre = random_centre(dim, region.lo, region.hi, extent, rng).ok_or_else(|| {
+        ShapeError::DoesNotFit {
+            family: family.label(),
+            dim,
+            side,
+            mode: Mode::Carve,
+            reason: "no cross-section fits".into(),
+        }
+    })?;
+    for &k in &through {
+        centre[k] = (side as f64 - 1.0) / 2.0;
+    }
+    let placed = Placed {
+        solid,
+        rotation,
+        centre,
+        through_axes: through.clone(),
+    };
+    let voxels = rasterise(&placed, dim, side, 0, side as i64 - 1);
+    let params = json!({"shape": params, "through_axes": through});
+    Ok((family.clone(), placed, params, voxels))
+}
+
+/// Objects placed one by one at random sizes, rotations and positions, each rejected
+/// while it meets the gap-dilation of those already placed. `at_minimum` draws every
+/// object at its minimum size (the canonical layout). `None` if some object found no
+/// place within `PLACEMENT_ATTEMPTS` tries.
+fn place_random(
+    objects: &[Family],
+    minima: &[f64],
+    dim: usize,
+    side: usize,
+    region: Region,
+    rng: &mut ChaCha8Rng,
+    at_minimum: bool,
+) -> Option<Vec<PlacedObject>> {
+    let count = objects.len();
+    let budget = region.budget();
+    // Each object may use a share of the room that shrinks with the number of objects,
+    // so several of them are likely to fit.
+    let share = if count == 1 {
+        budget
+    } else {
+        (budget / libm::pow(count as f64, 1.0 / dim as f64) * 1.2).min(budget)
+    };
+    let mut occupancy = Occupancy::new(dim, side);
+    let mut out = Vec::new();
+    for (object, &minimum) in objects.iter().zip(minima) {
+        if minimum > budget {
+            return None;
+        }
+        let mut done = false;
+        for attempt in 0..PLACEMENT_ATTEMPTS {
+            // Later attempts draw smaller objects, which fit into smaller gaps.
+            let shrink = 1.0 - attempt as f64 / PLACEMENT_ATTEMPTS as f64;
+            let upper = minimum + (share.max(minimum) - minimum) * shrink;
+            let target = if at_minimum {
+                minimum
+            } else {
+                draw_target(object, minimum, upper, rng)
+            };
+            let Some((solid, params)) = build(object, dim, target, rng) else {
+                continue;
+            };
+            let rotation = Rotation::random(&free_axes(object, dim), rng);
+            let Some(centre) = random_centre(dim, region.lo, region.hi, solid.extent(), rng) else {
+                continue;
+            };
+            let placed = Placed {
+                solid,
+                rotation,
+                centre,
+                through_axes: Vec::new(),
+            };
+            let Some(voxels) = rasterise_unless_blocked(
+                &placed,
+                dim,
+                side,
+                region.lo,
+                region.hi,
+                Some(&occupancy),
+            ) else {
+                continue;
+            };
+            if voxels.is_empty() {
+                continue;
+            }
+            if count > 1 {
+                occupancy.add(&voxels);
+            }
+            out.push((object.clone(), placed, params, voxels));
+            done = true;
+            break;
+        }
+        if !done {
+            return None;
+        }
+    }
+    Some(out)
+}
+
+/// The image being filled.
+#[derive(Clone, Copy)]
+pub(crate) struct Canvas {
+    pub(crate) dim: usize,
+    pub(crate) side: usize,
+    pub(crate) mode: Mode,
+    pub(crate) region: Region,
+}
+
+pub(crate) fn place_objects(
+    family: &Family,
+    objects: &[Family],
+    canvas: Canvas,
+    rng: &mut ChaCha8Rng,
+) -> Result<(Vec<PlacedObject>, &'static str), ShapeError> {
+    let Canvas {
+        dim,
+        side,
+        mode,
+        region,
+    } = canvas;
+    let count = objects.len();
+    let minima: Vec<f64> = objects
+        .iter()
+        .map(|o| min_extent(o, dim).unwrap_or(f64::INFINITY))
+        .collect();
+    // Largest first: big objects find room in the empty image, small ones fit into the
+    // gaps left. Several rounds, the later ones at minimum sizes, before the fallbacks,
+    // so that fallbacks (which are less diverse) stay rare.
+    let mut order: Vec<usize> = (0..count).collect();
+    order.sort_by(|&a, &b| minima[b].total_cmp(&minima[a]).then(a.cmp(&b)));
+    let sorted_objects: Vec<Family> = order.iter().map(|&k| objects[k].clone()).collect();
+    let sorted_minima: Vec<f64> = order.iter().map(|&k| minima[k]).collect();
+    for round in 0..RANDOM_ROUNDS {
+        let at_minimum = round >= RANDOM_ROUNDS / 2;
+        if let Some(out) = place_random(
+            &sorted_objects,
+            &sorted_minima,
+            dim,
+            side,
+            region,
+            rng,
+            at_minimum,
+        ) {
+            return Ok((out, "random"));
+        }
+    }
+    let fits_grid = grid_fits(&minima, dim, region);
+    if !fits_grid {
+        return canonical_layout(objects, &minima, dim, side, region)
+            .map(|out| (out, "canonical"))
+            .ok_or_else(|| ShapeError::DoesNotFit {
+                family: family.label(),
+                dim,
+                side,
+                mode,
+                reason: "the objects could not be packed with the required gaps".into(),
+            });
+    }
+    // Fallback: one object per grid cell, cells separated by the gap. check_fits
+    // guarantees every object's minimum fits a cell, so this always succeeds.
+    let per_axis = cells_per_axis(count, dim);
+    let width = cell_width(region, per_axis);
+    let cell_budget = (width - 1) as f64 / 2.0;
+    let total_cells = (per_axis as usize).pow(dim as u32);
+    let mut cells: Vec<usize> = (0..total_cells).collect();
+    for k in (1..total_cells).rev() {
+        let j = uniform_int(rng, 0, k as u64) as usize;
+        cells.swap(k, j);
+    }
+    let mut out = Vec::new();
+    for (n, (object, &minimum)) in objects.iter().zip(&minima).enumerate() {
+        let mut cell = [0i64; 4];
+        let mut rest = cells[n] as i64;
+        for slot in cell.iter_mut().take(dim) {
+            *slot = rest % per_axis;
+            rest /= per_axis;
+        }
+        let (lo, hi) = grid_cell(region, per_axis, cell, dim);
+        let target = draw_target(object, minimum, cell_budget.max(minimum), rng);
+        let (solid, params) = build(object, dim, target, rng)
+            .or_else(|| build(object, dim, minimum, rng))
+            .ok_or_else(|| ShapeError::DoesNotFit {
+                family: family.label(),
+                dim,
+                side,
+                mode,
+                reason: format!("{} has no instance of radius {target:.2}", object.label()),
+            })?;
+        let rotation = Rotation::random(&free_axes(object, dim), rng);
+        let extent = solid.extent();
+        let mut centre = [0.0; 4];
+        for k in 0..dim {
+            let low = lo[k] as f64 + extent;
+            let high = hi[k] as f64 - extent;
+            centre[k] = uniform(rng, low, high.max(low));
+        }
+        let placed = Placed {
+            solid,
+            rotation,
+            centre,
+            through_axes: Vec::new(),
+        };
+        // The centre keeps the bounding ball inside the cell; clipping to the region
+        // only guards the image border.
+        let voxels = rasterise(&placed, dim, side, region.lo, region.hi);
+        out.push((object.clone(), placed, params, voxels));
+    }
+    Ok((out, "grid"))
 }

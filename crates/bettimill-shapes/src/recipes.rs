@@ -1,0 +1,362 @@
+//! The construction recipes: each family's local solid as a function of its sizes.
+//!
+//! Each family is a recipe `make(r, grow)`: the solid with tube radius `r` whose free
+//! lengths (hole sizes, bar lengths, scales) are their minima plus shares of `grow`. At
+//! `grow = 0` and `r` at its minimum the recipe is the smallest valid instance, which is
+//! what plan-time feasibility checks (see `sizing.rs` for how a size is chosen). Holes are
+//! at least `tube + INNER_GAP / 2` in radius, and bars between parts at least
+//! [`bar_min`] long, so two parts of one object that must stay apart never touch. Knots,
+//! links and open curves are polylines built in `curves.rs`.
+
+use crate::curves;
+use crate::geometry::{
+    add, axis, uniform, Piece, Solid, INNER_GAP, ORIGIN, P, SHELL_MIN, TUBE_MIN,
+};
+use crate::labels::tunnel_cycles;
+use crate::Family;
+use rand_chacha::ChaCha8Rng;
+
+/// Random choices of a recipe that do not change its minimum size.
+pub(crate) struct Shares(pub(crate) Vec<f64>);
+
+impl Shares {
+    pub(crate) fn draw(count: usize, rng: &mut ChaCha8Rng) -> Shares {
+        let raw: Vec<f64> = (0..count).map(|_| uniform(rng, 0.2, 1.0)).collect();
+        let total: f64 = raw.iter().sum();
+        Shares(raw.iter().map(|x| x / total).collect())
+    }
+
+    pub(crate) fn minimal(count: usize) -> Shares {
+        Shares(vec![1.0 / count as f64; count])
+    }
+
+    fn get(&self, k: usize) -> f64 {
+        self.0[k]
+    }
+}
+
+/// The shortest bar between two thickened parts. Shorter bars let the two parts' tubes
+/// meet beside the bar in a cusp-shaped notch, and a digitised cusp can pinch off a
+/// background voxel: an extra hole (seen in 1 of 20 2D scenes with bars of length 1).
+/// With this length the notch beside the bar is at least `INNER_GAP` wide.
+fn bar_min(tube: f64) -> f64 {
+    2.0 * tube + INNER_GAP
+}
+
+/// A row of `count` circles of radius `radius` in the (x0, x1)-plane along x0, centred on
+/// the origin, joined by bars of length `bar` between neighbours: a thickened graph with
+/// `count` independent cycles.
+fn circle_row(count: u32, radius: f64, bar: f64, tube: f64) -> Vec<(Piece, f64)> {
+    let pitch = 2.0 * radius + bar;
+    let first = -(count as f64 - 1.0) * pitch / 2.0;
+    let mut out = Vec::new();
+    for k in 0..count {
+        let cx = first + k as f64 * pitch;
+        out.push((
+            Piece::Circle {
+                centre: [cx, 0.0, 0.0, 0.0],
+                radius,
+                u: axis(0),
+                v: axis(1),
+            },
+            tube,
+        ));
+        if k + 1 < count {
+            out.push((
+                Piece::Segment(
+                    [cx + radius, 0.0, 0.0, 0.0],
+                    [cx + radius + bar, 0.0, 0.0, 0.0],
+                ),
+                tube,
+            ));
+        }
+    }
+    out
+}
+
+/// Half the x0-length of a circle row.
+fn circle_row_half(count: u32, radius: f64, bar: f64) -> f64 {
+    (count as f64 * 2.0 * radius + (count as f64 - 1.0) * bar) / 2.0
+}
+
+/// S1 x (boundary sum of j thickened circles): a circle row in the meridian half-space,
+/// kept `tube + INNER_GAP / 2` away from the spinning axis, spun about x0 = x1 = 0 and
+/// moved to `centre`. Returns the pieces and the largest spun radius of the skeleton.
+fn spun_row(j: u32, radius: f64, bar: f64, tube: f64, axis_gap: f64, centre: P) -> (Piece, f64) {
+    let half = circle_row_half(j, radius, bar);
+    let shift = tube + INNER_GAP / 2.0 + axis_gap + half;
+    let inner: Vec<Piece> = circle_row(j, radius, bar, tube)
+        .into_iter()
+        .map(|(piece, _)| translate(piece, [shift, 0.0, 0.0, 0.0]))
+        .collect();
+    (Piece::Spun { centre, inner }, shift + half)
+}
+
+fn translate(piece: Piece, by: P) -> Piece {
+    match piece {
+        Piece::Point(c) => Piece::Point(add(c, by)),
+        Piece::Segment(a, b) => Piece::Segment(add(a, by), add(b, by)),
+        Piece::Circle {
+            centre,
+            radius,
+            u,
+            v,
+        } => Piece::Circle {
+            centre: add(centre, by),
+            radius,
+            u,
+            v,
+        },
+        Piece::Sphere {
+            centre,
+            radius,
+            axes,
+        } => Piece::Sphere {
+            centre: add(centre, by),
+            radius,
+            axes,
+        },
+        Piece::Polyline { points, closed, .. } => {
+            Piece::polyline(points.into_iter().map(|p| add(p, by)).collect(), closed)
+        }
+        Piece::Spun { centre, inner } => Piece::Spun {
+            centre: add(centre, by),
+            inner,
+        },
+        Piece::Prism { inner, keep } => Piece::Prism {
+            inner: Box::new(translate(*inner, by)),
+            keep,
+        },
+        other @ (Piece::Torus { .. } | Piece::Klein { .. }) => other,
+    }
+}
+
+/// The boundary connected sum of Table I laid out along x0: summands joined by bars from
+/// the rightmost skeleton point of one to the leftmost of the next. Every summand's
+/// extreme points lie on the x0-axis, and each bar leaves its summand along the outward
+/// normal there, so each bar meets each summand in a contractible blob: the union is
+/// homotopy equivalent to the wedge of the summands.
+fn connected_sum(
+    (g, h, i, j): (u32, u32, u32, u32),
+    dim: usize,
+    tube: f64,
+    grow: f64,
+    shares: &Shares,
+) -> Vec<(Piece, f64)> {
+    let n = (g + h + i) as f64;
+    // Shares: 0 = hole sizes, 1 = bars, 2 = spun offsets.
+    let radius = tube + INNER_GAP / 2.0 + shares.get(0) * grow / n;
+    let bar = bar_min(tube) + shares.get(1) * grow / n.max(1.0);
+    let axis_gap = shares.get(2) * grow / n;
+    // Summand kinds in a fixed order: g circles, h spheres, i spun rows.
+    let mut kinds = Vec::new();
+    kinds.extend(std::iter::repeat_n(0u8, g as usize));
+    kinds.extend(std::iter::repeat_n(1u8, h as usize));
+    kinds.extend(std::iter::repeat_n(2u8, i as usize));
+    let half_width = |kind: u8| -> f64 {
+        match kind {
+            0 | 1 => radius,
+            _ => {
+                let (_, reach) = spun_row(j, radius, bar_min(tube), tube, axis_gap, ORIGIN);
+                reach
+            }
+        }
+    };
+    let total: f64 =
+        kinds.iter().map(|&k| 2.0 * half_width(k)).sum::<f64>() + (kinds.len() as f64 - 1.0) * bar;
+    let mut x = -total / 2.0;
+    let mut out = Vec::new();
+    for (index, &kind) in kinds.iter().enumerate() {
+        let half = half_width(kind);
+        let centre = [x + half, 0.0, 0.0, 0.0];
+        let piece = match kind {
+            0 => Piece::Circle {
+                centre,
+                radius,
+                u: axis(0),
+                v: axis(1),
+            },
+            // In 3D the 2-sphere is the full boundary sphere (S2 x B1, a thick shell).
+            1 => Piece::Sphere {
+                centre,
+                radius,
+                axes: 3.min(dim),
+            },
+            _ => spun_row(j, radius, bar_min(tube), tube, axis_gap, centre).0,
+        };
+        out.push((piece, tube));
+        x += 2.0 * half;
+        if index + 1 < kinds.len() {
+            out.push((
+                Piece::Segment([x, 0.0, 0.0, 0.0], [x + bar, 0.0, 0.0, 0.0]),
+                tube,
+            ));
+            x += bar;
+        }
+    }
+    out
+}
+
+/// The tube radius range of a family: `(minimum, cap)`.
+pub(crate) fn tube_range(family: &Family) -> (f64, f64) {
+    match family {
+        Family::Ball => (TUBE_MIN, TUBE_MIN),
+        Family::Shell | Family::TorusShell => (SHELL_MIN, 3.0),
+        Family::Tunnel { .. } if tunnel_cycles(family) == 0 => (TUBE_MIN, TUBE_MIN),
+        Family::Knot { .. }
+        | Family::TorusKnot { .. }
+        | Family::Link { .. }
+        | Family::SpunKnot { .. }
+        | Family::SpunLink { .. }
+        | Family::Curve => (TUBE_MIN, 3.0),
+        _ => (TUBE_MIN, 4.0),
+    }
+}
+
+/// How many random shares a family's recipe uses.
+pub(crate) fn share_count(family: &Family) -> usize {
+    match family {
+        Family::TorusShell | Family::T2xB2 | Family::KleinBottle => 3,
+        Family::Handlebody { .. } | Family::S1xHandlebody { .. } => 3,
+        Family::ConnectedSum { .. } => 3,
+        Family::Tunnel { .. } => 2,
+        Family::Curve => 8,
+        _ => 1,
+    }
+}
+
+/// The local solid of a single (non-scene, non-tentacled) family. `None` when the
+/// parameters give no valid instance (a curve whose strands would touch).
+pub(crate) fn make(
+    family: &Family,
+    dim: usize,
+    tube: f64,
+    grow: f64,
+    shares: &Shares,
+) -> Option<Solid> {
+    let hole = tube + INNER_GAP / 2.0;
+    Some(match family {
+        Family::Ball => Solid::Tube(vec![(Piece::Point(ORIGIN), tube + grow)]),
+        Family::Handle => Solid::Tube(vec![(
+            Piece::Circle {
+                centre: ORIGIN,
+                radius: hole + grow,
+                u: axis(0),
+                v: axis(1),
+            },
+            tube,
+        )]),
+        Family::Shell => Solid::Shell {
+            piece: Piece::Point(ORIGIN),
+            offset: hole + grow,
+            radius: tube,
+        },
+        Family::TorusShell => match dim {
+            2 => Solid::Shell {
+                piece: Piece::Point(ORIGIN),
+                offset: hole + grow,
+                radius: tube,
+            },
+            3 => {
+                let minor = hole + shares.get(0) * grow;
+                let major = minor + hole + (1.0 - shares.get(0)) * grow;
+                Solid::Shell {
+                    piece: Piece::Circle {
+                        centre: ORIGIN,
+                        radius: major,
+                        u: axis(0),
+                        v: axis(1),
+                    },
+                    offset: minor,
+                    radius: tube,
+                }
+            }
+            _ => {
+                // T3 = boundary of the offset-neighbourhood of a T2 in R^3 x {0}.
+                let offset = hole + shares.get(0) * grow;
+                let minor = offset + hole + shares.get(1) * grow;
+                let major = minor + offset + hole + shares.get(2) * grow;
+                Solid::Shell {
+                    piece: Piece::Torus { major, minor },
+                    offset,
+                    radius: tube,
+                }
+            }
+        },
+        Family::Handlebody { genus } => Solid::Tube(circle_row(
+            *genus,
+            hole + shares.get(0) * grow / *genus as f64,
+            bar_min(tube) + shares.get(1) * grow / (*genus as f64),
+            tube,
+        )),
+        Family::S2xB2 => Solid::Tube(vec![(
+            Piece::Sphere {
+                centre: ORIGIN,
+                radius: hole + grow,
+                axes: 3,
+            },
+            tube,
+        )]),
+        Family::T2xB2 | Family::KleinBottle => {
+            let minor = hole + shares.get(0) * grow;
+            let major = minor + hole + (1.0 - shares.get(0)) * grow;
+            let piece = if matches!(family, Family::T2xB2) {
+                Piece::Torus { major, minor }
+            } else {
+                Piece::Klein { major, minor }
+            };
+            Solid::Tube(vec![(piece, tube)])
+        }
+        Family::S1xHandlebody { j } => {
+            let (piece, _) = spun_row(
+                *j,
+                hole + shares.get(0) * grow / *j as f64,
+                bar_min(tube) + shares.get(1) * grow / *j as f64,
+                tube,
+                shares.get(2) * grow,
+                ORIGIN,
+            );
+            Solid::Tube(vec![(piece, tube)])
+        }
+        Family::ConnectedSum { g, h, i, j } => {
+            Solid::Tube(connected_sum((*g, *h, *i, *j), dim, tube, grow, shares))
+        }
+        Family::Tunnel { intervals, .. } => {
+            let keep = dim - *intervals as usize;
+            let cycles = tunnel_cycles(family);
+            let cross_section = if cycles > 0 {
+                circle_row(
+                    cycles,
+                    hole + shares.get(0) * grow / cycles as f64,
+                    bar_min(tube) + (1.0 - shares.get(0)) * grow / cycles as f64,
+                    tube,
+                )
+            } else {
+                vec![(Piece::Point(ORIGIN), tube + grow)]
+            };
+            Solid::Tube(
+                cross_section
+                    .into_iter()
+                    .map(|(inner, radius)| {
+                        (
+                            Piece::Prism {
+                                inner: Box::new(inner),
+                                keep,
+                            },
+                            radius,
+                        )
+                    })
+                    .collect(),
+            )
+        }
+        Family::Curve => curves::open_curve(dim, tube, grow, &shares.0),
+        Family::Knot { knot } => curves::knot_solid(*knot, dim, tube, grow)?,
+        Family::TorusKnot { p, q } => curves::torus_knot_solid(*p, *q, dim, tube, grow)?,
+        Family::Link { link } => curves::link_solid(*link, dim, tube, grow)?,
+        Family::SpunKnot { knot } => curves::spun_knot_solid(*knot, tube, grow)?,
+        Family::SpunLink { link } => curves::spun_link_solid(*link, tube, grow)?,
+        // Composite families are built from their parts, and a Betti class from its
+        // realisation, never by this function.
+        Family::Tentacled { .. } | Family::Scene { .. } | Family::Betti { .. } => return None,
+    })
+}
