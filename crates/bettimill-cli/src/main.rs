@@ -26,6 +26,7 @@ mod cluster;
 mod commands;
 mod completions;
 mod deform;
+mod image;
 mod plan;
 mod preview;
 mod progress;
