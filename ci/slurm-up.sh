@@ -13,7 +13,7 @@
 #                        sbatch --wait (default 3600; see the note at MinJobAge below)
 #
 # Needs root (apt-get, daemons run as root; munged as user munge).
-# See /work/shared/notes/slurm-single-node.md.
+# See docs/cluster.md.
 set -euo pipefail
 
 SLURM_CI_DIR=${SLURM_CI_DIR:-/tmp/slurm}

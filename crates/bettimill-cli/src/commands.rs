@@ -1,6 +1,5 @@
 //! Subcommands. Each returns an [`ExitStatus`] or an error that `main` reports with exit code 2.
 
-use anyhow::Context;
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -90,9 +89,14 @@ enum Command {
     Deform(crate::deform::DeformArgs),
     /// Compute the Betti numbers of a binary image stored as .npy.
     ///
+    /// The file may be gzip- or zstd-compressed (a dataset's KEY.npy.gz or KEY.npy.zst
+    /// members), told by its content; `-` reads standard input.
+    ///
     /// Example: bettimill betti image.npy --json
+    /// Example: tar -xOf shard-000000.tar s000000.npy.gz | bettimill betti -
     Betti {
-        /// A .npy file of bool or integer dtype with 2 to 4 axes (non-zero = foreground).
+        /// A .npy, .npy.gz or .npy.zst file (or - for standard input) of bool or integer
+        /// dtype with 2 to 4 axes (non-zero = foreground).
         image: PathBuf,
         /// Print one JSON object.
         #[arg(long)]
@@ -118,7 +122,8 @@ enum Command {
     ///
     /// Example: bettimill preview demo-out --n 16 --out sheet.png
     Preview {
-        /// A dataset directory, one .tar shard, or a .npy image.
+        /// A dataset directory, one .tar shard, or a .npy image (.npy.gz, .npy.zst, or -
+        /// for standard input, as for `betti`).
         input: PathBuf,
         /// The key of the sample to draw (default: the first sample).
         #[arg(long, conflicts_with = "n")]
@@ -280,8 +285,7 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
 }
 
 fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<ExitStatus> {
-    let npy = bettimill_grid::npy::read_path(path, strict)
-        .with_context(|| format!("cannot use {} as an image", path.display()))?;
+    let npy = crate::image::read_image(path, strict)?;
     let topology = bettimill_homology::topology(&npy.image);
     if json {
         let value = serde_json::json!({

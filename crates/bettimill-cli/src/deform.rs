@@ -23,7 +23,8 @@ pub enum MethodArg {
 /// Arguments of `bettimill deform`.
 #[derive(Args, Debug)]
 pub struct DeformArgs {
-    /// Input image: .npy of bool or integer dtype with 2 to 4 axes (non-zero = foreground).
+    /// Input image: .npy (also .npy.gz, .npy.zst, or - for standard input) of bool or
+    /// integer dtype with 2 to 4 axes (non-zero = foreground).
     image: PathBuf,
     /// Output .npy (same shape and dtype as the input, values 0 and 1).
     #[arg(long)]
@@ -61,8 +62,7 @@ pub struct DeformArgs {
 
 /// Runs `bettimill deform`.
 pub fn run(args: &DeformArgs) -> anyhow::Result<ExitStatus> {
-    let input = bettimill_grid::npy::read_path(&args.image, args.strict)
-        .with_context(|| format!("cannot use {} as an image", args.image.display()))?;
+    let input = crate::image::read_image(&args.image, args.strict)?;
     let method = match args.method {
         MethodArg::Moves => Method::Moves,
         MethodArg::Dilate => Method::Dilate,

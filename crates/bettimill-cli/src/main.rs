@@ -29,6 +29,7 @@ mod commands;
 mod completions;
 mod deform;
 mod directory;
+mod image;
 mod plan;
 mod preview;
 mod progress;

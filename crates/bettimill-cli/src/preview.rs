@@ -60,13 +60,12 @@ fn read_shard(path: &Path) -> anyhow::Result<Vec<u8>> {
 /// Runs `bettimill preview`.
 pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
     let input = request.input;
-    let is_npy = input.extension().is_some_and(|e| e == "npy");
+    let is_npy = crate::image::looks_like_image(input);
     let canvas = if is_npy {
         if request.key.is_some() || request.n.is_some() {
             bail!("--key and --n pick samples of a dataset or shard; a .npy file is one image");
         }
-        let npy = bettimill_grid::npy::read_path(input, false)
-            .with_context(|| format!("cannot use {} as an image", input.display()))?;
+        let npy = crate::image::read_image(input, false)?;
         let topology = bettimill_homology::topology(&npy.image);
         let image = &npy.image;
         let shape: Vec<String> = image.shape().iter().map(|n| n.to_string()).collect();

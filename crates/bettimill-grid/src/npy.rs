@@ -13,6 +13,7 @@
 //! a canonical header, so the same image always gives the same bytes.
 
 use crate::{BinaryImage, GridError};
+use std::io::Read;
 use std::path::Path;
 
 /// An integer or boolean element type of a `.npy` array.
@@ -83,6 +84,21 @@ pub enum NpyError {
         /// Bytes past the end of the data.
         extra: u64,
     },
+    /// A stream goes on past the bytes the header promises (a decompression bomb, or a
+    /// header that lies about the shape); the rest of the stream is not read.
+    #[error("the data goes on past the {expected} bytes the header promises")]
+    Overlong {
+        /// Bytes the shape and dtype need.
+        expected: u64,
+    },
+    /// The header promises more data than the reader's limit.
+    #[error("the header promises {expected} bytes of data, more than the {limit} allowed")]
+    TooLarge {
+        /// Bytes the shape and dtype need.
+        expected: u64,
+        /// The reader's limit.
+        limit: u64,
+    },
     /// The shape is not an image bettimill handles.
     #[error("unsupported shape: {0}")]
     Shape(#[from] GridError),
@@ -114,6 +130,70 @@ pub fn read_path(path: &Path, strict: bool) -> Result<NpyImage, NpyError> {
         path: path.display().to_string(),
         source,
     })?;
+    read_bytes(&bytes, strict)
+}
+
+/// Reads a `.npy` array from a stream (a pipe, a decompressor) without trusting it: the
+/// header is read and checked first, a header that promises more than `limit` bytes of data
+/// is refused before anything is allocated for it, then exactly the promised bytes are read
+/// (the buffer grows only with bytes actually received) and one byte more is asked for, so
+/// a stream that goes on past the header's size is refused without reading the rest.
+pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<NpyImage, NpyError> {
+    let io = |source| NpyError::Io {
+        path: "the stream".to_string(),
+        source,
+    };
+    let mut prefix = Vec::with_capacity(12);
+    (&mut reader)
+        .take(10)
+        .read_to_end(&mut prefix)
+        .map_err(io)?;
+    if prefix.len() < 10 || &prefix[..6] != MAGIC {
+        return Err(NpyError::Format("missing the \\x93NUMPY magic".into()));
+    }
+    if matches!(prefix[6], 2 | 3) {
+        (&mut reader).take(2).read_to_end(&mut prefix).map_err(io)?;
+    }
+    // The header length field is checked by `split_header` below; read at most the
+    // allowed header size so a lying length cannot make this allocate more.
+    let header_len = match prefix[6] {
+        1 => u16::from_le_bytes([prefix[8], prefix[9]]) as u64,
+        2 | 3 if prefix.len() == 12 => {
+            u32::from_le_bytes([prefix[8], prefix[9], prefix[10], prefix[11]]) as u64
+        }
+        _ => 0,
+    };
+    (&mut reader)
+        .take(header_len.min(MAX_HEADER as u64 + 1))
+        .read_to_end(&mut prefix)
+        .map_err(io)?;
+    let (header, data_start) = split_header(&prefix)?;
+    let (dtype, shape) = parse_header(header)?;
+    let expected = shape
+        .iter()
+        .try_fold(dtype.size as u64, |acc, &n| acc.checked_mul(n as u64))
+        .ok_or_else(|| NpyError::Format(format!("shape {shape:?} overflows")))?;
+    if expected > limit {
+        return Err(NpyError::TooLarge { expected, limit });
+    }
+    let mut bytes = prefix;
+    (&mut reader)
+        .take(expected)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    let found = (bytes.len() - data_start) as u64;
+    if found < expected {
+        return Err(NpyError::Truncated { expected, found });
+    }
+    let mut one = [0u8; 1];
+    loop {
+        match reader.read(&mut one) {
+            Ok(0) => break,
+            Ok(_) => return Err(NpyError::Overlong { expected }),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(io(e)),
+        }
+    }
     read_bytes(&bytes, strict)
 }
 
@@ -380,6 +460,68 @@ mod tests {
         img.set(&[1, 2, 3], true);
         img.set(&[0, 1, 0], true);
         img
+    }
+
+    #[test]
+    fn reads_a_stream_exactly_as_bytes() {
+        let img = sample();
+        for descr in ["|u1", ">i2", "<u8"] {
+            let bytes = write_bytes(&img, parse_descr(descr).unwrap());
+            let streamed = read_from(&bytes[..], true, 1 << 20).unwrap();
+            assert_eq!(streamed.image, img, "{descr}");
+            // One byte at a time, as a slow pipe delivers it.
+            struct Trickle<'a>(&'a [u8]);
+            impl std::io::Read for Trickle<'_> {
+                fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                    let Some((first, rest)) = self.0.split_first() else {
+                        return Ok(0);
+                    };
+                    buf[0] = *first;
+                    self.0 = rest;
+                    Ok(1)
+                }
+            }
+            let trickled = read_from(Trickle(&bytes), true, 1 << 20).unwrap();
+            assert_eq!(trickled.image, img, "{descr}");
+        }
+    }
+
+    #[test]
+    fn a_stream_is_held_to_its_header() {
+        let bytes = write_bytes(&sample(), Dtype::U8);
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert!(matches!(
+            read_from(&longer[..], false, 1 << 20),
+            Err(NpyError::Overlong { expected: 24 })
+        ));
+        assert!(matches!(
+            read_from(&bytes[..bytes.len() - 1], false, 1 << 20),
+            Err(NpyError::Truncated {
+                expected: 24,
+                found: 23
+            })
+        ));
+        assert!(matches!(
+            read_from(&bytes[..], false, 23),
+            Err(NpyError::TooLarge {
+                expected: 24,
+                limit: 23
+            })
+        ));
+        // A header promising an enormous array is refused before any data is read.
+        let huge = replace(&bytes, "(2, 3, 4)", "(9999999)");
+        assert!(matches!(
+            read_from(&huge[..], false, 1 << 20),
+            Err(NpyError::TooLarge { .. })
+        ));
+        for short in [&b""[..], b"\x93NUM", b"not npy at all"] {
+            assert!(matches!(
+                read_from(short, false, 1 << 20),
+                Err(NpyError::Format(_))
+            ));
+        }
+        assert_eq!(read_from(&bytes[..], false, 24).unwrap().image, sample());
     }
 
     #[test]

@@ -9,7 +9,7 @@
 //! wherever delta_i != 0. The attachment set A(x) is the part of that boundary covered by
 //! the other foreground voxels, i.e. the union of the closures of the faces of the
 //! foreground neighbours. x is simple iff A(x) is collapsible, which (see
-//! `/work/shared/notes/simple-points.md`) is decided exactly by three cheap conditions:
+//! `docs/topology.md`) is decided exactly by three cheap conditions:
 //!
 //! - T = 1: the foreground neighbours form one (3^d-1)-connected component;
 //! - Tbar = 1: the background face-neighbours form one component, two of them (s*e_i and

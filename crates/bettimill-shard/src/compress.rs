@@ -119,6 +119,38 @@ pub fn compress(data: &[u8], compression: Compression) -> Result<Vec<u8>, ShardE
     }
 }
 
+/// The codec a stream starts with, told by its magic bytes (gzip `1f 8b`, zstd
+/// `28 b5 2f fd`); anything else is [`Compression::None`].
+pub fn sniff(prefix: &[u8]) -> Compression {
+    if prefix.starts_with(&[0x1f, 0x8b]) {
+        Compression::Gzip
+    } else if prefix.starts_with(&[0x28, 0xb5, 0x2f, 0xfd]) {
+        Compression::Zstd
+    } else {
+        Compression::None
+    }
+}
+
+/// A streaming decoder of `compression` over `reader`. It does not limit its output:
+/// the caller reads from it through a bound of its own (for a `.npy`,
+/// `bettimill_grid::npy::read_from` reads exactly what the header promises).
+pub fn decoder<'a, R: std::io::BufRead + 'a>(
+    reader: R,
+    compression: Compression,
+) -> Result<Box<dyn Read + 'a>, ShardError> {
+    Ok(match compression {
+        Compression::None => Box::new(reader),
+        Compression::Gzip => Box::new(flate2::bufread::GzDecoder::new(reader)),
+        Compression::Zstd => Box::new(zstd::stream::read::Decoder::with_buffer(reader).map_err(
+            |source| ShardError::Codec {
+                codec: "zstd",
+                action: "decompression",
+                source,
+            },
+        )?),
+    })
+}
+
 /// Decompresses one member's bytes, refusing output larger than `limit` bytes.
 pub fn decompress(
     data: &[u8],
@@ -202,6 +234,22 @@ mod tests {
         let z = compress(&data(), Compression::Zstd).unwrap();
         assert_eq!(&z[..4], &[0x28, 0xb5, 0x2f, 0xfd]);
         assert_eq!(z[4] & 0b100, 0, "content checksum flag clear");
+    }
+
+    #[test]
+    fn sniffs_and_streams_what_it_writes() {
+        for c in [Compression::None, Compression::Gzip, Compression::Zstd] {
+            let packed = compress(&[b'x'; 100], c).unwrap();
+            assert_eq!(sniff(&packed), c);
+            let mut out = Vec::new();
+            decoder(&packed[..], c)
+                .unwrap()
+                .read_to_end(&mut out)
+                .unwrap();
+            assert_eq!(out, [b'x'; 100], "{c}");
+        }
+        assert_eq!(sniff(&[0x1f]), Compression::None);
+        assert_eq!(sniff(b"\x93NUMPY"), Compression::None);
     }
 
     #[test]

@@ -26,7 +26,7 @@ pub mod ustar;
 pub mod verify;
 
 pub use atomic::{write_atomic, AtomicFile};
-pub use compress::{compress, decompress, Compression};
+pub use compress::{compress, decoder, decompress, sniff, Compression};
 pub use error::ShardError;
 pub use index::{
     blake3_hex, build_shard, count_samples, read_index, read_index_from, wids_index, Index,
