@@ -401,7 +401,6 @@ impl Dataset {
     /// The dataset card written as DIR/README.md: what the dataset is, how it was built,
     /// its label distribution, and how to load it.
     pub fn dataset_card(&self) -> String {
-        let m = &self.manifest;
         let plan = &self.plan;
         let mut card = format!(
             "# {name}\n\nA dataset of {samples} binary images ({dim}D, {side}^{dim} voxels, \
@@ -413,7 +412,7 @@ impl Dataset {
              - rebuild or extend: `bettimill build manifest.toml --out DIR`\n\
              - check: `bettimill verify DIR`\n\n## Labels\n\n\
              | cls | class | betti | samples |\n|---|---|---|---|\n",
-            name = m.name,
+            name = plan.name,
             samples = plan.samples,
             dim = plan.dimension,
             side = plan.side,
@@ -428,6 +427,19 @@ impl Dataset {
                 "| {} | {} | {:?} | {count} |\n",
                 stratum.index, stratum.label, stratum.betti
             ));
+        }
+        if !plan.infeasible.is_empty() {
+            card.push_str(
+                "\n## Left out\n\nCombinations of the manifest's axes that cannot be built, \
+                 so the dataset holds no sample of them:\n\n| combination | reason |\n|---|---|\n",
+            );
+            for item in &plan.infeasible {
+                card.push_str(&format!(
+                    "| {} | {} |\n",
+                    item.label,
+                    item.reason.replace('|', "\\|")
+                ));
+            }
         }
         card.push_str("\n## Splits\n\n| split | samples | shards |\n|---|---|---|\n");
         for (split, size) in &plan.splits {
