@@ -210,7 +210,7 @@ pub fn rebuild_with_progress(
         std::fs::remove_dir_all(&scratch).map_err(io)?;
     }
     let result = (|| {
-        let fresh = Dataset::create(&scratch, &stored.manifest_text, stored.manifest.clone())?;
+        let fresh = Dataset::bind(&scratch, &stored.manifest_text, stored.manifest.clone())?;
         let mut report = AuditReport::default();
         for shard in shards {
             fresh.write_shard_with_progress(shard, &|_| progress())?;

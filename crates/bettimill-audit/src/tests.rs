@@ -17,7 +17,7 @@ family = ["ball", "handle"]
 
 fn built(dir: &Path) -> Dataset {
     let manifest = Manifest::parse(MANIFEST, Path::new("audit.toml")).unwrap();
-    let dataset = Dataset::create(dir, MANIFEST, manifest).unwrap();
+    let dataset = Dataset::bind(dir, MANIFEST, manifest).unwrap();
     dataset.build_in_process(|_, _| {}).unwrap();
     dataset
 }

@@ -24,7 +24,7 @@ pub fn build(
     }
     let manifest_path = manifest;
     let (text, manifest) = load_manifest(manifest)?;
-    let dataset = Dataset::create(out, &text, manifest)?;
+    let dataset = Dataset::bind(out, &text, manifest)?;
     if !quiet && !dataset.plan.infeasible.is_empty() {
         // Said at the start, not only by `plan`: a researcher should know what the dataset
         // will not contain before it is built.
@@ -121,9 +121,9 @@ pub fn build(
             "built {} shards, skipped {} complete ones; {} samples in {} ({}, {} workers), {} regenerations, {} retried shard attempts\n{}",
             report.built,
             report.skipped,
-            report.samples,
+            report.samples_built,
             crate::build_display::human_seconds(seconds),
-            crate::build_display::rate(report.samples, seconds),
+            crate::build_display::rate(report.samples_built, seconds),
             display.workers,
             report.regenerations,
             report.retries,

@@ -127,7 +127,7 @@ pub struct SlurmArgs {
 /// `bettimill slurm`.
 pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
-    let dataset = Dataset::create(&args.out, &text, manifest)?;
+    let dataset = Dataset::bind(&args.out, &text, manifest)?;
     let tasks = args
         .tasks
         .unwrap_or_else(|| dataset.plan.shard_count().clamp(1, 1000));
@@ -226,7 +226,7 @@ pub struct KubernetesArgs {
 /// `bettimill k8s`: prints the Indexed Job on stdout.
 pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
-    let dataset = Dataset::create(&args.out, &text, manifest)?;
+    let dataset = Dataset::bind(&args.out, &text, manifest)?;
     let yaml = cluster::kubernetes_job(
         &dataset,
         &KubernetesOptions {

@@ -70,8 +70,8 @@ pub struct BuildSummary {
     pub built: u64,
     /// Shards found complete.
     pub skipped: u64,
-    /// Samples in the dataset.
-    pub samples: u64,
+    /// Samples in the whole dataset (built now or before).
+    pub dataset_samples: u64,
     /// Rejected attempts in shards built by this run.
     pub regenerations: u64,
 }
@@ -97,9 +97,11 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> BuildError + '_ {
 }
 
 impl Dataset {
-    /// Binds `dir` to a manifest, creating the directory and its identity files when new.
-    /// Refuses a directory that holds anything else; writes nothing when refusing.
-    pub fn create(
+    /// Binds `dir` to a manifest: creates the directory and its identity files when new,
+    /// resumes a directory built from the same manifest by the same bettimill (its
+    /// `build.json` is checked in full), refuses anything else and writes nothing when
+    /// refusing.
+    pub fn bind(
         dir: &Path,
         manifest_text: &str,
         manifest: Manifest,
@@ -128,7 +130,7 @@ impl Dataset {
         let path = layout.manifest_path();
         let text = layout.read_manifest_text()?;
         let manifest = Manifest::parse(&text, &path)?;
-        Dataset::create(dir, &text, manifest)
+        Dataset::bind(dir, &text, manifest)
     }
 
     /// Path of a shard's tar file.
@@ -256,7 +258,7 @@ impl Dataset {
             }
             progress(done as u64 + 1, total);
         }
-        summary.samples = self.plan.samples;
+        summary.dataset_samples = self.plan.samples;
         // Every shard was hashed above or written (and hashed) by this process.
         self.finalize_checked(&|_| true)?;
         Ok(summary)

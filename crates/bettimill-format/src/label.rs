@@ -32,8 +32,11 @@ pub struct Label {
     pub family: String,
     /// Knot or link type ("none" when there is none): a label Betti numbers cannot see.
     pub knot_type: String,
-    /// Index of the sample's stratum (also stored as `KEY.cls`).
-    pub class_index: usize,
+    /// Index of the sample's stratum in the plan (also stored as `KEY.cls`). Written as
+    /// `class_index` in the JSON, the name datasets have always carried; in code it is the
+    /// stratum, not the manifest class (`Stratum::manifest_class`).
+    #[serde(rename = "class_index")]
+    pub stratum: usize,
     /// Human-readable stratum name.
     pub class_label: String,
     /// The sample's seed, 64 hex digits.

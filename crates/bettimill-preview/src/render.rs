@@ -33,7 +33,7 @@ pub fn caption(label: &Label) -> Vec<String> {
     let mut lines = vec![
         format!(
             "{}  class {}: {}",
-            label.key, label.class_index, label.class_label
+            label.key, label.stratum, label.class_label
         ),
         format!(
             "betti {}  euler {}  ({})",

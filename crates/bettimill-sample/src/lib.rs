@@ -44,7 +44,7 @@ impl Sample {
 
     /// `KEY.cls` bytes (the class index in ASCII decimal).
     pub fn cls_bytes(&self) -> Vec<u8> {
-        self.label.class_index.to_string().into_bytes()
+        self.label.stratum.to_string().into_bytes()
     }
 
     /// Every field of the sample (`cls`, `json`, `npy`, `rSIDE.npy`...) with its bytes,
@@ -193,7 +193,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
             mode: mode_name(stratum.mode).to_string(),
             family: stratum.family.label(),
             knot_type: generated.knot_type,
-            class_index: stratum.index,
+            stratum: stratum.index,
             class_label: stratum.label.clone(),
             seed: hex(&task.seed),
             attempt,
