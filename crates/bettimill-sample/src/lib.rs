@@ -124,7 +124,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
     let mut last = String::new();
     for attempt in 0..MAX_ATTEMPTS {
         let mut rng = attempt_rng(&task.seed, attempt);
-        let generated = match bettimill_shapes::generate(
+        let generated = match bettimill_shapes::generate_planned(
             &stratum.family,
             plan.dimension,
             side,

@@ -11,7 +11,7 @@
 use crate::geometry::round6;
 use crate::labels::{embed_betti, expected, knot_type_of, realised_as};
 use crate::place::{
-    canonical_layout, grid_fits, place_objects, place_tunnel, Canvas, Region, CUBE_MARGIN,
+    canonical_layout, grid_fits, place_objects, place_tunnel, PlacementArea, Region, CUBE_MARGIN,
 };
 use crate::sizing::min_extent;
 use crate::{BinaryImage, Dim, Family, Generated, KnotKind, LinkKind, Mode, ShapeError};
@@ -124,10 +124,34 @@ pub(crate) fn generate(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
+    generate_sized(family, dim, side, mode, rng, true)
+}
+
+/// [`generate`] for a request [`check_fits`] has accepted (a planned stratum): the size
+/// checks are not repeated on every attempt. They draw nothing from `rng`, so both give the
+/// same voxels.
+pub(crate) fn generate_planned(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    rng: &mut ChaCha8Rng,
+) -> Result<Generated, ShapeError> {
+    generate_sized(family, dim, side, mode, rng, false)
+}
+
+fn generate_sized(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    rng: &mut ChaCha8Rng,
+    check: bool,
+) -> Result<Generated, ShapeError> {
     if let Family::Betti { betti } = family {
         // The realisation is generated as itself; its record says which class it serves.
         let realised = crate::betti_class::realise(betti, dim, mode)?;
-        let mut generated = generate(&realised, dim, side, mode, rng)
+        let mut generated = generate_sized(&realised, dim, side, mode, rng, check)
             .map_err(|err| realised_as(err, family, &realised))?;
         if let Value::Object(map) = &mut generated.construction {
             map.insert("class".into(), json!(family.label()));
@@ -135,7 +159,9 @@ pub(crate) fn generate(
         generated.construction = sort_keys(generated.construction);
         return Ok(generated);
     }
-    check_sizes(family, dim, side, mode, false)?;
+    if check {
+        check_sizes(family, dim, side, mode, false)?;
+    }
     let (betti, betti_rational) = expected(family, dim, mode)?;
     let d = dim.get();
     let region = Region::for_mode(side, mode);
@@ -143,7 +169,7 @@ pub(crate) fn generate(
     let (placed, strategy) = if let Family::Tunnel { .. } = family {
         (vec![place_tunnel(family, d, side, region, rng)?], "tunnel")
     } else {
-        let canvas = Canvas {
+        let canvas = PlacementArea {
             dim: d,
             side,
             mode,

@@ -368,6 +368,20 @@ pub fn generate(
     generate::generate(family, dim, side, mode, rng)
 }
 
+/// [`generate`] for a request that [`Family::check_fits`] has accepted, as the plan does for
+/// every stratum: the size checks are decided once, at plan time, not on every attempt. The
+/// voxels are those [`generate`] draws (the checks draw nothing from `rng`); a request that
+/// was never checked may fail later, in placement, with a less helpful error.
+pub fn generate_planned(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    rng: &mut ChaCha8Rng,
+) -> Result<Generated, ShapeError> {
+    generate::generate_planned(family, dim, side, mode, rng)
+}
+
 #[cfg(test)]
 mod check;
 

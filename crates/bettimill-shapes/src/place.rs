@@ -485,7 +485,7 @@ fn place_random(
 
 /// The image being filled.
 #[derive(Clone, Copy)]
-pub(crate) struct Canvas {
+pub(crate) struct PlacementArea {
     pub(crate) dim: usize,
     pub(crate) side: usize,
     pub(crate) mode: Mode,
@@ -495,10 +495,10 @@ pub(crate) struct Canvas {
 pub(crate) fn place_objects(
     family: &Family,
     objects: &[Family],
-    canvas: Canvas,
+    canvas: PlacementArea,
     rng: &mut ChaCha8Rng,
 ) -> Result<(Vec<PlacedObject>, &'static str), ShapeError> {
-    let Canvas {
+    let PlacementArea {
         dim,
         side,
         mode,

@@ -382,3 +382,46 @@ fn a_feasible_request_always_generates() {
         }
     }
 }
+
+#[test]
+fn a_planned_request_draws_the_same_voxels_as_a_checked_one() {
+    for (family, dim, side, mode) in [
+        (Family::Handle, Dim::Three, 24, Mode::Embed),
+        (Family::Handlebody { genus: 2 }, Dim::Two, 40, Mode::Carve),
+        (Family::S2xB2, Dim::Four, 24, Mode::Carve),
+        (
+            Family::Betti {
+                betti: vec![1, 1, 0],
+            },
+            Dim::Three,
+            24,
+            Mode::Embed,
+        ),
+    ] {
+        family.check_fits(dim, side, mode).unwrap();
+        for seed in 0..3u64 {
+            let a = generate(
+                &family,
+                dim,
+                side,
+                mode,
+                &mut ChaCha8Rng::seed_from_u64(seed),
+            )
+            .unwrap();
+            let b = generate_planned(
+                &family,
+                dim,
+                side,
+                mode,
+                &mut ChaCha8Rng::seed_from_u64(seed),
+            )
+            .unwrap();
+            assert_eq!(a.image.data(), b.image.data(), "{family:?} seed {seed}");
+            assert_eq!(
+                (a.betti, a.construction),
+                (b.betti, b.construction),
+                "{family:?}"
+            );
+        }
+    }
+}
