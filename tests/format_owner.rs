@@ -8,11 +8,9 @@
 //! - a directory started by another bettimill version is refused, naming both versions.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+mod common;
+use common::{repo_root as workspace, run as bettimill};
 
 /// The non-test part of every `.rs` file under `crates/NAME/src`: everything before the
 /// first `#[cfg(test)]`, and nothing of files named `tests.rs`.
@@ -139,31 +137,39 @@ fn readers_depend_on_the_format_crate() {
     }
 }
 
-fn bettimill(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_bettimill"))
-        .args(args)
-        .output()
-        .expect("bettimill runs")
-}
-
-#[test]
-fn a_directory_of_another_tool_version_is_refused_naming_both_versions() {
-    let tmp = tempfile::tempdir().unwrap();
-    let manifest = tmp.path().join("m.toml");
+/// A 2D dataset of 4 balls in two shards, built in `dir`: the manifest's path and the
+/// output directory.
+fn built_dataset(dir: &Path) -> (PathBuf, PathBuf) {
+    let manifest = dir.join("m.toml");
     std::fs::write(
         &manifest,
         "schema_version = 1\nname = \"v\"\ndimension = 2\nside = 16\nmode = [\"embed\"]\n\
          samples = 4\nshard_size = 2\nseed = 1\n\n[[classes]]\nfamily = \"ball\"\n",
     )
     .unwrap();
-    let out = tmp.path().join("out");
-    let (m, o) = (manifest.to_str().unwrap(), out.to_str().unwrap());
-    let built = bettimill(&["build", m, "--out", o, "--quiet", "--workers", "1"]);
+    let out = dir.join("out");
+    let built = bettimill(&[
+        "build",
+        manifest.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--workers",
+        "1",
+    ]);
     assert!(
         built.status.success(),
         "{}",
         String::from_utf8_lossy(&built.stderr)
     );
+    (manifest, out)
+}
+
+#[test]
+fn a_directory_of_another_tool_version_is_refused_naming_both_versions() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (manifest, out) = built_dataset(tmp.path());
+    let (m, o) = (manifest.to_str().unwrap(), out.to_str().unwrap());
     // Pretend an older bettimill started the directory.
     let build_json = out.join("build.json");
     let text = std::fs::read_to_string(&build_json).unwrap();
@@ -199,21 +205,8 @@ fn a_directory_of_another_tool_version_is_refused_naming_both_versions() {
 #[test]
 fn verify_and_audit_of_an_index_of_format_version_1_say_so() {
     let tmp = tempfile::tempdir().unwrap();
-    let manifest = tmp.path().join("m.toml");
-    std::fs::write(
-        &manifest,
-        "schema_version = 1\nname = \"v\"\ndimension = 2\nside = 16\nmode = [\"embed\"]\n\
-         samples = 4\nshard_size = 2\nseed = 1\n\n[[classes]]\nfamily = \"ball\"\n",
-    )
-    .unwrap();
-    let out = tmp.path().join("out");
-    let (m, o) = (manifest.to_str().unwrap(), out.to_str().unwrap());
-    let built = bettimill(&["build", m, "--out", o, "--quiet", "--workers", "1"]);
-    assert!(
-        built.status.success(),
-        "{}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    let (_, out) = built_dataset(tmp.path());
+    let o = out.to_str().unwrap();
     assert!(bettimill(&["verify", o]).status.success());
     // What bettimill 0.1.0 wrote before the index grew with shards: format_version 1, every
     // member listed, no shard_count.

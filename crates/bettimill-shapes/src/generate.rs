@@ -127,20 +127,10 @@ pub(crate) fn generate(
     generate_sized(family, dim, side, mode, rng, true)
 }
 
-/// [`generate`] for a request [`check_fits`] has accepted (a planned stratum): the size
-/// checks are not repeated on every attempt. They draw nothing from `rng`, so both give the
-/// same voxels.
-pub(crate) fn generate_planned(
-    family: &Family,
-    dim: Dim,
-    side: usize,
-    mode: Mode,
-    rng: &mut ChaCha8Rng,
-) -> Result<Generated, ShapeError> {
-    generate_sized(family, dim, side, mode, rng, false)
-}
-
-fn generate_sized(
+/// [`generate`], with the size checks (`check`) or without them, for a request
+/// [`check_fits`] has accepted ([`crate::generate_planned`]). The checks draw nothing from
+/// `rng`, so both give the same voxels.
+pub(crate) fn generate_sized(
     family: &Family,
     dim: Dim,
     side: usize,

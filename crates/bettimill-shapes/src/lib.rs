@@ -379,7 +379,7 @@ pub fn generate_planned(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_planned(family, dim, side, mode, rng)
+    generate::generate_sized(family, dim, side, mode, rng, false)
 }
 
 #[cfg(test)]
