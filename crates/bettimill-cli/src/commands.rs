@@ -265,8 +265,9 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else if report.problems.is_empty() {
         outln!(
-            "ok: {} shards match {}",
+            "ok: {} shards and {} other files match {}",
             report.shards_checked,
+            report.files_checked,
             bettimill_format::DatasetDir::new(dir)
                 .index_path()
                 .display()
