@@ -63,8 +63,9 @@ pub fn bounding_box(image: &BinaryImage) -> Option<Vec<Range<usize>>> {
     any.then(|| lo.into_iter().zip(hi).map(|(l, h)| l..h).collect())
 }
 
-/// The mode an unlabelled image most likely has: carve when the surface of the
-/// foreground's bounding box is mostly foreground (a solid cube's walls), embed otherwise.
+/// The mode an unlabelled image most likely has: carve when the foreground's bounding box
+/// spans at least half of every axis and at least 90% of its surface is foreground (a
+/// solid cube's walls, pierced only where a tunnel leaves), embed otherwise.
 pub fn guess_mode(image: &BinaryImage) -> Mode {
     let Some(bbox) = bounding_box(image) else {
         return Mode::Embed;
@@ -80,7 +81,8 @@ pub fn guess_mode(image: &BinaryImage) -> Mode {
             solid += (v != 0) as u64;
         }
     }
-    if 2 * solid > surface {
+    let spans_image = (0..d).all(|a| 2 * bbox[a].len() >= image.shape()[a]);
+    if spans_image && 10 * solid >= 9 * surface {
         Mode::Carve
     } else {
         Mode::Embed
@@ -478,4 +480,152 @@ pub fn choose_slice(focus: &Focus, holes: u64) -> Option<Choice> {
         },
         |(_, choice)| choice,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random bytes (a 64-bit LCG), each 1 with probability `p`/256.
+    fn noise(shape: &[usize], seed: u64, p: u64) -> BinaryImage {
+        let mut image = BinaryImage::zeros(shape).unwrap();
+        let mut x = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        for v in image.data_mut() {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            *v = ((x >> 33) % 256 < p) as u8;
+        }
+        image
+    }
+
+    /// Clears everything outside the box `lo..hi` on every axis.
+    fn keep_box(image: &mut BinaryImage, lo: usize, hi: usize) {
+        for i in 0..image.len() {
+            let c = image.coords(i);
+            if (0..image.dim().get()).any(|a| c[a] < lo || c[a] >= hi) {
+                image.data_mut()[i] = 0;
+            }
+        }
+    }
+
+    #[test]
+    fn the_crop_holds_every_voxel_of_interest() {
+        for (n, shape) in [vec![30, 20], vec![12, 17, 9], vec![8, 9, 7, 10]]
+            .iter()
+            .enumerate()
+        {
+            for seed in 0..4 {
+                let mut image = noise(shape, seed + 10 * n as u64, 6);
+                keep_box(&mut image, 2, 7);
+                // Embed: every foreground voxel lies in the crop, with MARGIN around the
+                // object where the image allows.
+                let focus = Focus::new(&image, Mode::Embed);
+                for i in 0..image.len() {
+                    let c = image.coords(i);
+                    if image.data()[i] != 0 {
+                        assert!((0..shape.len()).all(|a| focus.crop[a].contains(&c[a])));
+                    }
+                }
+                for (a, (crop, object)) in focus.crop.iter().zip(&focus.object).enumerate() {
+                    assert_eq!(crop.start, object.start.saturating_sub(MARGIN), "axis {a}");
+                    assert_eq!(crop.end, (object.end + MARGIN).min(shape[a]), "axis {a}");
+                }
+                // Carve: a solid cube (one-voxel margin) with the noise removed; every
+                // cavity voxel lies in the crop, and the margin is no cavity.
+                let inner =
+                    |c: &[usize; 4]| (0..shape.len()).all(|a| c[a] >= 1 && c[a] + 1 < shape[a]);
+                let mut carved = image.complement();
+                for i in 0..carved.len() {
+                    if !inner(&carved.coords(i)) {
+                        carved.data_mut()[i] = 0;
+                    }
+                }
+                let focus = Focus::new(&carved, Mode::Carve);
+                for i in 0..carved.len() {
+                    let c = carved.coords(i);
+                    if inner(&c) && carved.data()[i] == 0 {
+                        assert_eq!(focus.interest.data()[i], 1);
+                        assert!((0..shape.len()).all(|a| focus.crop[a].contains(&c[a])));
+                    } else {
+                        assert_eq!(focus.interest.data()[i], 0);
+                    }
+                }
+                assert_eq!(guess_mode(&carved), Mode::Carve);
+                assert_eq!(guess_mode(&image), Mode::Embed);
+            }
+        }
+    }
+
+    #[test]
+    fn holes_are_counted_like_the_homology_counts_b1() {
+        for seed in 0..40 {
+            let image = noise(&[11, 13], seed, 40 + 4 * seed);
+            let b1 = topology(&image).betti[1];
+            assert_eq!(
+                hole_areas(image.data(), 11, 13).len() as u64,
+                b1,
+                "seed {seed}"
+            );
+        }
+        // A 3x3 ring has one hole of one pixel.
+        assert_eq!(hole_areas(&[1, 1, 1, 1, 0, 1, 1, 1, 1], 3, 3), vec![1]);
+    }
+
+    #[test]
+    fn arranging_permutes_axes_and_slabs_merge_windows() {
+        let image = noise(&[4, 5, 6], 7, 128);
+        let ranges = [1..3, 0..5, 2..6];
+        let (shape, data) = arrange(&image, &[2, 0, 1], &ranges);
+        assert_eq!(shape, vec![4, 2, 5]);
+        for z in 0..4 {
+            for x in 0..2 {
+                for y in 0..5 {
+                    let v = data[(z * 2 + x) * 5 + y] != 0;
+                    assert_eq!(v, image.get(&[x + 1, y, z + 2]));
+                }
+            }
+        }
+        // Windows of 3 along the first axis: any voxel of the three.
+        let (wshape, wdata) = windows(&shape, &data, 1, 3);
+        assert_eq!(wshape, vec![2, 2, 5]);
+        for s in 0..2 {
+            for p in 0..10 {
+                let any = (s..s + 3).any(|z| data[z * 10 + p] != 0);
+                assert_eq!(wdata[s * 10 + p] != 0, any);
+            }
+        }
+        // A slab view of width 1 is the slice; its Betti numbers are the slice's.
+        let fixed = [(1usize, 2..3)];
+        let view = slab_view(&image, Mode::Embed, &fixed);
+        assert_eq!(view.shape(), &[4, 6]);
+        assert_eq!(topology(&view).betti, slice_betti(&image, &[(1, 2)]));
+        for x in 0..4 {
+            for z in 0..6 {
+                assert_eq!(view.get(&[x, z]), image.get(&[x, 2, z]));
+            }
+        }
+    }
+
+    #[test]
+    fn a_ball_is_cut_through_its_middle() {
+        // No holes to show: the fullest slice wins, the middle one of a ball.
+        let mut image = BinaryImage::zeros(&[15, 15, 15]).unwrap();
+        for i in 0..image.len() {
+            let c = image.coords(i);
+            let r2: i64 = (0..3).map(|a| (c[a] as i64 - 7).pow(2)).sum();
+            image.data_mut()[i] = (r2 <= 20) as u8;
+        }
+        let choice = choose_slice(&Focus::new(&image, Mode::Embed), 0).unwrap();
+        assert_eq!(
+            choice,
+            Choice {
+                order: vec![0, 1, 2],
+                at: vec![7],
+                width: 1
+            }
+        );
+    }
 }

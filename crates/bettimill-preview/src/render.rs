@@ -664,3 +664,278 @@ pub fn short_caption(label: &Label) -> Vec<String> {
         format!("hypervolume {}", label.hypervolume),
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::canvas::{EMPTY, FOREGROUND};
+    use bettimill_homology::topology;
+
+    /// A solid torus in a cube of `side`: the ring of radius `big` lies in the plane of
+    /// axes `plane` through the centre, the tube has radius `small`.
+    fn solid_torus(
+        dim: usize,
+        side: usize,
+        plane: (usize, usize),
+        big: f64,
+        small: f64,
+    ) -> BinaryImage {
+        let mut image = BinaryImage::zeros(&vec![side; dim]).unwrap();
+        let c = (side as f64 - 1.0) / 2.0;
+        for i in 0..image.len() {
+            let x = image.coords(i);
+            let p = |a: usize| x[a] as f64 - c;
+            let radial = (p(plane.0).powi(2) + p(plane.1).powi(2)).sqrt() - big;
+            let rest: f64 = (0..dim)
+                .filter(|&a| a != plane.0 && a != plane.1)
+                .map(|a| p(a).powi(2))
+                .sum();
+            if radial * radial + rest <= small * small {
+                image.data_mut()[i] = 1;
+            }
+        }
+        image
+    }
+
+    fn subject<'a>(image: &'a BinaryImage, mode: Mode, betti: &'a [u64]) -> Subject<'a> {
+        Subject { image, mode, betti }
+    }
+
+    #[test]
+    fn the_chosen_slice_of_a_solid_torus_cuts_through_its_hole() {
+        // The ring lies in the plane of axes 0 and 2 (3D) or 0 and 1 (4D), so the default
+        // planes (the last two axes) cut it into two discs and the choice must turn.
+        for (dim, plane, betti) in [(3, (0, 2), vec![1, 1, 0]), (4, (0, 1), vec![1, 1, 0, 0])] {
+            let image = solid_torus(dim, 20, plane, 5.0, 2.0);
+            assert_eq!(topology(&image).betti, betti);
+            let focus = Focus::new(&image, Mode::Embed);
+            let choice = choose_slice(&focus, 1).unwrap();
+            assert_eq!(choice.width, 1, "{dim}D: a plain slice shows this hole");
+            let view = slab_view(&image, Mode::Embed, &choice.fixed());
+            assert_eq!(topology(&view).betti, vec![1, 1], "{dim}D: {choice:?}");
+            assert_eq!(&choice.order[dim - 2..], &[plane.0, plane.1]);
+
+            // Carved out of a solid cube, the same ring is a cavity, and the chosen slice
+            // cuts through it too: the foreground there has a hole.
+            let mut carved = BinaryImage::zeros(image.shape()).unwrap();
+            for i in 0..carved.len() {
+                let x = carved.coords(i);
+                let inside = (0..dim).all(|a| x[a] > 0 && x[a] + 1 < 20);
+                carved.data_mut()[i] = (inside && image.data()[i] == 0) as u8;
+            }
+            let betti = topology(&carved).betti;
+            let focus = Focus::new(&carved, Mode::Carve);
+            let choice = choose_slice(&focus, betti[1..].iter().sum()).unwrap();
+            let view = slab_view(&carved, Mode::Carve, &choice.fixed());
+            assert!(topology(&view).betti[1] > 0, "{dim}D carve: {choice:?}");
+            assert_eq!(&choice.order[dim - 2..], &[plane.0, plane.1]);
+        }
+    }
+
+    #[test]
+    fn an_annulus_is_drawn_with_its_hole() {
+        // 2D: drawn whole (cropped), so the picture has page-free foreground around
+        // an empty centre.
+        let image = solid_torus(2, 16, (0, 1), 4.0, 1.5);
+        assert_eq!(topology(&image).betti, vec![1, 1]);
+        let s = subject(&image, Mode::Embed, &[1, 1]);
+        assert!(choose_slice(&Focus::new(&image, Mode::Embed), 1).is_none());
+        let (rows, _) = body_rows(&s, &Arranged::new(&s));
+        let plane = &rows[0].1[0].plane;
+        let view = BinaryImage::from_vec(
+            &[plane.rows, plane.cols],
+            plane.values.iter().map(|&v| (v != 0) as u8).collect(),
+        )
+        .unwrap();
+        assert_eq!(topology(&view).betti, vec![1, 1]);
+    }
+
+    #[test]
+    fn a_tilted_thin_ring_is_shown_by_a_slab() {
+        // A ring of single voxels along a circle tilted out of every coordinate plane:
+        // no axis-aligned slice holds a closed loop, a slab does.
+        let side = 24;
+        let mut image = BinaryImage::zeros(&[side, side, side]).unwrap();
+        let c = 11.5;
+        for step in 0..720 {
+            let t = step as f64 * std::f64::consts::PI / 360.0;
+            let (u, v) = (7.0 * t.cos(), 7.0 * t.sin());
+            // Tilted: the plane spanned by (1, 0, 0.45) and (0, 1, 0.45), roughly.
+            let p = [c + u, c + v, c + 0.45 * (u + v)];
+            let x: Vec<usize> = p.iter().map(|&q| q.round() as usize).collect();
+            image.set(&x, true);
+        }
+        let betti = topology(&image).betti;
+        assert_eq!(betti, vec![1, 1, 0]);
+        let focus = Focus::new(&image, Mode::Embed);
+        let choice = choose_slice(&focus, 1).unwrap();
+        assert!(choice.width > 1, "{choice:?}");
+        let view = slab_view(&image, Mode::Embed, &choice.fixed());
+        assert!(topology(&view).betti[1] >= 1, "{choice:?}");
+    }
+
+    #[test]
+    fn rows_and_tiles_of_a_small_4d_object_all_hold_part_of_it() {
+        // A small object in a big 4D image: the old layout drew empty first and last rows.
+        let mut image = BinaryImage::zeros(&[24, 24, 24, 24]).unwrap();
+        let small = solid_torus(4, 10, (2, 3), 2.5, 1.2);
+        for i in 0..small.len() {
+            if small.data()[i] != 0 {
+                let x = small.coords(i);
+                image.set(&[x[0] + 9, x[1] + 3, x[2] + 11, x[3] + 7], true);
+            }
+        }
+        let betti = topology(&image).betti;
+        let s = subject(&image, Mode::Embed, &betti);
+        let view = Arranged::new(&s);
+        let (rows, scale) = body_rows(&s, &view);
+        assert!(rows.len() >= 2);
+        for (label, tiles) in &rows {
+            // Every slice tile (not the projection) has foreground: no empty row or tile.
+            assert!(tiles.len() >= 2, "{label}");
+            for tile in &tiles[1..] {
+                assert!(
+                    tile.plane.values.iter().any(|&v| v != 0),
+                    "{label} {}",
+                    tile.label
+                );
+            }
+        }
+        // The crop makes the tiles big: the planes are at most the object plus margins.
+        let tile = &rows[0].1[1];
+        assert!(tile.plane.rows <= 10 + 2 * crate::focus::MARGIN);
+        assert!(tile.plane.cols * scale >= 64);
+        // Exactly one tile is outlined, and it shows a hole.
+        let chosen: Vec<&Tile> = rows
+            .iter()
+            .flat_map(|(_, t)| t)
+            .filter(|t| t.chosen)
+            .collect();
+        assert_eq!(chosen.len(), 1);
+        assert!(chosen[0].label.ends_with("[1,1]"), "{}", chosen[0].label);
+    }
+
+    #[test]
+    fn the_sheet_has_no_empty_row() {
+        let images: Vec<BinaryImage> = (0..5)
+            .map(|n| solid_torus(3, 16 + n, (n % 3, 2 - n % 2), 4.0, 1.5))
+            .collect();
+        let bettis: Vec<Vec<u64>> = images.iter().map(|i| topology(i).betti).collect();
+        let samples: Vec<(Subject, Vec<String>)> = images
+            .iter()
+            .zip(&bettis)
+            .map(|(i, b)| (subject(i, Mode::Embed, b), vec!["k".to_string()]))
+            .collect();
+        let sheet = contact_sheet(&samples).unwrap();
+        // 5 samples in rows of 3: two rows; every horizontal band of a row's height in the
+        // drawing area holds foreground.
+        let (w, h) = (sheet.width(), sheet.height());
+        let band = (h - 2 * MARGIN) / 2;
+        for r in 0..2 {
+            let y0 = MARGIN + r * band;
+            let any =
+                (y0..y0 + band).any(|y| (0..w).any(|x| sheet.pixel(x, y) == Some(FOREGROUND)));
+            assert!(any, "row {r} is empty");
+        }
+        // And the bottom margin is no taller than a row's gap (no trailing empty row).
+        let last_ink = (0..h)
+            .rev()
+            .find(|&y| (0..w).any(|x| sheet.pixel(x, y) != Some(PAGE)))
+            .unwrap();
+        assert!(h - last_ink <= MARGIN + 3 * GAP, "{h} {last_ink}");
+    }
+
+    #[test]
+    fn projection_is_darker_where_more_voxels_lie_along_the_ray() {
+        // Two 1x3 layers: column 0 empty, column 1 in one layer, column 2 in both.
+        let plane = projection_plane(&[0, 1, 1, 0, 0, 1], 2, 1, 3, Mode::Embed);
+        assert_eq!(plane.values[0], 0);
+        assert!(plane.values[1] >= 96);
+        assert_eq!(plane.values[2], 255);
+        assert!(plane.values[1] < plane.values[2]);
+        // Carve: the same counts are cavities, lighter where there are more.
+        let plane = projection_plane(&[0, 1, 1, 0, 0, 1], 2, 1, 3, Mode::Carve);
+        assert_eq!(plane.values[0], 255);
+        assert!(plane.values[1] <= 159);
+        assert!(plane.values[1] > plane.values[2]);
+    }
+
+    #[test]
+    fn a_2d_pixel_becomes_a_block_of_foreground_colour() {
+        let mut image = BinaryImage::zeros(&[40, 40]).unwrap();
+        image.set(&[20, 25], true);
+        image.set(&[23, 22], true);
+        let s = subject(&image, Mode::Embed, &[2, 0]);
+        let canvas = render_sample(&s, &["test".to_string()]).unwrap();
+        // Cropped to rows 18..26, columns 20..28 (8 x 8): 512 / 8 = 64 pixels per voxel,
+        // below a one-line caption and a two-line legend.
+        let top =
+            MARGIN + font::LINE_HEIGHT * CAPTION_SCALE + 2 * (font::LINE_HEIGHT * 3 / 2) + GAP;
+        let at = |row: usize, col: usize| canvas.pixel(MARGIN + col * 64 + 10, top + row * 64 + 10);
+        assert_eq!(at(2, 5), Some(FOREGROUND));
+        assert_eq!(at(5, 2), Some(FOREGROUND));
+        assert_eq!(at(0, 0), Some(EMPTY));
+        assert_eq!(at(7, 7), Some(EMPTY));
+        assert_eq!(canvas.pixel(MARGIN + 8 * 64 + 2, top + 10), Some(PAGE));
+    }
+
+    #[test]
+    fn every_dimension_renders_and_equal_inputs_give_equal_bytes() {
+        for shape in [vec![9, 7], vec![6, 5, 4], vec![3, 4, 5, 6]] {
+            let mut image = BinaryImage::zeros(&shape).unwrap();
+            let n = image.len();
+            for i in (0..n).step_by(3) {
+                image.data_mut()[i] = 1;
+            }
+            let betti = topology(&image).betti;
+            for mode in [Mode::Embed, Mode::Carve] {
+                let s = subject(&image, mode, &betti);
+                let a = render_sample(&s, &["x".to_string()]).unwrap().to_png();
+                let copy = image.clone();
+                let b = render_sample(&subject(&copy, mode, &betti), &["x".to_string()])
+                    .unwrap()
+                    .to_png();
+                assert_eq!(a, b);
+                let sheet = |img: &BinaryImage| {
+                    contact_sheet(&[(subject(img, mode, &betti), vec!["k".to_string()])])
+                        .unwrap()
+                        .to_png()
+                };
+                assert_eq!(sheet(&image), sheet(&copy));
+            }
+        }
+        // A torus picture twice, byte for byte.
+        let torus = solid_torus(4, 14, (1, 3), 3.5, 1.5);
+        let betti = topology(&torus).betti;
+        let draw = || {
+            render_sample(&subject(&torus, Mode::Embed, &betti), &[])
+                .unwrap()
+                .to_png()
+        };
+        assert_eq!(draw(), draw());
+        assert!(matches!(contact_sheet(&[]), Err(PreviewError::Empty)));
+    }
+
+    #[test]
+    fn long_caption_lines_wrap_after_commas_or_spaces() {
+        let lines = vec![
+            "scene(curve,handle,knot) carve".to_string(),
+            "short".to_string(),
+        ];
+        assert_eq!(
+            wrap(&lines, 12),
+            vec!["scene(curve,", "handle,", "knot) carve", "short"]
+        );
+        assert_eq!(wrap(&["abcdefgh".to_string()], 3), vec!["abc", "def", "gh"]);
+    }
+
+    #[test]
+    fn picks_keep_the_chosen_slice() {
+        assert_eq!(pick_with(&[1, 2, 3], 24, Some(2)), vec![1, 2, 3]);
+        assert_eq!(
+            pick_with(&(0..100).collect::<Vec<_>>(), 5, Some(30)),
+            vec![0, 30, 49, 74, 99]
+        );
+        assert_eq!(pick_with(&[4, 5], 24, Some(9)), vec![4, 5]);
+    }
+}
