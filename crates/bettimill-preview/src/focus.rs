@@ -10,7 +10,8 @@
 //!   of interest has the most holes (its own b1: background components enclosed in the
 //!   plane, [`hole_areas`]) of at least 1% of the plane (and 2 pixels), counted up to the
 //!   sample's own number of holes (b1 + ... + b_{d-1}; a ball gets no credit for a pocket
-//!   its rough surface leaves in one slice); then the largest hole area; then the fullest; then the one nearest the middle of the object; then the
+//!   its rough surface leaves in one slice); then the largest hole area; then the fullest (up to three
+//!   quarters of the plane, so a slice that is all cavity loses); then the one nearest the middle of the object; then the
 //!   first in a fixed order (the last two axes as the plane first). When no slice shows
 //!   every hole (a small tilted ring is cut into arcs by every axis-aligned plane), slabs
 //!   2, 3, 4, 6, ... slices thick are tried the same way, seen as the union of their
@@ -382,7 +383,7 @@ pub fn choose_slice(focus: &Focus, holes: u64) -> Option<Choice> {
     }
     let tried = if d == 3 { MAX_TRIED_3D } else { MAX_TRIED_4D };
     let deepest = focus.crop.iter().map(|r| r.len()).max().unwrap_or(1);
-    // (holes shown, -width, their area, voxels, -distance from the middle), larger is
+    // (holes shown, -width, their area, fill, -distance from the middle), larger is
     // better.
     type Score = (u64, i64, usize, usize, i64);
     let mut best: Option<(Score, Choice)> = None;
@@ -444,7 +445,10 @@ pub fn choose_slice(focus: &Focus, holes: u64) -> Option<Choice> {
                         (2 * x as i64 + width as i64 - 1 - (r.start + r.end - 1) as i64).abs()
                     })
                     .sum();
-                let score = (shown, -(width as i64), hole_area, voxels, -off_centre);
+                // Fullest, up to three quarters of the plane: a slice all cavity (a tunnel's)
+                // shows nothing.
+                let fill = voxels.min(3 * (area - voxels));
+                let score = (shown, -(width as i64), hole_area, fill, -off_centre);
                 if best.as_ref().is_none_or(|(s, _)| score > *s) {
                     best = Some((
                         score,
