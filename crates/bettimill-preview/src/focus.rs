@@ -15,7 +15,8 @@
 //!   first in a fixed order (the last two axes as the plane first). When no slice shows
 //!   every hole (a small tilted ring is cut into arcs by every axis-aligned plane), slabs
 //!   2, 3, 4, 6, ... slices thick are tried the same way, seen as the union of their
-//!   slices, and the thinnest that shows more holes wins. The choice depends on the voxels
+//!   slices, and the thinnest that shows more holes wins (only for crops of at most
+//!   2^23 voxels, a bounded cost). The choice depends on the voxels
 //!   only, so pictures are deterministic.
 
 use bettimill_grid::{BinaryImage, Mode};
@@ -324,6 +325,11 @@ pub fn hole_areas(plane: &[u8], rows: usize, cols: usize) -> Vec<usize> {
     areas
 }
 
+/// Slabs are tried only when the crop holds at most this many voxels (every demo and
+/// family sheet, up to 48^4): trying them costs about a second per 4D sample at side 48,
+/// and a large object is big enough for plain slices to show its holes.
+const MAX_SLAB_VOLUME: usize = 1 << 23;
+
 /// Slab thicknesses tried, thinnest first.
 const WIDTHS: [usize; 12] = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64];
 
@@ -387,7 +393,12 @@ pub fn choose_slice(focus: &Focus, holes: u64) -> Option<Choice> {
     // better.
     type Score = (u64, i64, usize, usize, i64);
     let mut best: Option<(Score, Choice)> = None;
-    for width in WIDTHS.into_iter().filter(|&w| w == 1 || w < deepest) {
+    let volume: usize = focus.crop.iter().map(|r| r.len()).product();
+    let slabs = volume <= MAX_SLAB_VOLUME;
+    for width in WIDTHS
+        .into_iter()
+        .filter(|&w| w == 1 || (slabs && w < deepest))
+    {
         for order in orders(d) {
             let fixed = &order[..d - 2];
             if fixed.iter().any(|&a| focus.crop[a].len() < width) {
