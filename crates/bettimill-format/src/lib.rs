@@ -25,7 +25,7 @@ pub mod member;
 pub use dir::{
     check_build_info, check_tar_file, BuildInfo, CompletionRecord, DatasetDir, ShardState, TarCheck,
 };
-pub use label::{Label, ResolutionLabel};
+pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};
 
 use std::path::PathBuf;

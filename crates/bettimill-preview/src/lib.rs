@@ -22,7 +22,7 @@ pub mod stats;
 pub use canvas::Canvas;
 pub use render::{caption, contact_sheet, render_sample, short_caption};
 pub use samples::{keys_in_tar, labels_in_tar, samples_in_tar, SampleView};
-pub use stats::{plot, BuildTime, Stats};
+pub use stats::{plot, BuildTime, Preservation, Stats};
 
 /// Why a preview or statistic could not be made.
 #[derive(Debug, thiserror::Error)]
