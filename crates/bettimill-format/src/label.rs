@@ -60,11 +60,30 @@ pub struct Label {
     pub resolutions: Vec<ResolutionLabel>,
 }
 
+/// How a downscaled copy is pooled from the full-resolution voxels: which phase wins a
+/// block that holds both.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Pooling {
+    /// A coarse voxel is foreground when any of its fine voxels is (max pooling). Every
+    /// copy written before bettimill 0.2.0 was pooled this way, so a label without the
+    /// field reads as this.
+    #[default]
+    ForegroundAny,
+    /// A coarse voxel is background when any of its fine voxels is (min pooling): the
+    /// cavities of carve mode are never filled in (but thin foreground between them
+    /// closes).
+    BackgroundAny,
+}
+
 /// The label of one downscaled copy.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ResolutionLabel {
     /// Side length of the copy.
     pub side: u32,
+    /// How the copy was pooled.
+    #[serde(default)]
+    pub pooling: Pooling,
     /// Its Betti numbers over Z/2, computed from its voxels.
     pub betti: Vec<u64>,
     /// Its Euler characteristic.

@@ -32,7 +32,7 @@ pub use dir::{
     check_build_info, check_tar_file, BuildInfo, CompletionRecord, DatasetDir, ShardState,
     TarCheck, CLASSES_FILE, REQUIRED_FILES,
 };
-pub use label::{Label, ResolutionLabel};
+pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};
 
 use std::path::PathBuf;

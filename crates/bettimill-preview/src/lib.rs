@@ -25,7 +25,7 @@ pub use canvas::Canvas;
 pub use focus::guess_mode;
 pub use render::{caption, contact_sheet, label_mode, render_sample, short_caption, Subject};
 pub use samples::{keys_in_tar, labels_in_tar, samples_in_tar, SampleView};
-pub use stats::{plot, BuildTime, Stats};
+pub use stats::{plot, BuildTime, Preservation, Stats};
 
 /// Why a preview or statistic could not be made.
 #[derive(Debug, thiserror::Error)]

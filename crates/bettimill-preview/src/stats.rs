@@ -7,7 +7,7 @@ use crate::canvas::{Canvas, BAR, FRAME, INK, MUTED, PAGE};
 use crate::font;
 use crate::render::betti_text;
 use crate::PreviewError;
-use bettimill_format::{CompletionRecord, Label};
+use bettimill_format::{CompletionRecord, Label, Pooling};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -108,6 +108,19 @@ pub struct Histogram {
     pub counts: Vec<u64>,
 }
 
+/// How many downscaled copies of one side length kept their topology.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Preservation {
+    /// Copies of this side.
+    pub copies: u64,
+    /// Copies whose Betti numbers equal the full-resolution sample's.
+    pub preserved: u64,
+    /// `preserved / copies`.
+    pub fraction: f64,
+    /// Copies per pooling rule (`foreground_any`, `background_any`).
+    pub pooling: BTreeMap<String, u64>,
+}
+
 /// Everything `bettimill stats` reports.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Stats {
@@ -143,6 +156,9 @@ pub struct Stats {
     pub regeneration: BTreeMap<String, Regeneration>,
     /// Rejected attempts per class label, from the completion records.
     pub record_regenerations: BTreeMap<String, u64>,
+    /// Downscaled copies per side length: how many there are and how many kept every Betti
+    /// number (`preserved` in their labels).
+    pub resolutions: BTreeMap<u32, Preservation>,
     /// The build's wall-clock span from file modification times (`None` when the times
     /// are not available); set by the caller, which does the file I/O.
     pub build_time: Option<BuildTime>,
@@ -170,6 +186,12 @@ impl Stats {
                     .entry(format!("[{lo}, {hi}]"))
                     .or_default() += 1;
             }
+            for copy in &label.resolutions {
+                let entry = stats.resolutions.entry(copy.side).or_default();
+                entry.copies += 1;
+                entry.preserved += copy.preserved as u64;
+                *entry.pooling.entry(pooling_name(copy.pooling)).or_default() += 1;
+            }
             let regeneration = stats
                 .regeneration
                 .entry(label.class_label.clone())
@@ -177,6 +199,9 @@ impl Stats {
             regeneration.samples += 1;
             regeneration.regenerated += (label.attempt > 0) as u64;
             regeneration.rejected_attempts += label.attempt as u64;
+        }
+        for entry in stats.resolutions.values_mut() {
+            entry.fraction = entry.preserved as f64 / entry.copies as f64;
         }
         for regeneration in stats.regeneration.values_mut() {
             regeneration.rate = regeneration.regenerated as f64 / regeneration.samples as f64;
@@ -244,6 +269,28 @@ impl Stats {
                 })
                 .collect(),
         );
+        if !self.resolutions.is_empty() {
+            table(
+                "downscaled copies that keep the topology (preserved / copies, pooling)",
+                self.resolutions
+                    .iter()
+                    .map(|(side, p)| {
+                        let rules: Vec<String> =
+                            p.pooling.iter().map(|(k, v)| format!("{k} {v}")).collect();
+                        (
+                            format!("r{side}"),
+                            format!(
+                                "{}/{} ({:.1}%), {}",
+                                p.preserved,
+                                p.copies,
+                                p.fraction * 100.0,
+                                rules.join(", ")
+                            ),
+                        )
+                    })
+                    .collect(),
+            );
+        }
         table(
             "regenerations per class (samples with attempt > 0 / samples, rejected attempts)",
             self.regeneration
@@ -274,6 +321,14 @@ impl Stats {
             ),
         }
         out
+    }
+}
+
+/// The label spelling of a pooling rule.
+fn pooling_name(pooling: Pooling) -> String {
+    match serde_json::to_value(pooling) {
+        Ok(serde_json::Value::String(name)) => name,
+        _ => format!("{pooling:?}"),
     }
 }
 
@@ -385,6 +440,14 @@ mod tests {
         .unwrap()
     }
 
+    fn copy(side: u32, preserved: bool, pooling: &str) -> bettimill_format::ResolutionLabel {
+        serde_json::from_value(serde_json::json!({
+            "side": side, "pooling": pooling, "betti": [1, 0], "euler": 1, "hypervolume": 3,
+            "preserved": preserved
+        }))
+        .unwrap()
+    }
+
     #[test]
     fn counts_rates_and_histogram_add_up() {
         let labels = vec![
@@ -405,7 +468,34 @@ mod tests {
             },
             regenerations: vec![("ball".to_string(), 2)],
         }];
+        let mut labels = labels;
+        labels[0].1.resolutions = vec![
+            copy(4, true, "background_any"),
+            copy(2, false, "background_any"),
+        ];
+        labels[1].1.resolutions = vec![
+            copy(4, false, "background_any"),
+            copy(2, false, "background_any"),
+        ];
+        // A label written before pooling was recorded reads as max pooling.
+        labels[2].1.resolutions = vec![serde_json::from_value(serde_json::json!({
+            "side": 4, "betti": [1, 1], "euler": 0, "hypervolume": 3, "preserved": true
+        }))
+        .unwrap()];
         let stats = Stats::collect(&labels, &records, 1);
+        assert_eq!(stats.resolutions[&4].copies, 3);
+        assert_eq!(stats.resolutions[&4].preserved, 2);
+        assert!((stats.resolutions[&4].fraction - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(stats.resolutions[&4].pooling["background_any"], 2);
+        assert_eq!(stats.resolutions[&4].pooling["foreground_any"], 1);
+        assert_eq!(stats.resolutions[&2].preserved, 0);
+        assert_eq!(stats.resolutions[&2].fraction, 0.0);
+        let text = stats.to_text();
+        assert!(
+            text.contains("r4  2/3 (66.7%), background_any 2, foreground_any 1"),
+            "{text}"
+        );
+        assert!(text.contains("r2  0/2 (0.0%), background_any 2"), "{text}");
         assert_eq!(stats.samples, 3);
         assert_eq!(stats.splits["train"], 2);
         assert_eq!(stats.betti["[1, 0]"], 2);

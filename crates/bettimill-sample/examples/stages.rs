@@ -5,6 +5,7 @@
 // An example for people: printing is its purpose (only library code must not print).
 #![allow(clippy::print_stdout, clippy::print_stderr)]
 use bettimill_plan::{attempt_rng, derive_seed, Plan};
+use bettimill_sample::Pooling;
 use std::path::Path;
 use std::time::Instant;
 
@@ -36,6 +37,21 @@ fn cpu_seconds() -> f64 {
     (ticks(11) + ticks(12)) / 100.0
 }
 
+/// Faces between a foreground and a background voxel.
+fn surface_faces(image: &bettimill_grid::BinaryImage) -> u64 {
+    let data = image.data();
+    let mut faces = 0u64;
+    for (axis, &stride) in image.strides().iter().enumerate() {
+        let n = image.shape()[axis];
+        for (i, &v) in data.iter().enumerate() {
+            if (i / stride) % n + 1 < n && v != data[i + stride] {
+                faces += 1;
+            }
+        }
+    }
+    faces
+}
+
 fn fnv(data: &[u8]) -> u64 {
     data.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
         (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
@@ -55,25 +71,45 @@ fn main() {
     for task in tasks {
         let stratum = &plan.strata[task.stratum];
         let mut rng = attempt_rng(&task.seed, 0);
+        let foreground = stratum
+            .hypervolume
+            .map(|(lo, hi)| bettimill_sample::position_in_bin(lo, hi, &task.seed, 0));
         let t = Instant::now();
         let c = cpu_seconds();
-        let generated = bettimill_shapes::generate(
+        let generated = bettimill_shapes::generate_planned_for(
             &stratum.family,
             plan.dimension,
             side,
             stratum.mode,
+            foreground,
             &mut rng,
         )
         .expect("generate");
         println!(
-            "{} {}: generate {:.2?} cpu {:.2}s (peak {} MiB), foreground {}",
+            "{} {}: generate {:.2?} cpu {:.2}s (peak {} MiB), foreground {} (built for {:?})",
             task.key,
             stratum.label,
             t.elapsed(),
             cpu_seconds() - c,
             peak_rss_mib(),
-            generated.image.count_foreground()
+            generated.image.count_foreground(),
+            foreground,
         );
+        for object in generated.construction["objects"]
+            .as_array()
+            .into_iter()
+            .flatten()
+        {
+            let params = &object["params"];
+            println!(
+                "  object {}: voxels {} tube_radius {} grow {} scale {}",
+                object["family"],
+                object["voxels"],
+                params["tube_radius"],
+                params["grow"],
+                params["scale"]
+            );
+        }
         let mut image = generated.image;
         if let Some((lo, hi)) = stratum.hypervolume {
             let bytes = derive_seed(
@@ -91,9 +127,13 @@ fn main() {
                 peak_rss_mib()
             );
         }
+        println!(
+            "  surface/volume {:.4} (foreground-background faces per foreground voxel)",
+            surface_faces(&image) as f64 / image.count_foreground().max(1) as f64
+        );
         let t = Instant::now();
         let c = cpu_seconds();
-        let topology = bettimill_homology::topology(&image);
+        let topology = bettimill_homology::topology(&bettimill_sample::foreground_window(&image));
         println!(
             "  topology {:?} (expected {:?}): {:.2?} cpu {:.2}s (peak {} MiB)",
             topology.betti,
@@ -102,20 +142,30 @@ fn main() {
             cpu_seconds() - c,
             peak_rss_mib()
         );
-        for &r in &plan.resolutions {
-            let t = Instant::now();
-            let small = bettimill_sample::downscale(&image, side / r as usize);
-            let ds = t.elapsed();
-            let t = Instant::now();
-            let c = cpu_seconds();
-            let top = bettimill_homology::topology(&small);
-            println!(
-                "  r{r}: downscale {ds:.2?}, topology {:?} {:.2?} cpu {:.2}s (peak {} MiB)",
-                top.betti,
-                t.elapsed(),
-                cpu_seconds() - c,
-                peak_rss_mib()
-            );
+        // Both pooling rules on the same voxels, the mode's own first.
+        let own = bettimill_sample::pooling_for(stratum.mode);
+        let other = match own {
+            Pooling::ForegroundAny => Pooling::BackgroundAny,
+            Pooling::BackgroundAny => Pooling::ForegroundAny,
+        };
+        for pooling in [own, other] {
+            for &r in &plan.resolutions {
+                let t = Instant::now();
+                let small = bettimill_sample::downscale(&image, side / r as usize, pooling);
+                let ds = t.elapsed();
+                let t = Instant::now();
+                let c = cpu_seconds();
+                let top = bettimill_homology::topology(&small);
+                let preserved = top.betti == topology.betti;
+                println!(
+                    "  r{r} {pooling:?}: downscale {ds:.2?}, topology {:?} preserved {preserved} \
+                     {:.2?} cpu {:.2}s (peak {} MiB)",
+                    top.betti,
+                    t.elapsed(),
+                    cpu_seconds() - c,
+                    peak_rss_mib()
+                );
+            }
         }
         println!("  fingerprint {:#018x}", fnv(image.data()));
     }

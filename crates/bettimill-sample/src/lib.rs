@@ -10,9 +10,9 @@
 //! setting (deformation, resolutions), and the label a sample must carry is the plan's
 //! stratum's, decided once when the manifest was planned.
 
-pub use bettimill_format::{Label, ResolutionLabel, TOOL_VERSION};
+pub use bettimill_format::{Label, Pooling, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
-use bettimill_grid::BinaryImage;
+use bettimill_grid::{BinaryImage, Mode};
 use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask};
 
 /// How many attempts a sample gets before the build reports it as failed.
@@ -66,16 +66,24 @@ impl Sample {
     }
 }
 
-/// Max pooling by `factor` along every axis: a block is foreground when any of its voxels
-/// is. Every axis length must be a multiple of `factor`.
-pub fn downscale(image: &BinaryImage, factor: usize) -> BinaryImage {
+/// Pools `image` by `factor` along every axis with `pooling`: a block is foreground when
+/// any of its voxels is ([`Pooling::ForegroundAny`], max pooling) or when all of them are
+/// ([`Pooling::BackgroundAny`], min pooling: background when any voxel is). Every axis
+/// length must be a multiple of `factor`.
+pub fn downscale(image: &BinaryImage, factor: usize, pooling: Pooling) -> BinaryImage {
     let d = image.dim().get();
     let shape: Vec<usize> = image.shape().iter().map(|&n| n / factor).collect();
     let mut out = BinaryImage::zeros(&shape).expect("a downscaled valid image is valid");
     let in_strides = image.strides().to_vec();
     let out_strides = out.strides().to_vec();
     let row_len = image.shape()[d - 1];
+    // The value a block takes when any of its voxels has the winning value.
+    let (winner, other) = match pooling {
+        Pooling::ForegroundAny => (1u8, 0u8),
+        Pooling::BackgroundAny => (0u8, 1u8),
+    };
     let out_data = out.data_mut();
+    out_data.fill(other);
     // Row by row along the last axis: the leading coordinates of a row pick the output
     // row, and each run of `factor` voxels along it one output voxel.
     for (r, row) in image.data().chunks_exact(row_len).enumerate() {
@@ -86,12 +94,82 @@ pub fn downscale(image: &BinaryImage, factor: usize) -> BinaryImage {
             rest %= in_strides[axis];
         }
         for (j, run) in row.chunks_exact(factor).enumerate() {
-            if run.iter().any(|&v| v != 0) {
-                out_data[base + j] = 1;
+            if run.iter().any(|&v| (v != 0) as u8 == winner) {
+                out_data[base + j] = winner;
             }
         }
     }
     out
+}
+
+/// The pooling rule of a mode's downscaled copies. Embed mode pools the objects
+/// ([`Pooling::ForegroundAny`]). Carve mode pools the same way: on the 4D mixed 128 preset
+/// (BENCHMARKS.md, issue 17) max pooling kept more copies' topology than pooling the
+/// cavities ([`Pooling::BackgroundAny`]), because the binned constructions' cavities are
+/// thick tubes while the foreground between their parts can be a few voxels thin, and min
+/// pooling closes those gaps. The rule is in every copy's label either way.
+pub fn pooling_for(mode: Mode) -> Pooling {
+    match mode {
+        Mode::Embed | Mode::Carve => Pooling::ForegroundAny,
+    }
+}
+
+/// The image cut down to the bounding box of its foreground (a copy; the image itself
+/// when the box is the whole image or there is no foreground). The foreground, and so its
+/// Betti numbers, is the same, but a solid box with a thick background shell around it
+/// (binned carve samples) no longer makes homology thin the shell.
+pub fn foreground_window(image: &BinaryImage) -> std::borrow::Cow<'_, BinaryImage> {
+    let d = image.dim().get();
+    let shape = image.shape();
+    let row_len = shape[d - 1];
+    let mut lo = [usize::MAX; 4];
+    let mut hi = [0usize; 4];
+    let mut c = [0usize; 4];
+    for row in image.data().chunks_exact(row_len) {
+        if let (Some(first), Some(last)) = (
+            row.iter().position(|&v| v != 0),
+            row.iter().rposition(|&v| v != 0),
+        ) {
+            for axis in 0..d - 1 {
+                lo[axis] = lo[axis].min(c[axis]);
+                hi[axis] = hi[axis].max(c[axis]);
+            }
+            lo[d - 1] = lo[d - 1].min(first);
+            hi[d - 1] = hi[d - 1].max(last);
+        }
+        for axis in (0..d - 1).rev() {
+            c[axis] += 1;
+            if c[axis] < shape[axis] {
+                break;
+            }
+            c[axis] = 0;
+        }
+    }
+    if lo[0] == usize::MAX || (0..d).all(|a| lo[a] == 0 && hi[a] + 1 == shape[a]) {
+        return std::borrow::Cow::Borrowed(image);
+    }
+    let window: Vec<usize> = (0..d).map(|a| hi[a] - lo[a] + 1).collect();
+    let mut out = BinaryImage::zeros(&window).expect("a window of a valid image is valid");
+    let out_row = window[d - 1];
+    for r in 0..out.len() / out_row {
+        let dst = r * out_row;
+        let wc = out.coords(dst);
+        let mut src_coords = [0usize; 4];
+        for a in 0..d {
+            src_coords[a] = wc[a] + lo[a];
+        }
+        let src = image.index(&src_coords[..d]);
+        out.data_mut()[dst..dst + out_row].copy_from_slice(&image.data()[src..src + out_row]);
+    }
+    std::borrow::Cow::Owned(out)
+}
+
+/// The foreground count a binned sample is built for: uniform in the middle 80% of
+/// `[lo, hi]`, from the sample's seed and attempt.
+pub fn position_in_bin(lo: u64, hi: u64, seed: &[u8; 32], attempt: u32) -> u64 {
+    let bits = sub_seed("bettimill hypervolume position v1", seed, attempt);
+    let u = 0.1 + 0.8 * ((bits >> 11) as f64 / (1u64 << 53) as f64);
+    lo + ((hi - lo) as f64 * u) as u64
 }
 
 /// A u64 seed in the named domain for (sample seed, attempt).
@@ -124,11 +202,17 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
     let mut last = String::new();
     for attempt in 0..MAX_ATTEMPTS {
         let mut rng = attempt_rng(&task.seed, attempt);
-        let generated = match bettimill_shapes::generate_planned(
+        // Binned samples are built near a foreground count drawn inside the bin, so that
+        // only a small remainder is left to topology-preserving flips.
+        let foreground = stratum
+            .hypervolume
+            .map(|(lo, hi)| position_in_bin(lo, hi, &task.seed, attempt));
+        let generated = match bettimill_shapes::generate_planned_for(
             &stratum.family,
             plan.dimension,
             side,
             stratum.mode,
+            foreground,
             &mut rng,
         ) {
             Ok(g) => g,
@@ -158,7 +242,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
             "the construction and the plan disagree on {}",
             stratum.label
         );
-        let topology = bettimill_homology::topology(&image);
+        let topology = bettimill_homology::topology(&foreground_window(&image));
         if topology.betti != stratum.betti {
             last = format!(
                 "computed Betti numbers {:?}, the plan's stratum says {:?}",
@@ -168,11 +252,13 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
         }
         let mut downscaled = Vec::new();
         let mut resolutions = Vec::new();
+        let pooling = pooling_for(stratum.mode);
         for &r in &plan.resolutions {
-            let small = downscale(&image, side / r as usize);
+            let small = downscale(&image, side / r as usize, pooling);
             let t = bettimill_homology::topology(&small);
             resolutions.push(ResolutionLabel {
                 side: r,
+                pooling,
                 preserved: t.betti == topology.betti,
                 betti: t.betti,
                 euler: t.euler,
@@ -227,16 +313,21 @@ pub fn hex(bytes: &[u8]) -> String {
 mod tests {
     use super::*;
 
-    /// The definition, voxel by voxel.
-    fn downscale_slowly(image: &BinaryImage, factor: usize) -> BinaryImage {
+    /// The definition, voxel by voxel: a block takes the winning value when any of its
+    /// voxels has it.
+    fn downscale_slowly(image: &BinaryImage, factor: usize, pooling: Pooling) -> BinaryImage {
         let d = image.dim().get();
         let shape: Vec<usize> = image.shape().iter().map(|&n| n / factor).collect();
+        let winner = pooling == Pooling::ForegroundAny;
         let mut out = BinaryImage::zeros(&shape).unwrap();
+        if !winner {
+            out.data_mut().fill(1);
+        }
         for (index, &v) in image.data().iter().enumerate() {
-            if v != 0 {
+            if (v != 0) == winner {
                 let c = image.coords(index);
                 let small: Vec<usize> = c[..d].iter().map(|&x| x / factor).collect();
-                out.set(&small, true);
+                out.set(&small, winner);
             }
         }
         out
@@ -258,21 +349,60 @@ mod tests {
                 state ^= state << 17;
                 *v = (state % 11 == 0) as u8;
             }
-            assert_eq!(
-                downscale(&image, factor).data(),
-                downscale_slowly(&image, factor).data(),
-                "{shape:?} / {factor}"
-            );
+            for pooling in [Pooling::ForegroundAny, Pooling::BackgroundAny] {
+                assert_eq!(
+                    downscale(&image, factor, pooling).data(),
+                    downscale_slowly(&image, factor, pooling).data(),
+                    "{shape:?} / {factor} {pooling:?}"
+                );
+            }
         }
     }
 
     #[test]
-    fn downscaling_is_max_pooling() {
+    fn foreground_any_is_max_pooling_and_background_any_is_min_pooling() {
         let mut image = BinaryImage::zeros(&[4, 4, 4]).unwrap();
         image.set(&[3, 0, 1], true);
-        let small = downscale(&image, 2);
+        let small = downscale(&image, 2, Pooling::ForegroundAny);
         assert_eq!(small.shape(), &[2, 2, 2]);
         assert_eq!(small.count_foreground(), 1);
         assert!(small.get(&[1, 0, 0]));
+        // The complement: one background voxel clears its whole block.
+        for v in image.data_mut() {
+            *v = 1 - *v;
+        }
+        let small = downscale(&image, 2, Pooling::BackgroundAny);
+        assert_eq!(small.count_foreground(), 7);
+        assert!(!small.get(&[1, 0, 0]));
+    }
+
+    #[test]
+    fn the_foreground_window_keeps_the_foreground_and_its_topology() {
+        let mut image = BinaryImage::zeros(&[9, 8, 10]).unwrap();
+        assert_eq!(foreground_window(&image).shape(), &[9, 8, 10]);
+        // A hollow box from (2, 1, 3) to (6, 5, 8).
+        for x in 2..=6 {
+            for y in 1..=5 {
+                for z in 3..=8 {
+                    let inner =
+                        (3..=5).contains(&x) && (2..=4).contains(&y) && (4..=7).contains(&z);
+                    image.set(&[x, y, z], !inner);
+                }
+            }
+        }
+        let window = foreground_window(&image);
+        assert_eq!(window.shape(), &[5, 5, 6]);
+        assert_eq!(window.count_foreground(), image.count_foreground());
+        assert_eq!(
+            bettimill_homology::topology(&window).betti,
+            bettimill_homology::topology(&image).betti
+        );
+        assert_eq!(bettimill_homology::topology(&window).betti, vec![1, 0, 1]);
+    }
+
+    #[test]
+    fn both_modes_record_max_pooling() {
+        assert_eq!(pooling_for(Mode::Carve), Pooling::ForegroundAny);
+        assert_eq!(pooling_for(Mode::Embed), Pooling::ForegroundAny);
     }
 }

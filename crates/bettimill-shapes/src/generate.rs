@@ -8,7 +8,7 @@
 //! with its JSON keys in sorted order so the record's bytes never depend on serde_json's
 //! features.
 
-use crate::geometry::round6;
+use crate::geometry::{round6, uniform, uniform_int};
 use crate::labels::{embed_betti, expected, knot_type_label, realised_as};
 use crate::place::{
     canonical_layout, grid_fits, place_objects, place_tunnel, PlacementArea, Region, CUBE_MARGIN,
@@ -138,10 +138,33 @@ pub(crate) fn generate_sized(
     rng: &mut ChaCha8Rng,
     check: bool,
 ) -> Result<Generated, ShapeError> {
+    generate_for(family, dim, side, mode, rng, check, None)
+}
+
+/// The smallest and largest share of the image the cavities of a sample sized for a
+/// hypervolume take (carve mode); the solid box is sized around them. The same range for
+/// every family, so neither the cavities' volume nor the box's size tells the class.
+pub(crate) const CAVITY_SHARE: (f64, f64) = (0.002, 0.01);
+
+/// [`generate_sized`], and with `foreground` the construction sized so that its
+/// foreground count lands near that many voxels: in carve mode a solid box of nearly
+/// equal sides (instead of the full cube) sized around cavities of a random share
+/// [`CAVITY_SHARE`] of the image, the cavities sized by bisection for the rest; in embed
+/// mode the objects sized for the count. Sizes that cannot reach it come as close as
+/// the room allows.
+pub(crate) fn generate_for(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    rng: &mut ChaCha8Rng,
+    check: bool,
+    foreground: Option<u64>,
+) -> Result<Generated, ShapeError> {
     if let Family::Betti { betti } = family {
         // The realisation is generated as itself; its record says which class it serves.
         let realised = crate::betti_class::realise(betti, dim, mode)?;
-        let mut generated = generate_sized(&realised, dim, side, mode, rng, check)
+        let mut generated = generate_for(&realised, dim, side, mode, rng, check, foreground)
             .map_err(|err| realised_as(err, family, &realised))?;
         if let Value::Object(map) = &mut generated.construction {
             map.insert("class".into(), json!(family.label()));
@@ -154,18 +177,54 @@ pub(crate) fn generate_sized(
     }
     let (betti, betti_rational) = expected(family, dim, mode)?;
     let d = dim.get();
-    let region = Region::for_mode(side, mode);
     let objects = objects_of(family);
-    let (placed, strategy) = if let Family::Tunnel { .. } = family {
-        (vec![place_tunnel(family, d, side, region, rng)?], "tunnel")
+    let tunnel = matches!(family, Family::Tunnel { .. });
+    let full = full_box(d, side);
+    // The solid (carve mode) and the objects' voxel count, when sized for a hypervolume.
+    let mut axes = Vec::new();
+    let (solid, volume) = match (mode, foreground) {
+        (Mode::Carve, Some(target)) if !tunnel => {
+            let (solid, order) = solid_box(d, side, target, rng);
+            axes = order;
+            (solid, Some(solid.count().saturating_sub(target) as f64))
+        }
+        (Mode::Embed, Some(target)) if !tunnel => (full, Some(target as f64)),
+        _ => (full, None),
+    };
+    // A binned carve sample keeps `BOX_WALL` between its cavities and the outside; other
+    // samples use the mode's usual region.
+    let placement = |region: Region, volume: Option<f64>, rng: &mut ChaCha8Rng| {
+        if tunnel {
+            Ok((vec![place_tunnel(family, d, side, region, rng)?], "tunnel"))
+        } else {
+            let canvas = PlacementArea {
+                dim: d,
+                side,
+                mode,
+                region,
+                volume,
+            };
+            place_objects(family, &objects, canvas, rng)
+        }
+    };
+    let usual = Region::for_mode(side, mode);
+    let region = if mode == Mode::Carve && volume.is_some() {
+        solid.region()
     } else {
-        let canvas = PlacementArea {
-            dim: d,
-            side,
-            mode,
-            region,
-        };
-        place_objects(family, &objects, canvas, rng)?
+        usual
+    };
+    // A box too small for the objects falls back to the full cube and the usual region.
+    let (solid, (placed, strategy)) = match placement(region, volume, rng) {
+        Ok(found) if mode == Mode::Carve && volume.is_some() => {
+            let target = foreground.expect("sized for a foreground count");
+            (refit_box(d, side, target, &found.0, &axes), found)
+        }
+        Ok(found) => (solid, found),
+        Err(_) if volume.is_some() && mode == Mode::Carve => {
+            let volume = foreground.map(|t| full.count().saturating_sub(t) as f64);
+            (full, placement(usual, volume, rng)?)
+        }
+        Err(err) => return Err(err),
     };
     let mut image = BinaryImage::cube(dim, side).expect("check_fits rejects sides below 8");
     // Carve mode clears object voxels from the cube; a tunnel's voxels beyond the cube
@@ -173,7 +232,7 @@ pub(crate) fn generate_sized(
     let value = match mode {
         Mode::Embed => 1u8,
         Mode::Carve => {
-            fill_cube(&mut image, d, side);
+            solid.fill(&mut image, d, side);
             0u8
         }
     };
@@ -199,7 +258,7 @@ pub(crate) fn generate_sized(
     } else {
         components
     };
-    let construction = sorted(vec![
+    let mut entries = vec![
         ("family", json!(family.label())),
         ("dim", json!(d)),
         ("side", json!(side)),
@@ -214,7 +273,14 @@ pub(crate) fn generate_sized(
             "cube_margin",
             json!(if mode == Mode::Carve { CUBE_MARGIN } else { 0 }),
         ),
-    ]);
+    ];
+    if let Some(target) = foreground {
+        entries.push(("foreground_target", json!(target)));
+        if mode == Mode::Carve {
+            entries.push(("solid_box", solid.describe(d)));
+        }
+    }
+    let construction = sorted(entries);
     Ok(Generated {
         image,
         betti,
@@ -255,14 +321,143 @@ fn sorted(mut entries: Vec<(&str, Value)>) -> Value {
     Value::Object(map)
 }
 
-fn fill_cube(image: &mut BinaryImage, dim: usize, side: usize) {
-    let lo = CUBE_MARGIN as usize;
-    let hi = side - 1 - CUBE_MARGIN as usize;
-    // Row by row along the last (contiguous) axis.
-    for start in (0..image.len()).step_by(side) {
-        let c = image.coords(start);
-        if (0..dim - 1).all(|k| c[k] >= lo && c[k] <= hi) {
-            image.data_mut()[start + lo..=start + hi].fill(1);
+/// The solid of carve mode: a box with inclusive voxel bounds per axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SolidBox {
+    lo: [usize; 4],
+    hi: [usize; 4],
+    dim: usize,
+}
+
+/// The least wall between a cavity and the outside of a solid box: 7 layers keep a
+/// whole block of foreground in the wall when the image is pooled by 4 (a 128-side sample's
+/// 32-side copy), one more for the rounding of the cavity's surface.
+const BOX_WALL: i64 = 8;
+
+/// The full cube: `CUBE_MARGIN` background layers on every face.
+fn full_box(dim: usize, side: usize) -> SolidBox {
+    let m = CUBE_MARGIN as usize;
+    SolidBox {
+        lo: [m; 4],
+        hi: [side - 1 - m; 4],
+        dim,
+    }
+}
+
+/// A box of nearly equal sides (each `l` or `l + 1`, centred in the image) with about
+/// `foreground` voxels plus a cavity share drawn from [`CAVITY_SHARE`], at most the full
+/// cube: its count minus `foreground` is what the cavities are sized for. Also returns the
+/// axis order its lengths were grown in, for [`refit_box`].
+fn solid_box(
+    dim: usize,
+    side: usize,
+    foreground: u64,
+    rng: &mut ChaCha8Rng,
+) -> (SolidBox, Vec<usize>) {
+    let image = libm::pow(side as f64, dim as f64);
+    let share = uniform(rng, CAVITY_SHARE.0, CAVITY_SHARE.1);
+    let mut axes: Vec<usize> = (0..dim).collect();
+    for k in (1..dim).rev() {
+        let j = uniform_int(rng, 0, k as u64) as usize;
+        axes.swap(k, j);
+    }
+    let want = foreground as f64 + share * image;
+    let floor = foreground as f64 + 0.5 * share * image;
+    (box_for(dim, side, want, floor, &axes), axes)
+}
+
+/// The centred box of nearly equal sides whose count is the largest at most `want` (at
+/// most the full cube), lengthened further while it is below `floor`.
+fn box_for(dim: usize, side: usize, want: f64, floor: f64, axes: &[usize]) -> SolidBox {
+    let full = side - 2 * CUBE_MARGIN as usize;
+    let want = want.min(libm::pow(full as f64, dim as f64));
+    let mut lengths = [1usize; 4];
+    let l = (libm::floor(libm::pow(want, 1.0 / dim as f64)) as usize).clamp(1, full);
+    lengths[..dim].fill(l);
+    let product = |lengths: &[usize; 4]| lengths[..dim].iter().map(|&n| n as f64).product::<f64>();
+    // Lengthen axes (in the given order) one voxel at a time while the count stays at
+    // most `want`, then while it is below `floor`.
+    for _ in 0..2 {
+        for &k in axes {
+            let mut longer = lengths;
+            longer[k] += 1;
+            if longer[k] <= full && (product(&longer) <= want || product(&lengths) < floor) {
+                lengths = longer;
+            }
+        }
+    }
+    let mut lo = [0usize; 4];
+    let mut hi = [0usize; 4];
+    for k in 0..dim {
+        lo[k] = (side - lengths[k]) / 2;
+        hi[k] = lo[k] + lengths[k] - 1;
+    }
+    SolidBox { lo, hi, dim }
+}
+
+/// The box for the cavities as rasterised: sized for `foreground` plus their actual voxel
+/// count (they may fall short of the volume they were sized for, when the room or the
+/// family's shape limits them), then widened where needed to keep [`BOX_WALL`] layers
+/// around every cavity voxel (they were placed inside the first box's region, so the
+/// first box always qualifies).
+fn refit_box(
+    dim: usize,
+    side: usize,
+    foreground: u64,
+    placed: &[(Family, crate::place::Placed, Value, Vec<usize>)],
+    axes: &[usize],
+) -> SolidBox {
+    let cavity: usize = placed.iter().map(|p| p.3.len()).sum();
+    let want = (foreground + cavity as u64) as f64;
+    let mut solid = box_for(dim, side, want, want, axes);
+    let full = full_box(dim, side);
+    for (_, _, _, voxels) in placed {
+        for &v in voxels {
+            let mut rest = v;
+            for k in (0..dim).rev() {
+                let c = rest % side;
+                rest /= side;
+                let wall = BOX_WALL as usize;
+                solid.lo[k] = solid.lo[k].min(c.saturating_sub(wall)).max(full.lo[k]);
+                solid.hi[k] = solid.hi[k].max(c + wall).min(full.hi[k]);
+            }
+        }
+    }
+    solid
+}
+
+impl SolidBox {
+    fn count(&self) -> u64 {
+        (0..self.dim)
+            .map(|k| (self.hi[k] - self.lo[k] + 1) as u64)
+            .product()
+    }
+
+    /// Where cavities may go: [`BOX_WALL`] layers inside the box on every face (one
+    /// range for every axis, so the tightest axis decides).
+    fn region(&self) -> Region {
+        let lo = self.lo[..self.dim].iter().max().copied().unwrap_or(0) as i64;
+        let hi = self.hi[..self.dim].iter().min().copied().unwrap_or(0) as i64;
+        Region {
+            lo: lo + BOX_WALL,
+            hi: hi - BOX_WALL,
+        }
+    }
+
+    fn describe(&self, dim: usize) -> Value {
+        json!((0..dim)
+            .map(|k| [self.lo[k], self.hi[k]])
+            .collect::<Vec<_>>())
+    }
+
+    /// Fills the box with foreground, row by row along the last (contiguous) axis.
+    fn fill(&self, image: &mut BinaryImage, dim: usize, side: usize) {
+        let (lo, hi) = (self.lo[dim - 1], self.hi[dim - 1]);
+        for start in (0..image.len()).step_by(side) {
+            let c = image.coords(start);
+            if (0..dim - 1).all(|k| c[k] >= self.lo[k] && c[k] <= self.hi[k]) {
+                image.data_mut()[start + lo..=start + hi].fill(1);
+            }
         }
     }
 }

@@ -388,6 +388,24 @@ pub fn generate_planned(
     generate::generate_sized(family, dim, side, mode, rng, false)
 }
 
+/// [`generate_planned`] sized for a hypervolume: the construction's sizes are chosen so
+/// that its foreground count lands near `foreground` voxels (carve mode: a solid box of
+/// nearly equal sides around cavities of a random 0.2-1% of the image, the cavities' scale
+/// found by bisection on a cheap voxel count; embed mode: the objects' scale), as near as
+/// the room allows. The caller brings the count the rest of the way (the sample pipeline
+/// does it with topology-preserving flips) and verifies the result. `None` is
+/// [`generate_planned`].
+pub fn generate_planned_for(
+    family: &Family,
+    dim: Dim,
+    side: usize,
+    mode: Mode,
+    foreground: Option<u64>,
+    rng: &mut ChaCha8Rng,
+) -> Result<Generated, ShapeError> {
+    generate::generate_for(family, dim, side, mode, rng, false, foreground)
+}
+
 #[cfg(test)]
 mod check;
 

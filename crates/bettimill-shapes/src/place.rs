@@ -17,7 +17,7 @@
 //! face, have their own placement ([`place_tunnel`]).
 
 use crate::geometry::{add, round6, sub, uniform, uniform_int, Rotation, Solid, P};
-use crate::sizing::{build, draw_target, min_extent};
+use crate::sizing::{build, build_volume, draw_target, min_extent};
 use crate::{Family, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
@@ -329,6 +329,7 @@ pub(crate) fn canonical_layout(
         place_random(
             &sorted_objects,
             &sorted_minima,
+            None,
             dim,
             side,
             region,
@@ -409,9 +410,11 @@ pub(crate) fn place_tunnel(
 /// while it meets the gap-dilation of those already placed. `at_minimum` draws every
 /// object at its minimum size (the canonical layout). `None` if some object found no
 /// place within `PLACEMENT_ATTEMPTS` tries.
+#[allow(clippy::too_many_arguments)] // A private search; bundling would only rename them.
 fn place_random(
     objects: &[Family],
     minima: &[f64],
+    volumes: Option<&[f64]>,
     dim: usize,
     side: usize,
     region: Region,
@@ -424,12 +427,16 @@ fn place_random(
     // so several of them are likely to fit.
     let share = if count == 1 {
         budget
+    } else if volumes.is_some() {
+        // Sized for a volume: each object takes a fair part of the room, so the last one
+        // is not left a corner (it would come out at its minimum, far below its volume).
+        budget / count as f64
     } else {
         (budget / libm::pow(count as f64, 1.0 / dim as f64) * 1.2).min(budget)
     };
     let mut occupancy = Occupancy::new(dim, side);
     let mut out = Vec::new();
-    for (object, &minimum) in objects.iter().zip(minima) {
+    for (n, (object, &minimum)) in objects.iter().zip(minima).enumerate() {
         if minimum > budget {
             return None;
         }
@@ -438,12 +445,19 @@ fn place_random(
             // Later attempts draw smaller objects, which fit into smaller gaps.
             let shrink = 1.0 - attempt as f64 / PLACEMENT_ATTEMPTS as f64;
             let upper = minimum + (share.max(minimum) - minimum) * shrink;
-            let target = if at_minimum {
-                minimum
-            } else {
-                draw_target(object, minimum, upper, rng)
+            let built = match volumes {
+                // Sized for a voxel count: the scale is solved for, within the room.
+                Some(volumes) if !at_minimum => build_volume(object, dim, upper, volumes[n], rng),
+                _ => {
+                    let target = if at_minimum {
+                        minimum
+                    } else {
+                        draw_target(object, minimum, upper, rng)
+                    };
+                    build(object, dim, target, rng)
+                }
             };
-            let Some((solid, params)) = build(object, dim, target, rng) else {
+            let Some((solid, params)) = built else {
                 continue;
             };
             let rotation = Rotation::random(&free_axes(object, dim), rng);
@@ -490,6 +504,9 @@ pub(crate) struct PlacementArea {
     pub(crate) side: usize,
     pub(crate) mode: Mode,
     pub(crate) region: Region,
+    /// The voxel count all objects together should have, when sized for a hypervolume
+    /// (shared among several objects at random); `None` draws sizes as usual.
+    pub(crate) volume: Option<f64>,
 }
 
 pub(crate) fn place_objects(
@@ -503,6 +520,7 @@ pub(crate) fn place_objects(
         side,
         mode,
         region,
+        volume,
     } = canvas;
     let count = objects.len();
     let minima: Vec<f64> = objects
@@ -516,11 +534,18 @@ pub(crate) fn place_objects(
     order.sort_by(|&a, &b| minima[b].total_cmp(&minima[a]).then(a.cmp(&b)));
     let sorted_objects: Vec<Family> = order.iter().map(|&k| objects[k].clone()).collect();
     let sorted_minima: Vec<f64> = order.iter().map(|&k| minima[k]).collect();
+    // Each object's part of the volume: random shares, drawn once for every round.
+    let volumes: Option<Vec<f64>> = volume.map(|total| {
+        let raw: Vec<f64> = (0..count).map(|_| uniform(rng, 0.5, 1.0)).collect();
+        let sum: f64 = raw.iter().sum();
+        raw.iter().map(|x| total * x / sum).collect()
+    });
     for round in 0..RANDOM_ROUNDS {
         let at_minimum = round >= RANDOM_ROUNDS / 2;
         if let Some(out) = place_random(
             &sorted_objects,
             &sorted_minima,
+            volumes.as_deref(),
             dim,
             side,
             region,

@@ -107,3 +107,154 @@ pub(crate) fn build(
     });
     Some((solid, params))
 }
+
+/// Growth every instance sized for a volume keeps at least (shared out among its holes,
+/// bars and offsets by the recipe), so a thick tube never closes a hole to its minimum:
+/// holes that stay a few voxels wide survive downscaling.
+pub(crate) const VOLUME_GROW_MIN: f64 = 12.0;
+
+/// Bisection steps on the scale of an instance sized for a volume.
+const VOLUME_STEPS: usize = 12;
+
+/// The lattice points a volume estimate tests at most (the spacing grows with the object).
+const VOLUME_POINTS: f64 = 120_000.0;
+
+/// Estimated voxel count of a local solid: lattice points of spacing `h` (chosen so that
+/// at most about [`VOLUME_POINTS`] are tested) in its bounding box, times `h^dim`. Cheap
+/// enough to bisect on, and within a fraction of a percent of the rasterised count for
+/// objects large enough to need a coarse lattice.
+pub(crate) fn estimate_volume(solid: &Solid, dim: usize) -> f64 {
+    let extent = solid.extent();
+    let width = 2.0 * extent + 1.0;
+    let h = libm::ceil(width / libm::pow(VOLUME_POINTS, 1.0 / dim as f64)).max(1.0);
+    let n = libm::ceil(width / h) as i64;
+    let start = -extent + h / 2.0;
+    let mut count = 0u64;
+    let mut c = [0i64; 4];
+    loop {
+        let mut p = [0.0; 4];
+        for k in 0..dim {
+            p[k] = start + c[k] as f64 * h;
+        }
+        if solid.contains(p) {
+            count += 1;
+        }
+        let mut k = dim;
+        loop {
+            if k == 0 {
+                return count as f64 * libm::pow(h, dim as f64);
+            }
+            k -= 1;
+            if c[k] + 1 < n {
+                c[k] += 1;
+                break;
+            }
+            c[k] = 0;
+        }
+    }
+}
+
+/// A random instance whose estimated voxel count is as close to `volume` as the room
+/// allows, with bounding radius at most `upper`: the sizes come from one scale
+/// parameter found by bisection on [`estimate_volume`]. How thick the tube is relative to
+/// what fits, and how the growth is shared, are drawn from `rng`, so instances of one
+/// volume still differ in shape. `None` where [`build`] would give none; tentacled
+/// objects (not sized by volume) are drawn as [`build`] draws them.
+pub(crate) fn build_volume(
+    family: &Family,
+    dim: usize,
+    upper: f64,
+    volume: f64,
+    rng: &mut ChaCha8Rng,
+) -> Option<(Solid, Value)> {
+    if let Family::Tentacled { .. } = family {
+        let minimum = min_extent(family, dim)?;
+        let target = draw_target(family, minimum, upper.max(minimum), rng);
+        return build(family, dim, target, rng);
+    }
+    let (tube_min, tube_cap) = tube_range(family);
+    // A family with a fixed tube (a ball) grows by `grow`; the others may thicken up to
+    // what fits, keeping `VOLUME_GROW_MIN` of growth.
+    let fixed_tube = tube_cap <= tube_min;
+    let shares = Shares::draw(share_count(family), rng);
+    let drawn_thickness = uniform(rng, 0.15, 0.85);
+    let extent = |tube: f64, grow: f64| -> Option<f64> {
+        make(family, dim, tube, grow, &shares).map(|s| s.extent())
+    };
+    let base = extent(tube_min, 0.0)?;
+    if base > upper + 1e-9 {
+        return None;
+    }
+    let grow_floor = if fixed_tube { 0.0 } else { VOLUME_GROW_MIN };
+    // The instance at scale s in [0, 1]: bounding radius from the minimum to `upper`.
+    let instance = |s: f64, thickness: f64| -> Option<(Solid, f64, f64)> {
+        let target = base + s * (upper - base);
+        let floor = if extent(tube_min, grow_floor).is_some_and(|e| e <= target) {
+            grow_floor
+        } else {
+            0.0
+        };
+        let tube = if fixed_tube {
+            tube_min
+        } else {
+            // Largest tube radius that fits with the floor of growth.
+            let (mut lo, mut hi) = (tube_min, target.max(tube_min));
+            for _ in 0..30 {
+                let mid = (lo + hi) / 2.0;
+                match extent(mid, floor) {
+                    Some(e) if e <= target => lo = mid,
+                    _ => hi = mid,
+                }
+            }
+            tube_min + thickness * (lo - tube_min)
+        };
+        let (mut lo, mut hi) = (0.0, target.max(1.0) * 2.0);
+        for _ in 0..40 {
+            let mid = (lo + hi) / 2.0;
+            match extent(tube, mid) {
+                Some(e) if e <= target => lo = mid,
+                _ => hi = mid,
+            }
+        }
+        make(family, dim, tube, lo, &shares).map(|solid| (solid, tube, lo))
+    };
+    let volume_at = |s: f64, thickness: f64| {
+        instance(s, thickness).map(|(solid, _, _)| estimate_volume(&solid, dim))
+    };
+    // The scale first, at the drawn thickness; if the largest instance is still too
+    // small, the tube thickens (at the largest scale) towards what fits.
+    let bisect = |f: &dyn Fn(f64) -> Option<f64>, lo: f64, hi: f64| -> f64 {
+        let (mut lo, mut hi) = (lo, hi);
+        for _ in 0..VOLUME_STEPS {
+            let mid = (lo + hi) / 2.0;
+            match f(mid) {
+                Some(v) if v <= volume => lo = mid,
+                _ => hi = mid,
+            }
+        }
+        lo
+    };
+    let (s, thickness) = if volume_at(1.0, drawn_thickness).is_some_and(|v| v <= volume) {
+        let thicker = |t: f64| volume_at(1.0, t);
+        if fixed_tube || thicker(1.0).is_some_and(|v| v <= volume) {
+            (1.0, if fixed_tube { drawn_thickness } else { 1.0 })
+        } else {
+            (1.0, bisect(&thicker, drawn_thickness, 1.0))
+        }
+    } else {
+        (
+            bisect(&|s| volume_at(s, drawn_thickness), 0.0, 1.0),
+            drawn_thickness,
+        )
+    };
+    let (solid, tube, grow) = instance(s, thickness)?;
+    let params = json!({
+        "tube_radius": round6(tube),
+        "grow": round6(grow),
+        "shares": shares.0.iter().map(|&x| round6(x)).collect::<Vec<_>>(),
+        "scale": round6(s),
+        "thickness": round6(thickness),
+        "volume_target": libm::round(volume),
+    });
+    Some((solid, params))
+}
