@@ -59,6 +59,7 @@ fn read_shard(path: &Path) -> anyhow::Result<Vec<u8>> {
 
 /// Runs `bettimill preview`.
 pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
+    crate::stats::refuse_inside_dataset(request.out, "--out")?;
     let input = request.input;
     let is_npy = crate::image::looks_like_image(input);
     let canvas = if is_npy {
