@@ -912,19 +912,128 @@ mod tests {
         );
         assert_eq!(layout.record_names().unwrap(), vec!["t-000000"]);
         assert_eq!(layout.shard_names().unwrap(), vec!["t-000000"]);
-        let mut flipped = bytes.clone();
-        flipped[600] ^= 1;
-        std::fs::write(layout.tar_path("t-000000"), &flipped).unwrap();
-        assert!(layout.recorded("t-000000").is_some(), "same size");
-        let ShardState::Invalid { reason } = layout.shard_state("t-000000") else {
-            panic!("a flipped byte must be found");
-        };
-        assert!(reason.contains("blake3"), "{reason}");
+        for (byte, found) in [
+            (513, "member s0.json has blake3"),
+            (600, "padding after member s0.json"),
+            (3, "header at byte 0"),
+            (bytes.len() - 1, "end-of-archive marker"),
+        ] {
+            let mut flipped = bytes.clone();
+            flipped[byte] ^= 1;
+            std::fs::write(layout.tar_path("t-000000"), &flipped).unwrap();
+            assert!(layout.recorded("t-000000").is_some(), "same size");
+            let ShardState::Invalid { reason } = layout.shard_state("t-000000") else {
+                panic!("a flipped byte {byte} must be found");
+            };
+            assert!(reason.contains(found), "{byte}: {reason}");
+        }
         std::fs::write(layout.tar_path("t-000000"), &bytes[..1024]).unwrap();
         assert!(layout.recorded("t-000000").is_none());
         assert!(layout
             .check_tar("t-000000", &record, TarCheck::Size)
             .unwrap_err()
             .contains("1024 bytes"));
+    }
+
+    #[test]
+    fn a_record_is_checked_whole_against_its_tar() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (layout, _) = bound(tmp.path());
+        let samples = vec![
+            vec![
+                bettimill_shard::Member::new("s0.json", b"{}".to_vec()),
+                bettimill_shard::Member::new("s0.npy", vec![1u8; 700]),
+            ],
+            vec![bettimill_shard::Member::new("s1.json", b"[]".to_vec())],
+        ];
+        let (bytes, record) =
+            bettimill_shard::build_shard("shards/t-000000.tar", "train", &samples).unwrap();
+        std::fs::write(layout.tar_path("t-000000"), &bytes).unwrap();
+        let write = |record: &ShardRecord| {
+            let completion = CompletionRecord {
+                shard: record.clone(),
+                regenerations: vec![],
+            };
+            layout.write_record("t-000000", &completion).unwrap();
+        };
+        write(&record);
+        assert!(matches!(
+            layout.shard_state("t-000000"),
+            ShardState::Complete(_)
+        ));
+        type Edit = fn(&mut ShardRecord);
+        let edits: [(Edit, &str); 6] = [
+            (|r| r.members[1].blake3.replace_range(0..1, "x"), "member s0.npy has blake3"),
+            (|r| r.members[2].offset += 512, "puts member s1.json at byte"),
+            (|r| r.members[1].name = "s0.npz".into(), "header at byte 1024"),
+            (|r| r.samples = 3, "its record says 3 samples"),
+            (|r| r.last_key = "s9".into(), "from s0 to s9"),
+            (|r| r.name = "shards/u-000000.tar".into(), "names the shard"),
+        ];
+        for (edit, found) in edits {
+            let mut bad = record.clone();
+            edit(&mut bad);
+            write(&bad);
+            let ShardState::Invalid { reason } = layout.shard_state("t-000000") else {
+                panic!("{found}: the edited record was accepted");
+            };
+            assert!(reason.contains(found), "{found}: {reason}");
+        }
+    }
+
+    #[test]
+    fn the_leftovers_of_a_stopped_creation_are_told_from_foreign_files() {
+        let tmp = tempfile::tempdir().unwrap();
+        let layout = DatasetDir::new(tmp.path().join("ds"));
+        assert_eq!(layout.unbound_state().unwrap(), Unbound::Empty);
+        std::fs::create_dir(layout.root()).unwrap();
+        std::fs::write(layout.root().join(LOCK_FILE), b"").unwrap();
+        assert_eq!(layout.unbound_state().unwrap(), Unbound::Empty);
+        std::fs::write(layout.root().join(".build.json.tmp-12"), b"{").unwrap();
+        std::fs::write(layout.manifest_path(), b"m").unwrap();
+        assert_eq!(
+            layout.unbound_state().unwrap(),
+            Unbound::Unfinished {
+                manifest: true,
+                temporaries: vec![layout.root().join(".build.json.tmp-12")],
+            }
+        );
+        assert!(matches!(
+            layout.require_bound(),
+            Err(FormatError::Unfinished { .. })
+        ));
+        let info = BuildInfo::current("m1", "p1");
+        assert!(matches!(
+            layout.bind("other", &info),
+            Err(FormatError::UnfinishedOtherManifest { .. })
+        ));
+        layout.bind("m", &info).unwrap();
+        assert_eq!(layout.read_build_info().unwrap(), info);
+        assert!(!layout.root().join(".build.json.tmp-12").exists());
+        for foreign in [".build.json.tmp-x", "shards", "notes"] {
+            let other = DatasetDir::new(tmp.path().join(format!("f{foreign}")));
+            std::fs::create_dir(other.root()).unwrap();
+            std::fs::write(other.root().join(foreign), b"").unwrap();
+            assert_eq!(other.unbound_state().unwrap(), Unbound::Foreign, "{foreign}");
+        }
+    }
+
+    #[test]
+    fn links_inside_the_directory_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (layout, info) = bound(tmp.path());
+        let outside = tmp.path().join("outside");
+        std::fs::create_dir(&outside).unwrap();
+        std::fs::remove_dir(layout.records_dir()).unwrap();
+        std::os::unix::fs::symlink(&outside, layout.records_dir()).unwrap();
+        let err = layout.bind("x", &info).unwrap_err();
+        assert!(matches!(err, FormatError::Symlinked { .. }), "{err}");
+        assert_eq!(
+            dataset_containing(&layout.shards_dir().join("x.png")),
+            Some(std::fs::canonicalize(layout.root()).unwrap())
+        );
+        // Through the link the file would land outside: that is the link's business.
+        assert_eq!(dataset_containing(&layout.records_dir().join("x.png")), None);
+        assert_eq!(dataset_containing(&outside.join("x.png")), None);
     }
 }
