@@ -489,6 +489,9 @@ fn a_build_that_fills_the_disk_stops_cleanly_and_resumes_identically() {
 
 // ---------------------------------------------------------------- creation stopped half-way
 
+/// Files to put into a directory by hand: (name, bytes).
+type Files<'a> = Vec<(&'a str, Vec<u8>)>;
+
 /// Whether any temporary (`.NAME.tmp-PID`) is left directly in `dir`.
 fn temporaries_in(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
@@ -509,7 +512,7 @@ fn a_creation_stopped_half_way_resumes_with_the_same_command() {
     let clean = tmp.path().join("clean");
     assert_exit(&build(&m, &clean, 2), 0);
     let manifest_bytes = std::fs::read(&m).unwrap();
-    let states: Vec<(&str, Vec<(&str, Vec<u8>)>)> = vec![
+    let states: Vec<(&str, Files)> = vec![
         ("empty", vec![]),
         ("lock-only", vec![(".lock", vec![])]),
         (
@@ -523,7 +526,10 @@ fn a_creation_stopped_half_way_resumes_with_the_same_command() {
                 (".build.json.tmp-4242", b"{\n  \"tool_ver".to_vec()),
             ],
         ),
-        ("manifest-alone", vec![("manifest.toml", manifest_bytes.clone())]),
+        (
+            "manifest-alone",
+            vec![("manifest.toml", manifest_bytes.clone())],
+        ),
         (
             "lock-manifest-and-temporaries",
             vec![
@@ -568,7 +574,7 @@ fn only_a_really_foreign_directory_is_refused_and_it_is_left_untouched() {
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 4, 2);
     let other = manifest(tmp.path(), 2, 16, 6, 2);
-    let cases: Vec<(&str, Vec<(&str, Vec<u8>)>, &str)> = vec![
+    let cases: Vec<(&str, Files, &str)> = vec![
         (
             "notes",
             vec![("notes.txt", b"mine".to_vec())],
@@ -602,7 +608,11 @@ fn only_a_really_foreign_directory_is_refused_and_it_is_left_untouched() {
         let before = snapshot(&out);
         let refused = build(&m, &out, 2);
         assert_exit(&refused, 2);
-        assert!(stderr(&refused).contains(expected), "{what}: {}", stderr(&refused));
+        assert!(
+            stderr(&refused).contains(expected),
+            "{what}: {}",
+            stderr(&refused)
+        );
         assert_eq!(snapshot(&out), before, "{what}: something was written");
     }
 }
@@ -711,7 +721,6 @@ fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
     }
 }
 
-
 /// The start-up of a build (planning, creating and checking the directory) used to run
 /// before any signal handler: a signal there killed the build with no message (exit 143,
 /// or death by SIGINT; for 10^7 one-sample shards the window was minutes). The test hook
@@ -725,12 +734,7 @@ fn a_signal_during_start_up_exits_130_with_a_message_and_the_rerun_is_identical(
     assert_exit(&build(&m, &clean, 2), 0);
     for signal in ["-INT", "-TERM"] {
         let out = tmp.path().join(format!("startup{signal}"));
-        let coordinator = spawn_build(
-            &m,
-            &out,
-            2,
-            &[("BETTIMILL_TEST_PAUSE_AT_STARTUP", "120")],
-        );
+        let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_PAUSE_AT_STARTUP", "120")]);
         wait_until("build.json", Duration::from_secs(60), || {
             out.join("build.json").exists()
         });
@@ -794,7 +798,10 @@ fn signals_in_the_first_milliseconds_exit_130_and_resume() {
 fn flip_member_hash(record: &Path) {
     let text = std::fs::read_to_string(record).unwrap();
     let value: serde_json::Value = serde_json::from_str(&text).unwrap();
-    let hash = value["shard"]["members"][1]["blake3"].as_str().unwrap().to_string();
+    let hash = value["shard"]["members"][1]["blake3"]
+        .as_str()
+        .unwrap()
+        .to_string();
     let flipped = format!(
         "{}{}",
         if hash.starts_with('0') { '1' } else { '0' },
@@ -827,7 +834,11 @@ fn a_flipped_member_hash_in_a_record_makes_the_shard_incomplete_and_build_repair
     std::fs::remove_file(out.join("index.json")).unwrap();
     let finalize = run(&["finalize", out.to_str().unwrap()]);
     assert_exit(&finalize, 2);
-    assert!(stderr(&finalize).contains("r2d-000001"), "{}", stderr(&finalize));
+    assert!(
+        stderr(&finalize).contains("r2d-000001"),
+        "{}",
+        stderr(&finalize)
+    );
     assert!(!out.join("index.json").exists());
     // build regenerates the shard and its record, then writes the clean index.
     assert_exit(&build(&m, &out, 2), 0);
@@ -919,7 +930,10 @@ fn output_files_inside_a_dataset_directory_are_refused() {
     assert_eq!(snapshot(&out), before);
     // Outside the dataset the same commands write.
     let outside = tmp.path().join("preview.png");
-    assert_exit(&run(&["preview", dir, "--out", outside.to_str().unwrap()]), 0);
+    assert_exit(
+        &run(&["preview", dir, "--out", outside.to_str().unwrap()]),
+        0,
+    );
     assert!(outside.exists());
 }
 
@@ -927,7 +941,7 @@ fn output_files_inside_a_dataset_directory_are_refused() {
 fn bettimill_grid_npy_square() -> Vec<u8> {
     let header = "{'descr': '|u1', 'fortran_order': False, 'shape': (5, 5), }";
     let mut header = header.to_string();
-    while (10 + header.len() + 1) % 64 != 0 {
+    while !(10 + header.len() + 1).is_multiple_of(64) {
         header.push(' ');
     }
     header.push('\n');
@@ -943,7 +957,9 @@ fn bettimill_grid_npy_square() -> Vec<u8> {
 }
 
 /// (inode, mtime, ctime, size) of every file and directory under `dir`, `dir` included.
-fn file_identities(dir: &Path) -> std::collections::BTreeMap<PathBuf, (u64, i64, i64, i64, i64, u64)> {
+fn file_identities(
+    dir: &Path,
+) -> std::collections::BTreeMap<PathBuf, (u64, i64, i64, i64, i64, u64)> {
     use std::os::unix::fs::MetadataExt;
     let mut out = std::collections::BTreeMap::new();
     let mut stack = vec![dir.to_path_buf()];
@@ -961,7 +977,12 @@ fn file_identities(dir: &Path) -> std::collections::BTreeMap<PathBuf, (u64, i64,
             ),
         );
         if meta.is_dir() {
-            stack.extend(std::fs::read_dir(&path).unwrap().flatten().map(|e| e.path()));
+            stack.extend(
+                std::fs::read_dir(&path)
+                    .unwrap()
+                    .flatten()
+                    .map(|e| e.path()),
+            );
         }
     }
     out
@@ -989,7 +1010,11 @@ fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     std::thread::sleep(Duration::from_millis(50));
     assert_exit(&build(&m, &out, 2), 0);
     assert_exit(&run(&["finalize", out.to_str().unwrap()]), 0);
-    assert_eq!(file_identities(&out), before, "a no-op build or finalize wrote");
+    assert_eq!(
+        file_identities(&out),
+        before,
+        "a no-op build or finalize wrote"
+    );
     assert_eq!(stats(&out)["build_time"], time);
     // A damaged dataset card is rewritten (and only what differs changes).
     std::fs::write(out.join("README.md"), b"edited\n").unwrap();

@@ -371,9 +371,8 @@ impl Dataset {
             self.plan.shard_count(),
             self.plan.samples,
         );
-        let mut write = |path: &Path| -> Result<AtomicFile, BuildError> {
-            Ok(AtomicFile::create(path)?)
-        };
+        let mut write =
+            |path: &Path| -> Result<AtomicFile, BuildError> { Ok(AtomicFile::create(path)?) };
         let files = if self.layout.is_finalized() {
             // A finished directory (a no-op resume, a second finalize): the files are first
             // compared with what would be written, and nothing is written, not even a
@@ -439,7 +438,8 @@ impl Dataset {
                 std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
                 std::collections::btree_map::Entry::Vacant(e) => {
                     let path = self.layout.wids_index_path(&entry.split);
-                    let writer = WidsWriter::new(open(&path)?, &entry.split).map_err(io_at(&path))?;
+                    let writer =
+                        WidsWriter::new(open(&path)?, &entry.split).map_err(io_at(&path))?;
                     e.insert((path, writer))
                 }
             };
@@ -581,8 +581,8 @@ impl std::io::Write for SameBytes {
     fn write(&mut self, data: &[u8]) -> std::io::Result<usize> {
         if let (true, Some(file)) = (self.same, self.file.as_mut()) {
             self.scratch.resize(data.len(), 0);
-            let equal = std::io::Read::read_exact(file, &mut self.scratch).is_ok()
-                && self.scratch == data;
+            let equal =
+                std::io::Read::read_exact(file, &mut self.scratch).is_ok() && self.scratch == data;
             self.same = equal;
         }
         Ok(data.len())

@@ -298,7 +298,9 @@ impl DatasetDir {
                         dir: dir.to_path_buf(),
                     })
                 }
-                Unbound::Unfinished { manifest: true, .. } => self.check_stored_manifest(manifest_text)?,
+                Unbound::Unfinished { manifest: true, .. } => {
+                    self.check_stored_manifest(manifest_text)?
+                }
                 _ => {}
             }
             std::fs::create_dir_all(dir).map_err(io(dir))?;
@@ -604,12 +606,10 @@ fn ensure_real_dir(path: &Path) -> Result<(), FormatError> {
             path: path.to_path_buf(),
             reason: "is not a directory".into(),
         }),
-        Err(err) if err.kind() == std::io::ErrorKind::NotFound => {
-            match std::fs::create_dir(path) {
-                Err(err) if err.kind() != std::io::ErrorKind::AlreadyExists => Err(io(path)(err)),
-                _ => ensure_real_dir_exists(path),
-            }
-        }
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => match std::fs::create_dir(path) {
+            Err(err) if err.kind() != std::io::ErrorKind::AlreadyExists => Err(io(path)(err)),
+            _ => ensure_real_dir_exists(path),
+        },
         Err(err) => Err(io(path)(err)),
     }
 }
@@ -736,7 +736,9 @@ fn check_members(path: &Path, record: &ShardRecord) -> Result<(), String> {
             zero &= b.iter().all(|&x| x == 0)
         })?;
         if !zero {
-            return Err(format!("{shown}: the padding after member {name} is not zero"));
+            return Err(format!(
+                "{shown}: the padding after member {name} is not zero"
+            ));
         }
         position += shard::ustar::member_bytes(member.bytes);
     }
@@ -963,9 +965,18 @@ mod tests {
         ));
         type Edit = fn(&mut ShardRecord);
         let edits: [(Edit, &str); 6] = [
-            (|r| r.members[1].blake3.replace_range(0..1, "x"), "member s0.npy has blake3"),
-            (|r| r.members[2].offset += 512, "puts member s1.json at byte"),
-            (|r| r.members[1].name = "s0.npz".into(), "header at byte 1024"),
+            (
+                |r| r.members[1].blake3.replace_range(0..1, "x"),
+                "member s0.npy has blake3",
+            ),
+            (
+                |r| r.members[2].offset += 512,
+                "puts member s1.json at byte",
+            ),
+            (
+                |r| r.members[1].name = "s0.npz".into(),
+                "header at byte 1024",
+            ),
             (|r| r.samples = 3, "its record says 3 samples"),
             (|r| r.last_key = "s9".into(), "from s0 to s9"),
             (|r| r.name = "shards/u-000000.tar".into(), "names the shard"),
@@ -1014,7 +1025,11 @@ mod tests {
             let other = DatasetDir::new(tmp.path().join(format!("f{foreign}")));
             std::fs::create_dir(other.root()).unwrap();
             std::fs::write(other.root().join(foreign), b"").unwrap();
-            assert_eq!(other.unbound_state().unwrap(), Unbound::Foreign, "{foreign}");
+            assert_eq!(
+                other.unbound_state().unwrap(),
+                Unbound::Foreign,
+                "{foreign}"
+            );
         }
     }
 
@@ -1033,7 +1048,10 @@ mod tests {
             Some(std::fs::canonicalize(layout.root()).unwrap())
         );
         // Through the link the file would land outside: that is the link's business.
-        assert_eq!(dataset_containing(&layout.records_dir().join("x.png")), None);
+        assert_eq!(
+            dataset_containing(&layout.records_dir().join("x.png")),
+            None
+        );
         assert_eq!(dataset_containing(&outside.join("x.png")), None);
     }
 }

@@ -50,7 +50,9 @@ impl BuildTime {
     pub fn from_timings(timings: &[(f64, f64, u64)], finished: bool) -> Option<BuildTime> {
         let mut spans: Vec<(f64, f64)> = timings
             .iter()
-            .filter(|(start, seconds, _)| start.is_finite() && seconds.is_finite() && *seconds >= 0.0)
+            .filter(|(start, seconds, _)| {
+                start.is_finite() && seconds.is_finite() && *seconds >= 0.0
+            })
             .map(|&(start, seconds, _)| (start, start + seconds))
             .collect();
         if spans.is_empty() {
