@@ -293,7 +293,8 @@ impl DatasetDir {
             // Refused before anything (even the lock) is written into it; checked again
             // under the lock.
             match self.unbound_state()? {
-                Unbound::Foreign => {
+                // (Unless another build has just finished creating it.)
+                Unbound::Foreign if !self.has_build_info() => {
                     return Err(FormatError::ForeignDirectory {
                         dir: dir.to_path_buf(),
                     })
