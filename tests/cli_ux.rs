@@ -251,14 +251,18 @@ fn json_outputs_parse_and_carry_their_keys() {
             "build_time",
         ],
     );
-    // The build time comes from file modification times, never from the dataset's bytes.
+    // The build time comes from the timings the build recorded, never from the dataset's
+    // bytes or file modification times.
     let build_time = &stats["build_time"];
     check_keys(
         build_time,
         &[
+            "wall_seconds",
+            "worker_seconds",
             "start_unix",
             "end_unix",
-            "wall_seconds",
+            "shards_timed",
+            "samples_timed",
             "samples_per_second",
             "finished",
             "source",
@@ -267,7 +271,9 @@ fn json_outputs_parse_and_carry_their_keys() {
     assert!(build_time["wall_seconds"].as_f64().unwrap() >= 0.0);
     assert!(build_time["start_unix"].as_f64().unwrap() > 0.0);
     assert_eq!(build_time["finished"], true);
-    assert_eq!(build_time["source"], "file modification times");
+    assert_eq!(build_time["shards_timed"], 2);
+    assert_eq!(build_time["samples_timed"], 8);
+    assert_eq!(build_time["source"], "timings/ (recorded by the builds)");
     assert_eq!(stats["samples"], 8);
     assert_eq!(stats["splits"]["train"], 4);
     assert_eq!(stats["splits"]["val"], 4);
@@ -386,7 +392,7 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
         "hypervolume",
         "regenerations per class",
         "build time: ",
-        "from file modification times (build.json to index.json)",
+        "from timings/ (2 of 2 shards, 8 samples, recorded by the builds)",
     ] {
         assert!(report.contains(section), "no {section:?} in\n{report}");
     }
@@ -400,15 +406,15 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
     assert_eq!(stats["samples"], 8);
     assert_eq!(stats["splits"]["train"], 4);
     assert_eq!(stats["splits"]["val"], 4);
-    // Its build time so far ends at the newest completion record.
+    // Its build time so far is that of the shards built.
     assert_eq!(stats["build_time"]["finished"], false);
     assert!(stats["build_time"]["wall_seconds"].as_f64().unwrap() >= 0.0);
     let out = run_in(dir, &["stats", out_dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(text(&out.stdout).contains("build time so far (not finished)"));
 
-    // Without build.json there is no start: the field is null and the text says so.
-    std::fs::remove_file(out_dir.join("build.json")).unwrap();
+    // Without timings (a copy that left them out) the field is null and the text says so.
+    std::fs::remove_dir_all(out_dir.join("timings")).unwrap();
     let stats = json(&run_in(
         dir,
         &["stats", out_dir.to_str().unwrap(), "--json"],

@@ -27,7 +27,7 @@ mod common;
 use bettimill_testkit::{skip_unless_ci, Xorshift};
 use common::{
     alive, assert_exit, assert_same, ball_and_handle, bettimill, build, children, kill, run,
-    shard_files, snapshot, spawn_build, text, wait_until, Dir,
+    shard_files, snapshot, spawn_build, stderr, text, wait_until, Dir,
 };
 
 fn manifest(dir: &Path, dimension: u32, side: u32, samples: u32, shard_size: u32) -> PathBuf {
@@ -72,6 +72,12 @@ fn peak_kib(pid: u32) -> Option<u64> {
 
 /// Every visible tar is a complete shard: `status` lists none as invalid.
 fn assert_no_partial_shard_visible(out: &Path) {
+    // A directory killed while it was created holds no shard at all (and `status` names
+    // that state instead of reporting shards).
+    if !out.join("build.json").exists() {
+        assert!(!out.join("shards").exists(), "{}", out.display());
+        return;
+    }
     let status = run(&["status", out.to_str().unwrap(), "--json"]);
     let status: serde_json::Value = serde_json::from_slice(&status.stdout)
         .unwrap_or_else(|e| panic!("status --json: {e}: {}", text(&status.stderr)));
@@ -481,6 +487,206 @@ fn a_build_that_fills_the_disk_stops_cleanly_and_resumes_identically() {
     check_failed_then_resumed(&m, &out, &clean, full.status.code(), &stderr);
 }
 
+// ---------------------------------------------------------------- creation stopped half-way
+
+/// Files to put into a directory by hand: (name, bytes).
+type Files<'a> = Vec<(&'a str, Vec<u8>)>;
+
+/// Whether any temporary (`.NAME.tmp-PID`) is left directly in `dir`.
+fn temporaries_in(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp-"))
+        .collect()
+}
+
+/// Every state a build killed (or out of disk) while creating its directory can leave,
+/// built by hand: the same command resumes each to the bytes of a clean build, and the
+/// reading commands name the state (and write nothing) instead of calling it foreign.
+#[test]
+fn a_creation_stopped_half_way_resumes_with_the_same_command() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 6, 2);
+    let clean = tmp.path().join("clean");
+    assert_exit(&build(&m, &clean, 2), 0);
+    let manifest_bytes = std::fs::read(&m).unwrap();
+    let states: Vec<(&str, Files)> = vec![
+        ("empty", vec![]),
+        ("lock-only", vec![(".lock", vec![])]),
+        (
+            "manifest-temporary",
+            vec![(".manifest.toml.tmp-4242", manifest_bytes[..20].to_vec())],
+        ),
+        (
+            "manifest-and-build-json-temporary",
+            vec![
+                ("manifest.toml", manifest_bytes.clone()),
+                (".build.json.tmp-4242", b"{\n  \"tool_ver".to_vec()),
+            ],
+        ),
+        (
+            "manifest-alone",
+            vec![("manifest.toml", manifest_bytes.clone())],
+        ),
+        (
+            "lock-manifest-and-temporaries",
+            vec![
+                (".lock", vec![]),
+                ("manifest.toml", manifest_bytes.clone()),
+                (".manifest.toml.tmp-17", b"x".to_vec()),
+                (".build.json.tmp-18", vec![]),
+            ],
+        ),
+    ];
+    for (what, files) in states {
+        let out = tmp.path().join(what);
+        std::fs::create_dir(&out).unwrap();
+        for (name, bytes) in &files {
+            std::fs::write(out.join(name), bytes).unwrap();
+        }
+        if files.iter().any(|(name, _)| *name == "manifest.toml") {
+            let before = snapshot(&out);
+            for command in ["finalize", "status"] {
+                let output = run(&[command, out.to_str().unwrap()]);
+                assert_exit(&output, 2);
+                let message = stderr(&output);
+                assert!(
+                    message.contains("its creation stopped before build.json was written")
+                        && message.contains("rerun the same `bettimill build"),
+                    "{what}, {command}: {message}"
+                );
+            }
+            assert_eq!(snapshot(&out), before, "{what}: a reading command wrote");
+        }
+        let resumed = build(&m, &out, 2);
+        assert_exit(&resumed, 0);
+        assert_same(&clean, &out);
+        assert_eq!(temporaries_in(&out), Vec::<String>::new(), "{what}");
+    }
+}
+
+/// A directory is refused, untouched (not even a lock is created), only when it is really
+/// not a creation of this manifest.
+#[test]
+fn only_a_really_foreign_directory_is_refused_and_it_is_left_untouched() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 4, 2);
+    let other = manifest(tmp.path(), 2, 16, 6, 2);
+    let cases: Vec<(&str, Files, &str)> = vec![
+        (
+            "notes",
+            vec![("notes.txt", b"mine".to_vec())],
+            "is not empty and holds no bettimill dataset",
+        ),
+        (
+            "other-manifest",
+            vec![("manifest.toml", std::fs::read(&other).unwrap())],
+            "holds the start of a dataset of a different manifest",
+        ),
+        (
+            "manifest-and-more",
+            vec![
+                ("manifest.toml", std::fs::read(&m).unwrap()),
+                ("results.csv", b"1,2\n".to_vec()),
+            ],
+            "is not empty and holds no bettimill dataset",
+        ),
+        (
+            "not-our-temporary",
+            vec![(".manifest.toml.tmp-abc", b"x".to_vec())],
+            "is not empty and holds no bettimill dataset",
+        ),
+    ];
+    for (what, files, expected) in cases {
+        let out = tmp.path().join(what);
+        std::fs::create_dir(&out).unwrap();
+        for (name, bytes) in &files {
+            std::fs::write(out.join(name), bytes).unwrap();
+        }
+        let before = snapshot(&out);
+        let refused = build(&m, &out, 2);
+        assert_exit(&refused, 2);
+        assert!(
+            stderr(&refused).contains(expected),
+            "{what}: {}",
+            stderr(&refused)
+        );
+        assert_eq!(snapshot(&out), before, "{what}: something was written");
+    }
+}
+
+/// Two builds started together into a fresh directory: the one that does not get the
+/// directory is told another build holds its lock (it used to be told the directory was
+/// foreign), and the directory ends as a clean build.
+#[test]
+fn the_loser_of_two_builds_into_a_fresh_directory_is_told_about_the_lock() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 8, 2);
+    let clean = tmp.path().join("clean");
+    assert_exit(&build(&m, &clean, 1), 0);
+    for round in 0..4 {
+        let out = tmp.path().join(format!("race{round}"));
+        let first = spawn_build(&m, &out, 1, &[]);
+        let second = spawn_build(&m, &out, 1, &[]);
+        for child in [first, second] {
+            let result = child.wait_with_output().unwrap();
+            let message = text(&result.stderr);
+            assert!(
+                result.status.code() == Some(0)
+                    || (result.status.code() == Some(2)
+                        && message.contains("another bettimill build is running")),
+                "{:?}: {message}",
+                result.status
+            );
+        }
+        if !out.join("index.json").exists() {
+            assert_exit(&build(&m, &out, 1), 0);
+        }
+        assert_same(&clean, &out);
+    }
+}
+
+#[test]
+fn a_disk_full_while_the_directory_is_created_resumes_once_space_is_back() {
+    if !is_root() {
+        skip_unless_ci("root", "mounting a small tmpfs needs root");
+        return;
+    }
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 4, 2);
+    let clean = tmp.path().join("clean");
+    assert_exit(&build(&m, &clean, 2), 0);
+    let mount_point = tmp.path().join("tiny");
+    std::fs::create_dir(&mount_point).unwrap();
+    // One page: room for manifest.toml, not for build.json too.
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=4k", "tmpfs"])
+        .arg(&mount_point)
+        .output()
+        .unwrap();
+    assert!(mounted.status.success(), "mount: {}", text(&mounted.stderr));
+    let _guard = Mount(mount_point.clone());
+    let out = mount_point.join("ds");
+    let full = build(&m, &out, 2);
+    assert_exit(&full, 2);
+    assert!(
+        stderr(&full).contains("No space left on device"),
+        "{}",
+        stderr(&full)
+    );
+    assert!(!out.join("build.json").exists());
+    let grown = Command::new("mount")
+        .args(["-o", "remount,size=64M"])
+        .arg(&mount_point)
+        .output()
+        .unwrap();
+    assert!(grown.status.success(), "remount: {}", text(&grown.stderr));
+    assert_exit(&build(&m, &out, 2), 0);
+    assert_same(&clean, &out);
+}
+
 // ---------------------------------------------------------------- signals
 
 #[test]
@@ -513,6 +719,307 @@ fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
         assert_exit(&rerun, 0);
         assert_same(&clean, &out);
     }
+}
+
+/// The start-up of a build (planning, creating and checking the directory) used to run
+/// before any signal handler: a signal there killed the build with no message (exit 143,
+/// or death by SIGINT; for 10^7 one-sample shards the window was minutes). The test hook
+/// `BETTIMILL_TEST_PAUSE_AT_STARTUP` holds the build in start-up, after the directory is
+/// bound and before any worker starts, so the signal lands there on any machine.
+#[test]
+fn a_signal_during_start_up_exits_130_with_a_message_and_the_rerun_is_identical() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 6, 2);
+    let clean = tmp.path().join("clean");
+    assert_exit(&build(&m, &clean, 2), 0);
+    for signal in ["-INT", "-TERM"] {
+        let out = tmp.path().join(format!("startup{signal}"));
+        let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_PAUSE_AT_STARTUP", "120")]);
+        wait_until("build.json", Duration::from_secs(60), || {
+            out.join("build.json").exists()
+        });
+        assert!(kill(signal, coordinator.id()));
+        let start = Instant::now();
+        let result = coordinator.wait_with_output().unwrap();
+        let message = text(&result.stderr);
+        assert!(start.elapsed() < Duration::from_secs(60), "{message}");
+        assert_eq!(result.status.code(), Some(130), "{signal}: {message}");
+        assert!(
+            message.contains("interrupted while no worker was running")
+                && message.contains("resume with: bettimill build"),
+            "{message}"
+        );
+        assert!(workers_of(&out).is_empty());
+        assert_exit(&build(&m, &out, 2), 0);
+        assert_same(&clean, &out);
+    }
+}
+
+/// Signals from the first milliseconds of a build on: each ends it with 130 (or, sent
+/// before `main` has run its first line, kills it by that signal with nothing written),
+/// and the rerun ends byte-identical. Counts are printed; no outcome is left to luck but
+/// which of the two allowed ones is seen.
+#[test]
+#[allow(clippy::print_stderr)]
+fn signals_in_the_first_milliseconds_exit_130_and_resume() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 6, 2);
+    let clean = tmp.path().join("clean");
+    assert_exit(&build(&m, &clean, 2), 0);
+    let (mut handled, mut before_main) = (0, 0);
+    for step in 0..16u64 {
+        let signal = if step % 2 == 0 { "-INT" } else { "-TERM" };
+        let out = tmp.path().join(format!("early{step}"));
+        let coordinator = spawn_build(&m, &out, 2, &[]);
+        std::thread::sleep(Duration::from_micros(step * 1500));
+        kill(signal, coordinator.id());
+        let result = coordinator.wait_with_output().unwrap();
+        match (result.status.code(), result.status.signal()) {
+            (Some(130), _) => handled += 1,
+            (None, Some(2 | 15)) => {
+                before_main += 1;
+                assert!(!out.join("manifest.toml").exists(), "{}", out.display());
+            }
+            (Some(0), _) => {}
+            other => panic!("{signal} after {step}: {other:?}: {}", text(&result.stderr)),
+        }
+        assert!(workers_of(&out).is_empty());
+        assert_exit(&build(&m, &out, 2), 0);
+        assert_same(&clean, &out);
+    }
+    eprintln!("early signals: {handled} handled (exit 130), {before_main} before main");
+    assert!(handled > 0);
+}
+
+// ---------------------------------------------------------------- records, links, no-op builds
+
+/// Flips one character of the second member's blake3 in `record` (the JSON text stays
+/// valid; the file's blake3 changes).
+fn flip_member_hash(record: &Path) {
+    let text = std::fs::read_to_string(record).unwrap();
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let hash = value["shard"]["members"][1]["blake3"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let flipped = format!(
+        "{}{}",
+        if hash.starts_with('0') { '1' } else { '0' },
+        &hash[1..]
+    );
+    assert_eq!(text.matches(&hash).count(), 1);
+    std::fs::write(record, text.replace(&hash, &flipped)).unwrap();
+}
+
+/// A record with one member hash flipped used to pass `status` (only the shard's own size
+/// and hash were compared) and be copied into index.json by `finalize` and `build`, after
+/// which `verify` called the intact shard damaged forever.
+#[test]
+fn a_flipped_member_hash_in_a_record_makes_the_shard_incomplete_and_build_repairs_it() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 6, 2);
+    let clean = tmp.path().join("clean");
+    assert_exit(&build(&m, &clean, 2), 0);
+    let out = tmp.path().join("flipped");
+    assert_exit(&build(&m, &out, 2), 0);
+    let record = out.join("records").join("r2d-000001.json");
+    flip_member_hash(&record);
+    let status = run(&["status", out.to_str().unwrap()]);
+    let report = text(&status.stdout);
+    assert!(
+        report.contains("1 invalid") && report.contains("its record says"),
+        "{report}"
+    );
+    // Without index.json: finalize refuses to write one from the bad record.
+    std::fs::remove_file(out.join("index.json")).unwrap();
+    let finalize = run(&["finalize", out.to_str().unwrap()]);
+    assert_exit(&finalize, 2);
+    assert!(
+        stderr(&finalize).contains("r2d-000001"),
+        "{}",
+        stderr(&finalize)
+    );
+    assert!(!out.join("index.json").exists());
+    // build regenerates the shard and its record, then writes the clean index.
+    assert_exit(&build(&m, &out, 2), 0);
+    assert_same(&clean, &out);
+    assert_exit(&run(&["verify", out.to_str().unwrap()]), 0);
+    // With index.json in place: build repairs the record and leaves the index as it was.
+    let index = std::fs::read(out.join("index.json")).unwrap();
+    flip_member_hash(&record);
+    assert_exit(&build(&m, &out, 2), 0);
+    assert_eq!(std::fs::read(out.join("index.json")).unwrap(), index);
+    assert_same(&clean, &out);
+}
+
+/// A symlinked `shards/` or `records/` used to be followed, writing tars outside the
+/// dataset directory.
+#[test]
+fn a_symlinked_shards_or_records_directory_is_refused_and_nothing_is_written_through_it() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 6, 2);
+    for inner in ["shards", "records"] {
+        let out = tmp.path().join(format!("linked-{inner}"));
+        assert_exit(&build(&m, &out, 2), 0);
+        let elsewhere = tmp.path().join(format!("elsewhere-{inner}"));
+        std::fs::rename(out.join(inner), &elsewhere).unwrap();
+        std::os::unix::fs::symlink(&elsewhere, out.join(inner)).unwrap();
+        // Work to do: one shard and its record gone, the index too.
+        std::fs::remove_file(elsewhere.join(if inner == "shards" {
+            "r2d-000000.tar"
+        } else {
+            "r2d-000000.json"
+        }))
+        .unwrap();
+        std::fs::remove_file(out.join("index.json")).unwrap();
+        let before = snapshot(&elsewhere);
+        let refused = build(&m, &out, 2);
+        assert_exit(&refused, 2);
+        assert!(
+            stderr(&refused).contains("is a symbolic link"),
+            "{}",
+            stderr(&refused)
+        );
+        assert_eq!(snapshot(&elsewhere), before, "written through the link");
+        assert!(!out.join("index.json").exists());
+    }
+}
+
+/// `preview DIR --out DIR/index.json` and `stats --plot DIR/shards/X.tar` used to overwrite
+/// dataset files.
+#[test]
+fn output_files_inside_a_dataset_directory_are_refused() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 4, 2);
+    let out = tmp.path().join("ds");
+    assert_exit(&build(&m, &out, 2), 0);
+    let dir = out.to_str().unwrap();
+    let link = tmp.path().join("card-link.png");
+    std::os::unix::fs::symlink(out.join("README.md"), &link).unwrap();
+    let npy = tmp.path().join("square.npy");
+    std::fs::write(&npy, bettimill_grid_npy_square()).unwrap();
+    let before = snapshot(&out);
+    let index = format!("{dir}/index.json");
+    let tar = format!("{dir}/shards/r2d-000000.tar");
+    let new_file = format!("{dir}/records/new.png");
+    let attempts: Vec<Vec<&str>> = vec![
+        vec!["preview", dir, "--out", &index],
+        vec!["preview", dir, "--out", &new_file],
+        vec!["preview", dir, "--out", link.to_str().unwrap()],
+        vec!["stats", dir, "--plot", &tar],
+        vec![
+            "deform",
+            npy.to_str().unwrap(),
+            "--out",
+            &index,
+            "--method",
+            "moves",
+            "--steps",
+            "1",
+        ],
+    ];
+    for args in attempts {
+        let refused = run(&args);
+        assert_exit(&refused, 2);
+        assert!(
+            stderr(&refused).contains("inside the dataset directory"),
+            "{args:?}: {}",
+            stderr(&refused)
+        );
+    }
+    assert_eq!(snapshot(&out), before);
+    // Outside the dataset the same commands write.
+    let outside = tmp.path().join("preview.png");
+    assert_exit(
+        &run(&["preview", dir, "--out", outside.to_str().unwrap()]),
+        0,
+    );
+    assert!(outside.exists());
+}
+
+/// A 5x5 uint8 .npy holding a 3x3 square.
+fn bettimill_grid_npy_square() -> Vec<u8> {
+    let header = "{'descr': '|u1', 'fortran_order': False, 'shape': (5, 5), }";
+    let mut header = header.to_string();
+    while !(10 + header.len() + 1).is_multiple_of(64) {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    for y in 0..5 {
+        for x in 0..5 {
+            bytes.push(u8::from((1..4).contains(&x) && (1..4).contains(&y)));
+        }
+    }
+    bytes
+}
+
+/// (inode, mtime, ctime, size) of every file and directory under `dir`, `dir` included.
+fn file_identities(
+    dir: &Path,
+) -> std::collections::BTreeMap<PathBuf, (u64, i64, i64, i64, i64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(path) = stack.pop() {
+        let meta = std::fs::symlink_metadata(&path).unwrap();
+        out.insert(
+            path.clone(),
+            (
+                meta.ino(),
+                meta.mtime(),
+                meta.mtime_nsec(),
+                meta.ctime(),
+                meta.ctime_nsec(),
+                meta.len(),
+            ),
+        );
+        if meta.is_dir() {
+            stack.extend(
+                std::fs::read_dir(&path)
+                    .unwrap()
+                    .flatten()
+                    .map(|e| e.path()),
+            );
+        }
+    }
+    out
+}
+
+/// The tour's no-op `build --out demo-out` used to rewrite index.json, the wids indexes and
+/// the card, and `stats` then took the build time from their mtimes (64 s for a 0.2 s
+/// build). A build or finalize that changes nothing now writes nothing, and `stats` reports
+/// the build time from the timings the build recorded.
+#[test]
+fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 6, 2);
+    let out = tmp.path().join("ds");
+    assert_exit(&build(&m, &out, 2), 0);
+    let stats = |out: &Path| -> serde_json::Value {
+        let output = run(&["stats", out.to_str().unwrap(), "--json"]);
+        assert_exit(&output, 0);
+        serde_json::from_slice(&output.stdout).unwrap()
+    };
+    let time = stats(&out)["build_time"].clone();
+    assert_eq!(time["shards_timed"], 3, "{time}");
+    assert_eq!(time["samples_timed"], 6, "{time}");
+    let before = file_identities(&out);
+    std::thread::sleep(Duration::from_millis(50));
+    assert_exit(&build(&m, &out, 2), 0);
+    assert_exit(&run(&["finalize", out.to_str().unwrap()]), 0);
+    assert_eq!(
+        file_identities(&out),
+        before,
+        "a no-op build or finalize wrote"
+    );
+    assert_eq!(stats(&out)["build_time"], time);
+    // A damaged dataset card is rewritten (and only what differs changes).
+    std::fs::write(out.join("README.md"), b"edited\n").unwrap();
+    assert_exit(&build(&m, &out, 2), 0);
+    assert_ne!(std::fs::read(out.join("README.md")).unwrap(), b"edited\n");
 }
 
 // ---------------------------------------------------------------- soak

@@ -59,7 +59,8 @@ fn sbatch_wait(script: &Path, env: &[(&str, &str)]) -> Option<i32> {
     out.status.code()
 }
 
-/// The dataset's files (everything but the lock and the Slurm scripts and logs).
+/// The dataset's files (everything but the lock, the Slurm scripts and logs, and the build
+/// timings, never the same twice).
 fn dataset_files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     let mut out = BTreeMap::new();
     let mut stack = vec![dir.to_path_buf()];
@@ -67,7 +68,8 @@ fn dataset_files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
         for entry in std::fs::read_dir(&d).unwrap() {
             let path = entry.unwrap().path();
             let rel = path.strip_prefix(dir).unwrap().to_path_buf();
-            if rel == Path::new("slurm") || rel == Path::new(".lock") {
+            if rel == Path::new("slurm") || rel == Path::new(".lock") || rel == Path::new("timings")
+            {
                 continue;
             }
             if path.is_dir() {

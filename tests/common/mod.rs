@@ -174,13 +174,18 @@ pub fn shard_files(out: &Path) -> Vec<String> {
 }
 
 /// Every file under `dir`, by relative path, with its bytes (a file that vanishes while the
-/// directory is walked, such as a temporary being renamed, reads as empty).
+/// directory is walked, such as a temporary being renamed, reads as empty), except a
+/// dataset's build timings (`timings/`: statistics outside the hashed data, never the same
+/// twice).
 pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     let mut out = BTreeMap::new();
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
         for entry in std::fs::read_dir(&d).unwrap() {
             let path = entry.unwrap().path();
+            if d == dir && path.file_name() == Some(std::ffi::OsStr::new("timings")) {
+                continue;
+            }
             if path.is_dir() {
                 stack.push(path);
             } else {
@@ -192,8 +197,9 @@ pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     out
 }
 
-/// Every finished file (the lock and temporaries, whose names start with a dot, aside) is
-/// the same in both directories, and `a` is a finished dataset.
+/// Every finished file (the lock and temporaries, whose names start with a dot, aside; and
+/// `timings/`, which [`snapshot`] leaves out) is the same in both directories, and `a` is a
+/// finished dataset.
 pub fn assert_same(a: &Path, b: &Path) {
     let finished = |dir: &Path| -> BTreeMap<PathBuf, Vec<u8>> {
         snapshot(dir)

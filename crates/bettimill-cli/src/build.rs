@@ -23,8 +23,17 @@ pub fn build(
         bail!("--progress-interval must be a positive number of seconds, got {progress_interval}");
     }
     let manifest_path = manifest;
+    let resume = format!(
+        "bettimill build {}--out {}",
+        manifest_path
+            .map(|m| format!("{} ", m.display()))
+            .unwrap_or_default(),
+        out.display()
+    );
+    crate::signals::set_resume_command(&resume);
     let (text, manifest) = load_manifest(manifest)?;
     let dataset = Dataset::bind(out, &text, manifest)?;
+    crate::signals::test_pause_at_startup();
     if !quiet && !dataset.plan.infeasible.is_empty() {
         // Said at the start, not only by `plan`: a researcher should know what the dataset
         // will not contain before it is built.
@@ -61,36 +70,18 @@ pub fn build(
     };
     let started = std::time::Instant::now();
     let mut display = Display::new(quiet, std::time::Duration::from_secs_f64(progress_interval));
+    // Signals set a flag while the workers run (the coordinator polls this future first,
+    // before it starts any worker); before and after, they end the process with 130.
     let control = async {
-        #[cfg(unix)]
-        {
-            use tokio::signal::unix::{signal, SignalKind};
-            match signal(SignalKind::terminate()) {
-                Ok(mut term) => {
-                    tokio::select! {
-                        _ = tokio::signal::ctrl_c() => {}
-                        _ = term.recv() => {}
-                    }
-                }
-                Err(_) => {
-                    let _ = tokio::signal::ctrl_c().await;
-                }
-            }
+        let _watching = crate::signals::Watching::start();
+        while !crate::signals::interrupted() {
+            tokio::time::sleep(std::time::Duration::from_millis(20)).await;
         }
-        #[cfg(not(unix))]
-        let _ = tokio::signal::ctrl_c().await;
         BuildControl::Interrupt
     };
     let report = coordinator::run(&dataset, &options, control, |event| display.event(event))?;
     display.finish();
     let seconds = started.elapsed().as_secs_f64();
-    let resume = format!(
-        "bettimill build {}--out {}",
-        manifest_path
-            .map(|m| format!("{} ", m.display()))
-            .unwrap_or_default(),
-        out.display()
-    );
     if report.interrupted {
         eprintln!(
             "interrupted: {} of {} shards complete, nothing partial is visible; resume with: {resume}",

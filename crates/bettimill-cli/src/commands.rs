@@ -142,7 +142,7 @@ enum Command {
     ///
     /// Also per component count, knot or link type and hypervolume (bins and a histogram),
     /// the regeneration rate of each class, and the build's wall time and samples per second
-    /// taken from file modification times (build.json to index.json).
+    /// from the timings its builds recorded (DIR/timings/), never from file times.
     ///
     /// Example: bettimill stats demo-out --plot stats.png
     Stats {

@@ -62,6 +62,7 @@ pub struct DeformArgs {
 
 /// Runs `bettimill deform`.
 pub fn run(args: &DeformArgs) -> anyhow::Result<ExitStatus> {
+    crate::stats::refuse_inside_dataset(&args.out, "--out")?;
     let input = crate::image::read_image(&args.image, args.strict)?;
     let method = match args.method {
         MethodArg::Moves => Method::Moves,

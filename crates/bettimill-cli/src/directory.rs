@@ -3,7 +3,7 @@
 //! shard from the directory alone). Exit code 2 when the dataset is incomplete.
 
 use crate::commands::ExitStatus;
-use anyhow::{bail, Context};
+use anyhow::Context;
 use bettimill_executor::cluster::{self};
 use bettimill_executor::Dataset;
 use std::path::Path;
@@ -56,12 +56,7 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
 
 /// `bettimill status DIR`.
 pub fn status(dir: &Path, json: bool) -> anyhow::Result<ExitStatus> {
-    if !bettimill_format::DatasetDir::new(dir).has_build_info() {
-        bail!(
-            "{} holds no bettimill dataset (no build.json)",
-            dir.display()
-        );
-    }
+    bettimill_format::DatasetDir::new(dir).require_bound()?;
     let dataset = Dataset::open(dir)?;
     let report = cluster::status(&dataset);
     let mut text = String::new();

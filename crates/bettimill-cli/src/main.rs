@@ -33,12 +33,21 @@ mod image;
 mod plan;
 mod preview;
 mod progress;
+mod signals;
 mod stats;
 
 use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // Before anything else (arguments, manifest, plan): a signal at any moment of a build
+    // gives exit code 130 and a resumable directory (see `signals`).
+    let first_word = std::env::args_os()
+        .skip(1)
+        .find(|arg| !arg.to_string_lossy().starts_with('-'));
+    if first_word.as_deref() == Some(std::ffi::OsStr::new("build")) {
+        signals::install();
+    }
     let cli = commands::Cli::parse();
     match commands::run(cli) {
         Ok(status) => status.into(),

@@ -71,6 +71,7 @@ fn subject(sample: &bettimill_preview::SampleView) -> Subject<'_> {
 
 /// Runs `bettimill preview`.
 pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
+    crate::stats::refuse_inside_dataset(request.out, "--out")?;
     let input = request.input;
     let is_npy = crate::image::looks_like_image(input);
     let canvas = if is_npy {

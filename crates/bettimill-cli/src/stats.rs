@@ -1,5 +1,5 @@
 //! `bettimill stats`: counts per Betti vector, class, split, component count, knot type and
-//! hypervolume; regeneration rates; build time (from file modification times); an optional
+//! hypervolume; regeneration rates; build time (from the timings the builds recorded in DIR/timings/, never file times); an optional
 //! histogram PNG.
 
 use crate::commands::ExitStatus;
@@ -21,6 +21,9 @@ pub fn run(
             dir.display()
         );
     }
+    if let Some(path) = plot_path {
+        refuse_inside_dataset(path, "--plot")?;
+    }
     let shards = crate::preview::dataset_shards(dir)?;
     let bar = crate::progress::bar(shards.len() as u64, "shards", "reading labels", quiet);
     let mut labels = Vec::new();
@@ -34,16 +37,18 @@ pub fn run(
     }
     let layout = DatasetDir::new(dir);
     let mut records = Vec::new();
+    let mut timings = Vec::new();
     for name in layout.record_names()? {
         if let Some(record) = layout.read_record(&name)? {
             records.push(record);
+            if let Some(t) = layout.read_timing(&name) {
+                timings.push((t.started_unix, t.seconds, t.samples));
+            }
         }
     }
     bar.finish_and_clear();
     let mut stats = Stats::collect(&labels, &records, shards.len() as u64);
-    stats.build_time = layout.file_times().and_then(|(start, end, finished)| {
-        BuildTime::from_file_times(start, end, finished, stats.samples)
-    });
+    stats.build_time = BuildTime::from_timings(&timings, layout.is_finalized());
     let output = if json {
         serde_json::to_string_pretty(&stats)? + "\n"
     } else {
@@ -59,6 +64,20 @@ pub fn run(
         }
     }
     Ok(ExitStatus::Success)
+}
+
+/// Refuses an output file (`preview --out`, `stats --plot`, `deform --out`) that would land
+/// inside a dataset directory, a link followed: every file there is bettimill's, and
+/// overwriting one (index.json, a shard) would damage the dataset.
+pub(crate) fn refuse_inside_dataset(path: &Path, flag: &str) -> anyhow::Result<()> {
+    if let Some(dir) = bettimill_format::dataset_containing(path) {
+        bail!(
+            "{flag} {}: that is inside the dataset directory {}, whose files are all bettimill's; write it outside the dataset",
+            path.display(),
+            dir.display()
+        );
+    }
+    Ok(())
 }
 
 /// Writes data to stdout. A reader that stops early (`bettimill stats DIR | head`) closes

@@ -1,5 +1,6 @@
 //! The output directory of one dataset and the operations on it.
 
+use bettimill_format::dir::{BUILD_INFO_FILE, MANIFEST_FILE};
 use bettimill_format::TarCheck;
 use bettimill_format::{member_name, DatasetDir, FormatError, TOOL_VERSION};
 pub use bettimill_format::{BuildInfo, CompletionRecord, ShardState};
@@ -7,7 +8,7 @@ use bettimill_manifest::{Manifest, ManifestError};
 use bettimill_plan::{Plan, ShardPlan};
 use bettimill_sample::{make_sample, SampleError};
 use bettimill_shard::{
-    self as shard, AtomicFile, IndexHeader, IndexWriter, Member, ShardError, WidsWriter,
+    self as shard, AtomicFile, IndexFile, IndexHeader, IndexWriter, Member, ShardError, WidsWriter,
 };
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -125,8 +126,11 @@ impl Dataset {
     }
 
     /// Opens an existing dataset directory from its stored manifest.
+    /// A directory without `build.json` is refused (a creation that stopped half-way is
+    /// named as such: only `build` resumes it), so reading commands never create anything.
     pub fn open(dir: &Path) -> Result<Dataset, BuildError> {
         let layout = DatasetDir::new(dir);
+        layout.require_bound()?;
         let path = layout.manifest_path();
         let text = layout.read_manifest_text()?;
         let manifest = Manifest::parse(&text, &path)?;
@@ -143,10 +147,15 @@ impl Dataset {
         self.layout.record_path(&shard.name)
     }
 
-    /// The shard's completion record if the shard on disk matches it (size, then the
-    /// blake3 streamed through a fixed buffer), else `None`.
+    /// The shard's completion record if the shard on disk matches it (the record checked
+    /// whole against the tar in one streamed pass: every member's place, header and blake3,
+    /// then the file's blake3; see [`DatasetDir::check_tar`]) and the plan (split, sample
+    /// count), else `None`.
     pub fn completed(&self, shard: &ShardPlan) -> Option<CompletionRecord> {
-        self.layout.completed(&shard.name)
+        match self.shard_state(shard) {
+            ShardState::Complete(record) => Some(record),
+            _ => None,
+        }
     }
 
     /// The names of the shards that have a completion record, sorted: one directory listing,
@@ -183,6 +192,8 @@ impl Dataset {
         shard: &ShardPlan,
         progress: &(dyn Fn(u32) + Sync),
     ) -> Result<CompletionRecord, BuildError> {
+        let started = std::time::SystemTime::now();
+        let clock = std::time::Instant::now();
         let tasks = self.plan.shard_tasks(shard);
         let compression = self.plan.compression;
         // Each sample becomes its (compressed) members as soon as it is verified, so a
@@ -235,6 +246,19 @@ impl Dataset {
             regenerations: regenerations.into_iter().collect(),
         };
         self.layout.write_record(&shard.name, &completion)?;
+        // Statistics only, outside the hashed data: a shard whose timing cannot be written
+        // (a full disk just after its record) is complete all the same.
+        let _ = self.layout.write_timing(
+            &shard.name,
+            &bettimill_format::ShardTiming {
+                started_unix: started
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.as_secs_f64())
+                    .unwrap_or(0.0),
+                seconds: clock.elapsed().as_secs_f64(),
+                samples: shard.samples,
+            },
+        );
         Ok(completion)
     }
 
@@ -267,11 +291,27 @@ impl Dataset {
     /// The state of one shard, judged from the directory alone (see
     /// [`DatasetDir::shard_state`]).
     pub fn shard_state(&self, shard: &ShardPlan) -> ShardState {
-        self.layout.shard_state(&shard.name)
+        match self.layout.shard_state(&shard.name) {
+            ShardState::Complete(record)
+                if record.shard.split != shard.split || record.shard.samples != shard.samples =>
+            {
+                ShardState::Invalid {
+                    reason: format!(
+                        "{}: it says {} samples of split {}, the plan has {} of split {}",
+                        self.record_path(shard).display(),
+                        record.shard.samples,
+                        record.shard.split,
+                        shard.samples,
+                        shard.split
+                    ),
+                }
+            }
+            state => state,
+        }
     }
 
     /// Removes the temporary files that killed writers leave behind (`.NAME.tmp-PID` in the
-    /// directory, `shards/` and `records/`). Call it only when no other process is writing
+    /// directory, `shards/`, `records/` and `timings/`). Call it only when no other process is writing
     /// this dataset: under the directory lock, or once every shard is complete.
     pub fn remove_temporaries(&self) -> Result<Vec<PathBuf>, BuildError> {
         let mut removed = Vec::new();
@@ -279,6 +319,7 @@ impl Dataset {
             self.dir.clone(),
             self.layout.shards_dir(),
             self.layout.records_dir(),
+            self.dir.join(bettimill_format::dir::TIMINGS_DIR),
         ] {
             let entries = match std::fs::read_dir(&dir) {
                 Ok(entries) => entries,
@@ -331,90 +372,122 @@ impl Dataset {
             self.plan.shard_count(),
             self.plan.samples,
         );
-        let index_file = AtomicFile::create(&self.layout.index_path())?;
-        let index_tmp = index_file.temporary().to_path_buf();
-        let mut index = IndexWriter::new(index_file, &header).map_err(|source| BuildError::Io {
-            path: index_tmp.clone(),
-            source,
-        })?;
-        let mut wids: BTreeMap<String, WidsWriter<AtomicFile>> = BTreeMap::new();
+        let mut write =
+            |path: &Path| -> Result<AtomicFile, BuildError> { Ok(AtomicFile::create(path)?) };
+        let files = if self.layout.is_finalized() {
+            // A finished directory (a no-op resume, a second finalize): the files are first
+            // compared with what would be written, and nothing is written, not even a
+            // temporary, when every one is the same (so mtimes and inodes stay).
+            let mut compare = |path: &Path| Ok(SameBytes::open(path));
+            let compared = self.finalize_into(&header, Some(checked), &mut compare)?;
+            if compared.into_iter().all(|(_, same)| same.matches()) {
+                return Ok(header);
+            }
+            // The shards were checked just now.
+            self.finalize_into(&header, None, &mut write)?
+        } else {
+            self.finalize_into(&header, Some(checked), &mut write)?
+        };
+        // Indexes for other tools and the dataset card first: index.json comes last, so its
+        // presence means the whole dataset is complete.
+        for (_, file) in files {
+            file.commit()?;
+        }
+        Ok(header)
+    }
+
+    /// Streams the finalized files into writers `open` gives (one record at a time, so memory
+    /// does not grow with samples or shards): the wids indexes, the class table, the dataset
+    /// card, then `index.json` (listing all of them), returned in that order. With `checked`, every shard is checked against
+    /// its record first (size only for the shards `checked` accepts).
+    fn finalize_into<W: std::io::Write>(
+        &self,
+        header: &IndexHeader,
+        checked: Option<&dyn Fn(&ShardPlan) -> bool>,
+        open: &mut dyn FnMut(&Path) -> Result<W, BuildError>,
+    ) -> Result<Vec<(PathBuf, W)>, BuildError> {
+        let index_path = self.layout.index_path();
+        let io_at = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| BuildError::Io { path, source }
+        };
+        let mut index = IndexWriter::new(open(&index_path)?, header).map_err(io_at(&index_path))?;
+        let mut wids: BTreeMap<String, (PathBuf, WidsWriter<Hashing<W>>)> = BTreeMap::new();
         for plan in self.plan.shards() {
-            let corrupt = || BuildError::Corrupt {
+            let corrupt = |reason: String| BuildError::Corrupt {
                 path: self.tar_path(&plan),
-                reason: "shard is missing or does not match its record; run the build again".into(),
+                reason: format!("{reason}; run the build again"),
             };
             let (record, record_blake3) = match self.layout.read_record_hashed(&plan.name) {
                 Ok(Some(found)) => found,
-                _ => return Err(corrupt()),
+                Ok(None) => return Err(corrupt("the shard has no completion record".into())),
+                Err(err) => return Err(corrupt(err.to_string())),
             };
-            let check = if checked(&plan) {
-                TarCheck::Size
-            } else {
-                TarCheck::Full
-            };
-            if self
-                .layout
-                .check_tar(&plan.name, &record.shard, check)
-                .is_err()
-            {
-                return Err(corrupt());
+            if let Some(checked) = checked {
+                let check = if checked(&plan) {
+                    TarCheck::Size
+                } else {
+                    TarCheck::Full
+                };
+                self.layout
+                    .check_tar(&plan.name, &record.shard, check)
+                    .map_err(corrupt)?;
             }
             let entry = record.shard.index_entry(record_blake3);
-            index.push(&entry).map_err(|source| BuildError::Io {
-                path: index_tmp.clone(),
-                source,
-            })?;
-            let split = match wids.entry(entry.split.clone()) {
+            index.push(&entry).map_err(io_at(&index_path))?;
+            let (path, split) = match wids.entry(entry.split.clone()) {
                 std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
                 std::collections::btree_map::Entry::Vacant(e) => {
-                    let file = AtomicFile::create(&self.layout.wids_index_path(&entry.split))?;
-                    let tmp = file.temporary().to_path_buf();
-                    e.insert(
-                        WidsWriter::new(file, &entry.split)
-                            .map_err(|source| BuildError::Io { path: tmp, source })?,
-                    )
+                    let path = self.layout.wids_index_path(&entry.split);
+                    let writer = WidsWriter::new(Hashing::new(open(&path)?), &entry.split)
+                        .map_err(io_at(&path))?;
+                    e.insert((path, writer))
                 }
             };
             split
                 .push(&entry.name, entry.samples, entry.bytes)
-                .map_err(|source| BuildError::Io {
-                    path: self.layout.wids_index_path(&entry.split),
-                    source,
-                })?;
+                .map_err(io_at(path))?;
         }
-        // Indexes for other tools, the class table and the dataset card first: index.json is
-        // written last (listing each of them), so its presence means the whole dataset is
-        // complete.
+        // The class table and the dataset card are small and made in memory; the wids
+        // indexes are hashed as they stream; manifest.toml and build.json are on disk since
+        // the directory was created. index.json lists every one of them.
+        let name_of = |path: &Path| {
+            path.file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        };
         let mut files = Vec::new();
-        for (split, writer) in wids {
-            let file = writer.finish().map_err(|source| BuildError::Io {
-                path: index_tmp.clone(),
-                source,
-            })?;
-            file.commit()?;
-            files.push(self.layout.wids_index_path(&split));
-        }
-        self.layout.write_class_table(&self.plan.class_table())?;
-        shard::write_atomic(&self.layout.card_path(), self.dataset_card().as_bytes())?;
         let mut listed = Vec::new();
-        for name in bettimill_format::REQUIRED_FILES
-            .iter()
-            .map(|name| name.to_string())
-            .chain(
-                files
-                    .iter()
-                    .filter_map(|path| path.file_name().map(|n| n.to_string_lossy().into_owned())),
-            )
-        {
-            listed.push(self.layout.index_file(&name)?);
+        for (_, (path, writer)) in wids {
+            let hashing = writer.finish().map_err(io_at(&path))?;
+            let (file, entry) = hashing.into_entry(name_of(&path));
+            listed.push(entry);
+            files.push((path, file));
+        }
+        let in_memory = [
+            (
+                self.layout.classes_path(),
+                self.plan.class_table().to_json_bytes(),
+            ),
+            (self.layout.card_path(), self.dataset_card().into_bytes()),
+        ];
+        for (path, bytes) in in_memory {
+            let mut file = open(&path)?;
+            std::io::Write::write_all(&mut file, &bytes).map_err(io_at(&path))?;
+            listed.push(IndexFile {
+                name: name_of(&path),
+                bytes: bytes.len() as u64,
+                blake3: shard::blake3_hex(&bytes),
+            });
+            files.push((path, file));
+        }
+        for name in [MANIFEST_FILE, BUILD_INFO_FILE] {
+            listed.push(self.layout.index_file(name)?);
         }
         index.set_files(listed);
-        let file = index.finish().map_err(|source| BuildError::Io {
-            path: index_tmp.clone(),
-            source,
-        })?;
-        file.commit()?;
-        Ok(header)
+        let file = index.finish().map_err(io_at(&index_path))?;
+        files.push((index_path, file));
+        Ok(files)
     }
 
     /// The dataset card written as DIR/README.md: what the dataset is, how it was built,
@@ -509,6 +582,50 @@ fn write_tar_atomically(path: &Path, bytes: &[u8]) -> Result<(), BuildError> {
     Ok(())
 }
 
+/// A writer that compares what is written with an existing file instead of writing it.
+struct SameBytes {
+    file: Option<std::io::BufReader<std::fs::File>>,
+    same: bool,
+    scratch: Vec<u8>,
+}
+
+impl SameBytes {
+    /// Compares with the file at `path` (a missing file differs from everything).
+    fn open(path: &Path) -> SameBytes {
+        let file = std::fs::File::open(path).ok().map(std::io::BufReader::new);
+        SameBytes {
+            same: file.is_some(),
+            file,
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Whether everything written equals the whole file.
+    fn matches(mut self) -> bool {
+        let Some(file) = self.file.as_mut().filter(|_| self.same) else {
+            return false;
+        };
+        let mut byte = [0u8; 1];
+        matches!(std::io::Read::read(file, &mut byte), Ok(0))
+    }
+}
+
+impl std::io::Write for SameBytes {
+    fn write(&mut self, data: &[u8]) -> std::io::Result<usize> {
+        if let (true, Some(file)) = (self.same, self.file.as_mut()) {
+            self.scratch.resize(data.len(), 0);
+            let equal =
+                std::io::Read::read_exact(file, &mut self.scratch).is_ok() && self.scratch == data;
+            self.same = equal;
+        }
+        Ok(data.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
 /// A sample's failure while its members are made: generating it, or compressing it.
 enum SampleOrShard {
     Sample(SampleError),
@@ -518,5 +635,46 @@ enum SampleOrShard {
 impl From<SampleError> for SampleOrShard {
     fn from(err: SampleError) -> Self {
         SampleOrShard::Sample(err)
+    }
+}
+
+/// A writer that passes bytes through and keeps their count and blake3, so a file streamed
+/// into place can be listed in `index.json` without being read back.
+struct Hashing<W> {
+    inner: W,
+    hasher: blake3::Hasher,
+    bytes: u64,
+}
+
+impl<W> Hashing<W> {
+    fn new(inner: W) -> Hashing<W> {
+        Hashing {
+            inner,
+            hasher: blake3::Hasher::new(),
+            bytes: 0,
+        }
+    }
+
+    /// The inner writer, and the index entry of what went through it.
+    fn into_entry(self, name: String) -> (W, IndexFile) {
+        let entry = IndexFile {
+            name,
+            bytes: self.bytes,
+            blake3: self.hasher.finalize().to_hex().to_string(),
+        };
+        (self.inner, entry)
+    }
+}
+
+impl<W: std::io::Write> std::io::Write for Hashing<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.hasher.update(&buf[..n]);
+        self.bytes += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
     }
 }

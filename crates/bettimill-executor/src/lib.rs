@@ -30,7 +30,8 @@
 pub mod cluster;
 pub mod coordinator;
 mod dataset;
-pub mod lock;
+/// The directory lock (owned by `bettimill-format`, which takes it to create a directory).
+pub use bettimill_format::lock;
 pub mod protocol;
 pub mod worker;
 

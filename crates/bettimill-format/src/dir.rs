@@ -25,6 +25,46 @@ pub const MAX_CLASS_TABLE_BYTES: u64 = 256 << 20;
 pub const SHARDS_DIR: &str = "shards";
 /// `DIR/records/`: one completion record per finished shard.
 pub const RECORDS_DIR: &str = "records";
+/// `DIR/timings/`: when and how long each shard took to build ([`ShardTiming`]). Not part
+/// of the dataset's data: no hash covers it and two builds of one manifest differ there.
+pub const TIMINGS_DIR: &str = "timings";
+/// `DIR/.lock`: the directory lock ([`crate::lock`]), always empty.
+pub const LOCK_FILE: &str = ".lock";
+/// The files a new directory gets before `build.json`, in the order they are written: a
+/// creation that stopped half-way leaves some of them (or their temporaries) and nothing
+/// else, and [`DatasetDir::bind`] finishes it.
+pub const CREATION_FILES: &[&str] = &[MANIFEST_FILE];
+
+/// What a directory without `build.json` holds (see [`DatasetDir::unbound_state`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Unbound {
+    /// It does not exist, is empty, or holds only the lock: nothing was written yet.
+    Empty,
+    /// What a creation that stopped before `build.json` leaves (killed, or the disk was
+    /// full): some of [`CREATION_FILES`], temporaries of them or of `build.json`, the lock.
+    Unfinished {
+        /// Whether `manifest.toml` was written.
+        manifest: bool,
+        /// The temporaries (`.manifest.toml.tmp-PID`, `.build.json.tmp-PID`).
+        temporaries: Vec<PathBuf>,
+    },
+    /// Anything else: not a bettimill directory.
+    Foreign,
+}
+
+/// When and how long a shard took to build, written by the process that built it to
+/// `DIR/timings/NAME.json` after its record. Outside the hashed data on purpose (times are
+/// never the same twice); `bettimill stats` reports the build time from these files.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShardTiming {
+    /// When the shard's first sample was started, in seconds since the Unix epoch.
+    pub started_unix: f64,
+    /// Seconds from then until its record was written.
+    pub seconds: f64,
+    /// Samples in the shard.
+    pub samples: u64,
+}
 
 /// The identity of a dataset directory, written before anything else.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -213,6 +253,11 @@ impl DatasetDir {
         self.records_dir().join(format!("{shard}.json"))
     }
 
+    /// `DIR/timings/NAME.json`.
+    pub fn timing_path(&self, shard: &str) -> PathBuf {
+        self.root.join(TIMINGS_DIR).join(format!("{shard}.json"))
+    }
+
     /// Whether `DIR/build.json` exists.
     pub fn has_build_info(&self) -> bool {
         self.build_info_path().exists()
@@ -239,34 +284,159 @@ impl DatasetDir {
         std::fs::read_to_string(&path).map_err(io(&path))
     }
 
+    /// What the directory holds while it has no `build.json`: nothing yet, the leftovers
+    /// of a creation that stopped half-way, or something foreign. Reads only the listing.
+    pub fn unbound_state(&self) -> Result<Unbound, FormatError> {
+        let dir = &self.root;
+        let entries = match std::fs::read_dir(dir) {
+            Ok(entries) => entries,
+            Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(Unbound::Empty),
+            Err(source) => return Err(io(dir)(source)),
+        };
+        let mut manifest = false;
+        let mut temporaries = Vec::new();
+        for entry in entries {
+            let entry = entry.map_err(io(dir))?;
+            let name = entry.file_name();
+            let Some(name) = name.to_str() else {
+                return Ok(Unbound::Foreign);
+            };
+            let is_file = entry.file_type().map_err(io(dir))?.is_file();
+            if name == LOCK_FILE && is_file {
+                continue;
+            }
+            if name == MANIFEST_FILE && is_file {
+                manifest = true;
+                continue;
+            }
+            let temporary_of = |file: &str| {
+                name.strip_prefix('.')
+                    .and_then(|rest| rest.strip_prefix(file))
+                    .and_then(|rest| rest.strip_prefix(".tmp-"))
+                    .is_some_and(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+            };
+            if is_file
+                && (CREATION_FILES.iter().any(|f| temporary_of(f)) || temporary_of(BUILD_INFO_FILE))
+            {
+                temporaries.push(entry.path());
+                continue;
+            }
+            return Ok(Unbound::Foreign);
+        }
+        if !manifest && temporaries.is_empty() {
+            return Ok(Unbound::Empty);
+        }
+        temporaries.sort();
+        Ok(Unbound::Unfinished {
+            manifest,
+            temporaries,
+        })
+    }
+
     /// Binds the directory to `expected`: checks a stored `build.json` against it in full
     /// (manifest hash, then tool version, then plan hash), or, when there is none, creates
-    /// the directory (which must be empty or new) with `manifest.toml` and `build.json`.
-    /// Creates `shards/` and `records/` in both cases. Writes nothing when refusing.
+    /// the directory with `manifest.toml` and `build.json`. Creation takes the directory
+    /// lock before writing anything, and finishes a creation that stopped half-way
+    /// ([`Unbound::Unfinished`], when its `manifest.toml` is this manifest byte for byte);
+    /// a directory holding anything else is refused untouched. Creates `shards/` and
+    /// `records/` in both cases, and refuses them if they are symbolic links (bettimill
+    /// never writes through a link inside the directory).
     pub fn bind(&self, manifest_text: &str, expected: &BuildInfo) -> Result<(), FormatError> {
         let dir = &self.root;
-        if self.has_build_info() {
-            let found = self.read_build_info()?;
-            check_build_info(dir, &found, expected)?;
-        } else {
-            if dir.exists() {
-                let mut entries = std::fs::read_dir(dir).map_err(io(dir))?;
-                if entries.next().is_some() {
+        if !self.has_build_info() {
+            // Refused before anything (even the lock) is written into it; checked again
+            // under the lock.
+            match self.unbound_state()? {
+                // (Unless another build has just finished creating it.)
+                Unbound::Foreign if !self.has_build_info() => {
                     return Err(FormatError::ForeignDirectory {
                         dir: dir.to_path_buf(),
-                    });
+                    })
                 }
+                Unbound::Unfinished { manifest: true, .. } => {
+                    self.check_stored_manifest(manifest_text)?
+                }
+                _ => {}
             }
             std::fs::create_dir_all(dir).map_err(io(dir))?;
-            shard::write_atomic(&self.manifest_path(), manifest_text.as_bytes())?;
-            let mut bytes = serde_json::to_vec_pretty(expected).expect("build info serialises");
-            bytes.push(b'\n');
-            shard::write_atomic(&self.build_info_path(), &bytes)?;
+            let _lock = crate::lock::DirLock::acquire(dir)?;
+            // Under the lock: another build may have created it meanwhile.
+            if !self.has_build_info() {
+                self.create(manifest_text, expected)?;
+            }
         }
+        let found = self.read_build_info()?;
+        check_build_info(dir, &found, expected)?;
         for path in [self.shards_dir(), self.records_dir()] {
-            std::fs::create_dir_all(&path).map_err(io(&path))?;
+            ensure_real_dir(&path)?;
         }
         Ok(())
+    }
+
+    /// Writes `manifest.toml` and `build.json` into a directory that has no `build.json`,
+    /// finishing a creation that stopped half-way. Call it under the directory lock.
+    fn create(&self, manifest_text: &str, expected: &BuildInfo) -> Result<(), FormatError> {
+        let dir = &self.root;
+        let (manifest, temporaries) = match self.unbound_state()? {
+            Unbound::Foreign => {
+                return Err(FormatError::ForeignDirectory {
+                    dir: dir.to_path_buf(),
+                })
+            }
+            Unbound::Empty => (false, Vec::new()),
+            Unbound::Unfinished {
+                manifest,
+                temporaries,
+            } => (manifest, temporaries),
+        };
+        if manifest {
+            self.check_stored_manifest(manifest_text)?;
+        }
+        // Leftovers of the stopped creation (its writer is dead: we hold the lock).
+        for path in temporaries {
+            match std::fs::remove_file(&path) {
+                Err(err) if err.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(io(&path)(err))
+                }
+                _ => {}
+            }
+        }
+        if !manifest {
+            shard::write_atomic(&self.manifest_path(), manifest_text.as_bytes())?;
+        }
+        let mut bytes = serde_json::to_vec_pretty(expected).expect("build info serialises");
+        bytes.push(b'\n');
+        shard::write_atomic(&self.build_info_path(), &bytes)?;
+        Ok(())
+    }
+
+    /// Refuses an unfinished creation whose `manifest.toml` is not `manifest_text`.
+    fn check_stored_manifest(&self, manifest_text: &str) -> Result<(), FormatError> {
+        let path = self.manifest_path();
+        let stored = std::fs::read(&path).map_err(io(&path))?;
+        if stored != manifest_text.as_bytes() {
+            return Err(FormatError::UnfinishedOtherManifest {
+                dir: self.root.clone(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Refuses a directory that is not a dataset for reading commands: `Ok` when it has a
+    /// `build.json`; otherwise an error that tells an unfinished creation (rerun the
+    /// build) from a directory that holds no dataset.
+    pub fn require_bound(&self) -> Result<(), FormatError> {
+        if self.has_build_info() {
+            return Ok(());
+        }
+        match self.unbound_state()? {
+            Unbound::Unfinished { .. } => Err(FormatError::Unfinished {
+                dir: self.root.clone(),
+            }),
+            _ => Err(FormatError::NoDataset {
+                dir: self.root.clone(),
+            }),
+        }
     }
 
     /// Reads a shard's completion record; `Ok(None)` when there is none.
@@ -370,6 +540,14 @@ impl DatasetDir {
         record: &ShardRecord,
         check: TarCheck,
     ) -> Result<(), String> {
+        let relative = DatasetDir::relative_tar_name(shard);
+        if record.name != relative {
+            return Err(format!(
+                "{}: it names the shard {}, not {relative}",
+                self.record_path(shard).display(),
+                record.name
+            ));
+        }
         check_tar_file(&self.tar_path(shard), record, check)
     }
 
@@ -430,31 +608,74 @@ impl DatasetDir {
         list_stems(&self.shards_dir(), "tar")
     }
 
-    /// The build's span from file modification times, in seconds since the Unix epoch:
-    /// (`build.json`, the end, finished) where the end is `index.json`, or the newest
-    /// completion record while the build is unfinished. `None` when a time cannot be read.
-    /// The directory stores no timings (a rebuild must be byte-identical).
-    pub fn file_times(&self) -> Option<(f64, f64, bool)> {
-        let mtime = |path: &Path| -> Option<f64> {
-            let modified = std::fs::metadata(path).ok()?.modified().ok()?;
-            Some(
-                modified
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .ok()?
-                    .as_secs_f64(),
-            )
-        };
-        let start = mtime(&self.build_info_path())?;
-        if self.is_finalized() {
-            return Some((start, mtime(&self.index_path())?, true));
+    /// Writes a shard's timing (atomically; creates `timings/`, refusing a link there).
+    /// Write it after the shard's record.
+    pub fn write_timing(&self, shard: &str, timing: &ShardTiming) -> Result<(), FormatError> {
+        ensure_real_dir(&self.root.join(TIMINGS_DIR))?;
+        let mut bytes = serde_json::to_vec_pretty(timing).expect("timings serialise");
+        bytes.push(b'\n');
+        Ok(shard::write_atomic(&self.timing_path(shard), &bytes)?)
+    }
+
+    /// A shard's timing, `None` when it has none or it cannot be read (a timing is
+    /// statistics, never data: a shard built before timings existed, or whose builder was
+    /// killed between its record and its timing, simply has none).
+    pub fn read_timing(&self, shard: &str) -> Option<ShardTiming> {
+        let bytes = std::fs::read(self.timing_path(shard)).ok()?;
+        let timing: ShardTiming = serde_json::from_slice(&bytes).ok()?;
+        (timing.started_unix.is_finite() && timing.seconds.is_finite() && timing.seconds >= 0.0)
+            .then_some(timing)
+    }
+}
+
+/// The dataset directory a file written at `path` would land in, if any: `path` (a link
+/// followed, as a write would) or one of its parent directories holds `build.json` or the
+/// directory lock. Commands that write an output file refuse such a path: every file in a
+/// dataset directory is bettimill's.
+pub fn dataset_containing(path: &Path) -> Option<PathBuf> {
+    let target = match std::fs::canonicalize(path) {
+        Ok(target) => target,
+        Err(_) => {
+            let parent = path
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .unwrap_or(Path::new("."));
+            std::fs::canonicalize(parent).ok()?.join(path.file_name()?)
         }
-        let newest = self
-            .record_names()
-            .ok()?
-            .iter()
-            .filter_map(|name| mtime(&self.record_path(name)))
-            .max_by(f64::total_cmp)?;
-        Some((start, newest, false))
+    };
+    target
+        .ancestors()
+        .skip(1)
+        .find(|dir| dir.join(BUILD_INFO_FILE).is_file() || dir.join(LOCK_FILE).is_file())
+        .map(Path::to_path_buf)
+}
+
+/// Creates `path` as a directory unless it is one; refuses a symbolic link (or anything
+/// else) in its place.
+fn ensure_real_dir(path: &Path) -> Result<(), FormatError> {
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.file_type().is_symlink() => Err(FormatError::Symlinked {
+            path: path.to_path_buf(),
+        }),
+        Ok(meta) if meta.is_dir() => Ok(()),
+        Ok(_) => Err(FormatError::Corrupt {
+            path: path.to_path_buf(),
+            reason: "is not a directory".into(),
+        }),
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => match std::fs::create_dir(path) {
+            Err(err) if err.kind() != std::io::ErrorKind::AlreadyExists => Err(io(path)(err)),
+            _ => ensure_real_dir_exists(path),
+        },
+        Err(err) => Err(io(path)(err)),
+    }
+}
+
+fn ensure_real_dir_exists(path: &Path) -> Result<(), FormatError> {
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.is_dir() => Ok(()),
+        _ => Err(FormatError::Symlinked {
+            path: path.to_path_buf(),
+        }),
     }
 }
 
@@ -474,7 +695,124 @@ pub fn check_tar_file(path: &Path, record: &ShardRecord, check: TarCheck) -> Res
     if check == TarCheck::Size {
         return Ok(());
     }
-    shard::file_matches(path, record.bytes, &record.blake3)
+    check_members(path, record)
+}
+
+/// The full check of a tar against its record, in one pass through a fixed buffer: the
+/// record must describe the layout bettimill writes (member after member, each header the
+/// canonical one for its name and size, zero padding, the end marker, sample count and
+/// keys from the member names), every member's data must have the record's blake3, and
+/// the whole file the record's blake3. So a record is checked whole, not only its shard
+/// hash: a damaged member hash or offset makes the shard incomplete.
+fn check_members(path: &Path, record: &ShardRecord) -> Result<(), String> {
+    use std::io::Read;
+    let shown = path.display();
+    let layout_len = shard::ustar::tar_len(record.members.iter().map(|m| m.bytes));
+    if layout_len != record.bytes {
+        return Err(format!(
+            "{shown}: its record lists members that take {layout_len} bytes, but says the tar has {}",
+            record.bytes
+        ));
+    }
+    let names = record.members.iter().map(|m| m.name.as_str());
+    let samples = shard::count_samples(names);
+    let key = |member: Option<&shard::MemberRecord>| {
+        member.and_then(|m| shard::ustar::split_key(&m.name).map(|(key, _)| key.to_string()))
+    };
+    if samples != record.samples
+        || key(record.members.first()).as_deref() != Some(record.first_key.as_str())
+        || key(record.members.last()).as_deref() != Some(record.last_key.as_str())
+    {
+        return Err(format!(
+            "{shown}: its record says {} samples from {} to {}, its members say {samples} from {} to {}",
+            record.samples,
+            record.first_key,
+            record.last_key,
+            key(record.members.first()).unwrap_or_default(),
+            key(record.members.last()).unwrap_or_default()
+        ));
+    }
+    let file = std::fs::File::open(path).map_err(|err| format!("{shown}: {err}"))?;
+    let mut reader = std::io::BufReader::with_capacity(1 << 16, file);
+    let mut whole = blake3::Hasher::new();
+    let mut buffer = vec![0u8; 1 << 16];
+    let mut read = |reader: &mut std::io::BufReader<std::fs::File>,
+                    whole: &mut blake3::Hasher,
+                    len: u64,
+                    each: &mut dyn FnMut(&[u8])|
+     -> Result<(), String> {
+        let mut left = len;
+        while left > 0 {
+            let take = left.min(buffer.len() as u64) as usize;
+            reader
+                .read_exact(&mut buffer[..take])
+                .map_err(|err| format!("{shown}: {err}"))?;
+            whole.update(&buffer[..take]);
+            each(&buffer[..take]);
+            left -= take as u64;
+        }
+        Ok(())
+    };
+    let mut position = 0u64;
+    for member in &record.members {
+        let name = &member.name;
+        if member.offset != position + shard::ustar::BLOCK {
+            return Err(format!(
+                "{shown}: its record puts member {name} at byte {}, the layout at {}",
+                member.offset,
+                position + shard::ustar::BLOCK
+            ));
+        }
+        let expected = shard::ustar::header_block(name, member.bytes)
+            .map_err(|err| format!("{shown}: its record lists member {name}: {err}"))?;
+        let mut header = Vec::with_capacity(512);
+        read(&mut reader, &mut whole, shard::ustar::BLOCK, &mut |b| {
+            header.extend_from_slice(b)
+        })?;
+        if header != expected {
+            return Err(format!(
+                "{shown}: the header at byte {position} is not that of member {name} of {} bytes, as its record says",
+                member.bytes
+            ));
+        }
+        let mut hasher = blake3::Hasher::new();
+        read(&mut reader, &mut whole, member.bytes, &mut |b| {
+            hasher.update(b);
+        })?;
+        let found = hasher.finalize().to_hex();
+        if found.as_str() != member.blake3 {
+            return Err(format!(
+                "{shown}: member {name} has blake3 {found}, its record says {}",
+                member.blake3
+            ));
+        }
+        let padding = shard::ustar::member_bytes(member.bytes) - shard::ustar::BLOCK - member.bytes;
+        let mut zero = true;
+        read(&mut reader, &mut whole, padding, &mut |b| {
+            zero &= b.iter().all(|&x| x == 0)
+        })?;
+        if !zero {
+            return Err(format!(
+                "{shown}: the padding after member {name} is not zero"
+            ));
+        }
+        position += shard::ustar::member_bytes(member.bytes);
+    }
+    let mut zero = true;
+    read(&mut reader, &mut whole, 2 * shard::ustar::BLOCK, &mut |b| {
+        zero &= b.iter().all(|&x| x == 0)
+    })?;
+    if !zero {
+        return Err(format!("{shown}: the end-of-archive marker is not zero"));
+    }
+    let found = whole.finalize().to_hex();
+    if found.as_str() != record.blake3 {
+        return Err(format!(
+            "{shown} has blake3 {found}, its record says {}",
+            record.blake3
+        ));
+    }
+    Ok(())
 }
 
 fn list_stems(dir: &Path, extension: &str) -> Result<Vec<String>, FormatError> {
@@ -632,19 +970,144 @@ mod tests {
         );
         assert_eq!(layout.record_names().unwrap(), vec!["t-000000"]);
         assert_eq!(layout.shard_names().unwrap(), vec!["t-000000"]);
-        let mut flipped = bytes.clone();
-        flipped[600] ^= 1;
-        std::fs::write(layout.tar_path("t-000000"), &flipped).unwrap();
-        assert!(layout.recorded("t-000000").is_some(), "same size");
-        let ShardState::Invalid { reason } = layout.shard_state("t-000000") else {
-            panic!("a flipped byte must be found");
-        };
-        assert!(reason.contains("blake3"), "{reason}");
+        for (byte, found) in [
+            (513, "member s0.json has blake3"),
+            (600, "padding after member s0.json"),
+            (3, "header at byte 0"),
+            (bytes.len() - 1, "end-of-archive marker"),
+        ] {
+            let mut flipped = bytes.clone();
+            flipped[byte] ^= 1;
+            std::fs::write(layout.tar_path("t-000000"), &flipped).unwrap();
+            assert!(layout.recorded("t-000000").is_some(), "same size");
+            let ShardState::Invalid { reason } = layout.shard_state("t-000000") else {
+                panic!("a flipped byte {byte} must be found");
+            };
+            assert!(reason.contains(found), "{byte}: {reason}");
+        }
         std::fs::write(layout.tar_path("t-000000"), &bytes[..1024]).unwrap();
         assert!(layout.recorded("t-000000").is_none());
         assert!(layout
             .check_tar("t-000000", &record, TarCheck::Size)
             .unwrap_err()
             .contains("1024 bytes"));
+    }
+
+    #[test]
+    fn a_record_is_checked_whole_against_its_tar() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (layout, _) = bound(tmp.path());
+        let samples = vec![
+            vec![
+                bettimill_shard::Member::new("s0.json", b"{}".to_vec()),
+                bettimill_shard::Member::new("s0.npy", vec![1u8; 700]),
+            ],
+            vec![bettimill_shard::Member::new("s1.json", b"[]".to_vec())],
+        ];
+        let (bytes, record) =
+            bettimill_shard::build_shard("shards/t-000000.tar", "train", &samples).unwrap();
+        std::fs::write(layout.tar_path("t-000000"), &bytes).unwrap();
+        let write = |record: &ShardRecord| {
+            let completion = CompletionRecord {
+                shard: record.clone(),
+                regenerations: vec![],
+            };
+            layout.write_record("t-000000", &completion).unwrap();
+        };
+        write(&record);
+        assert!(matches!(
+            layout.shard_state("t-000000"),
+            ShardState::Complete(_)
+        ));
+        type Edit = fn(&mut ShardRecord);
+        let edits: [(Edit, &str); 6] = [
+            (
+                |r| r.members[1].blake3.replace_range(0..1, "x"),
+                "member s0.npy has blake3",
+            ),
+            (
+                |r| r.members[2].offset += 512,
+                "puts member s1.json at byte",
+            ),
+            (
+                |r| r.members[1].name = "s0.npz".into(),
+                "header at byte 1024",
+            ),
+            (|r| r.samples = 3, "its record says 3 samples"),
+            (|r| r.last_key = "s9".into(), "from s0 to s9"),
+            (|r| r.name = "shards/u-000000.tar".into(), "names the shard"),
+        ];
+        for (edit, found) in edits {
+            let mut bad = record.clone();
+            edit(&mut bad);
+            write(&bad);
+            let ShardState::Invalid { reason } = layout.shard_state("t-000000") else {
+                panic!("{found}: the edited record was accepted");
+            };
+            assert!(reason.contains(found), "{found}: {reason}");
+        }
+    }
+
+    #[test]
+    fn the_leftovers_of_a_stopped_creation_are_told_from_foreign_files() {
+        let tmp = tempfile::tempdir().unwrap();
+        let layout = DatasetDir::new(tmp.path().join("ds"));
+        assert_eq!(layout.unbound_state().unwrap(), Unbound::Empty);
+        std::fs::create_dir(layout.root()).unwrap();
+        std::fs::write(layout.root().join(LOCK_FILE), b"").unwrap();
+        assert_eq!(layout.unbound_state().unwrap(), Unbound::Empty);
+        std::fs::write(layout.root().join(".build.json.tmp-12"), b"{").unwrap();
+        std::fs::write(layout.manifest_path(), b"m").unwrap();
+        assert_eq!(
+            layout.unbound_state().unwrap(),
+            Unbound::Unfinished {
+                manifest: true,
+                temporaries: vec![layout.root().join(".build.json.tmp-12")],
+            }
+        );
+        assert!(matches!(
+            layout.require_bound(),
+            Err(FormatError::Unfinished { .. })
+        ));
+        let info = BuildInfo::current("m1", "p1");
+        assert!(matches!(
+            layout.bind("other", &info),
+            Err(FormatError::UnfinishedOtherManifest { .. })
+        ));
+        layout.bind("m", &info).unwrap();
+        assert_eq!(layout.read_build_info().unwrap(), info);
+        assert!(!layout.root().join(".build.json.tmp-12").exists());
+        for foreign in [".build.json.tmp-x", "shards", "notes"] {
+            let other = DatasetDir::new(tmp.path().join(format!("f{foreign}")));
+            std::fs::create_dir(other.root()).unwrap();
+            std::fs::write(other.root().join(foreign), b"").unwrap();
+            assert_eq!(
+                other.unbound_state().unwrap(),
+                Unbound::Foreign,
+                "{foreign}"
+            );
+        }
+    }
+
+    #[test]
+    fn links_inside_the_directory_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (layout, info) = bound(tmp.path());
+        let outside = tmp.path().join("outside");
+        std::fs::create_dir(&outside).unwrap();
+        std::fs::remove_dir(layout.records_dir()).unwrap();
+        std::os::unix::fs::symlink(&outside, layout.records_dir()).unwrap();
+        let err = layout.bind("x", &info).unwrap_err();
+        assert!(matches!(err, FormatError::Symlinked { .. }), "{err}");
+        assert_eq!(
+            dataset_containing(&layout.shards_dir().join("x.png")),
+            Some(std::fs::canonicalize(layout.root()).unwrap())
+        );
+        // Through the link the file would land outside: that is the link's business.
+        assert_eq!(
+            dataset_containing(&layout.records_dir().join("x.png")),
+            None
+        );
+        assert_eq!(dataset_containing(&outside.join("x.png")), None);
     }
 }

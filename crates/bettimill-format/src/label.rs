@@ -76,6 +76,16 @@ pub enum Pooling {
     BackgroundAny,
 }
 
+impl Pooling {
+    /// The label's spelling (`foreground_any`, `background_any`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Pooling::ForegroundAny => "foreground_any",
+            Pooling::BackgroundAny => "background_any",
+        }
+    }
+}
+
 /// The label of one downscaled copy.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ResolutionLabel {
@@ -111,6 +121,21 @@ impl Label {
                 .iter()
                 .find(|r| r.side == side)
                 .map(|r| r.betti.as_slice()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Pooling;
+
+    #[test]
+    fn pooling_names_are_the_label_spelling() {
+        for pooling in [Pooling::ForegroundAny, Pooling::BackgroundAny] {
+            assert_eq!(
+                serde_json::to_value(pooling).unwrap(),
+                serde_json::Value::from(pooling.name())
+            );
         }
     }
 }

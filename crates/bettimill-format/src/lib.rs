@@ -16,21 +16,23 @@
 //! DIR/build.json                tool version, manifest hash, plan hash (written first)
 //! DIR/shards/NAME-000000.tar    WebDataset shards
 //! DIR/records/NAME-000000.json  one completion record per finished shard
+//! DIR/timings/NAME-000000.json  when and how long it took (not hashed, never identical)
 //! DIR/classes.json              the class table (what each KEY.cls means)
 //! DIR/index.json                the hash manifest (written last, by finalize): every
-//!                               shard, its record, and every file above
+//!                               shard, its record, and every other file but timings/
 //! DIR/shardindex-SPLIT.json     wids indexes, DIR/README.md the dataset card
 //! ```
 
 pub mod classes;
 pub mod dir;
 pub mod label;
+pub mod lock;
 pub mod member;
 
 pub use classes::{ClassTable, StratumClass, TopologyClass, CLASS_TABLE_FORMAT};
 pub use dir::{
-    check_build_info, check_tar_file, BuildInfo, CompletionRecord, DatasetDir, ShardState,
-    TarCheck, CLASSES_FILE, REQUIRED_FILES,
+    check_build_info, check_tar_file, dataset_containing, BuildInfo, CompletionRecord, DatasetDir,
+    ShardState, ShardTiming, TarCheck, Unbound, CLASSES_FILE, REQUIRED_FILES,
 };
 pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};
@@ -49,6 +51,34 @@ pub enum FormatError {
         /// The directory.
         dir: PathBuf,
     },
+    /// A creation stopped before `build.json` was written, and a reading command was given
+    /// the directory.
+    #[error("{dir}: its creation stopped before build.json was written (killed, or the disk was full), so nothing was built yet; rerun the same `bettimill build MANIFEST --out {dir}` to resume")]
+    Unfinished {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// A creation stopped half-way with another manifest.
+    #[error("{dir} holds the start of a dataset of a different manifest (its manifest.toml differs; build.json was never written and nothing was built); use another --out directory, or delete {dir}")]
+    UnfinishedOtherManifest {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// The directory holds no dataset at all.
+    #[error("{dir} holds no bettimill dataset (no build.json)")]
+    NoDataset {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// A directory inside the dataset is a symbolic link.
+    #[error("{path} is a symbolic link; bettimill does not write through links inside a dataset directory (it would write outside it): replace it with a real directory")]
+    Symlinked {
+        /// The link.
+        path: PathBuf,
+    },
+    /// The directory lock.
+    #[error(transparent)]
+    Lock(#[from] crate::lock::LockError),
     /// The directory holds a dataset of a different manifest.
     #[error("{dir} holds a dataset built from a different manifest (hash {found}, this manifest is {expected}); use another --out directory")]
     DifferentManifest {

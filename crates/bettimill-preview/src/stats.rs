@@ -15,72 +15,99 @@ use std::collections::BTreeMap;
 pub const HISTOGRAM_BINS: usize = 16;
 
 /// The value of [`BuildTime::source`].
-pub const BUILD_TIME_SOURCE: &str = "file modification times";
+pub const BUILD_TIME_SOURCE: &str = "timings/ (recorded by the builds)";
 
-/// The wall-clock span of a build, derived from file modification times: a dataset stores
-/// no timings, so that a rebuild is byte-identical. It starts at `build.json` (written
-/// once, when the directory is created) and ends at `index.json` (written last), or at the
-/// newest completion record while the build is unfinished. A paused or resumed build
-/// includes the pause; finalizing again moves the end; copying the directory without
-/// keeping times loses it.
+/// How long the build took, from the timings the builds recorded (`DIR/timings/NAME.json`:
+/// when each shard was started and how long it took), never from file modification times
+/// (a no-op resume or a copy would move those). Shards built before timings were recorded,
+/// or whose builder died between record and timing, are not counted.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BuildTime {
-    /// Modification time of `build.json`, in seconds since the Unix epoch.
-    pub start_unix: f64,
-    /// Modification time of `index.json` (or of the newest completion record), in seconds
-    /// since the Unix epoch.
-    pub end_unix: f64,
-    /// `end_unix - start_unix`.
+    /// Seconds during which at least one shard was being built (the union of the shards'
+    /// intervals: pauses between resumed builds are not counted).
     pub wall_seconds: f64,
-    /// Samples counted divided by `wall_seconds` (`None` when the span is zero).
+    /// The shards' seconds added up (with N workers, up to N times `wall_seconds`).
+    pub worker_seconds: f64,
+    /// When the first timed shard was started, in seconds since the Unix epoch.
+    pub start_unix: f64,
+    /// When the last timed shard was finished, in seconds since the Unix epoch.
+    pub end_unix: f64,
+    /// Shards with a timing.
+    pub shards_timed: u64,
+    /// Samples in them.
+    pub samples_timed: u64,
+    /// `samples_timed / wall_seconds` (`None` when `wall_seconds` is zero).
     pub samples_per_second: Option<f64>,
-    /// True when the end is `index.json`, false when it is the newest completion record.
+    /// Whether the dataset is finished (index.json written).
     pub finished: bool,
     /// Always [`BUILD_TIME_SOURCE`], so a reader of the JSON knows what the times are.
     pub source: String,
 }
 
 impl BuildTime {
-    /// The span from `start_unix` to `end_unix` for `samples` samples; `None` when the end
-    /// comes before the start (the files were copied or touched since).
-    pub fn from_file_times(
-        start_unix: f64,
-        end_unix: f64,
-        finished: bool,
-        samples: u64,
-    ) -> Option<BuildTime> {
-        let wall_seconds = end_unix - start_unix;
-        if wall_seconds.is_nan() || wall_seconds < 0.0 {
+    /// The build time of shards timed as (started, seconds, samples); `None` without a
+    /// single usable timing.
+    pub fn from_timings(timings: &[(f64, f64, u64)], finished: bool) -> Option<BuildTime> {
+        let mut spans: Vec<(f64, f64)> = timings
+            .iter()
+            .filter(|(start, seconds, _)| {
+                start.is_finite() && seconds.is_finite() && *seconds >= 0.0
+            })
+            .map(|&(start, seconds, _)| (start, start + seconds))
+            .collect();
+        if spans.is_empty() {
             return None;
         }
+        spans.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        let mut wall_seconds = 0.0;
+        let (mut from, mut to) = spans[0];
+        for &(start, end) in &spans[1..] {
+            if start > to {
+                wall_seconds += to - from;
+                (from, to) = (start, end);
+            } else {
+                to = to.max(end);
+            }
+        }
+        wall_seconds += to - from;
+        let end_unix = spans.iter().map(|s| s.1).fold(f64::MIN, f64::max);
+        let samples_timed: u64 = timings.iter().map(|t| t.2).sum();
         Some(BuildTime {
-            start_unix,
-            end_unix,
             wall_seconds,
-            samples_per_second: (wall_seconds > 0.0).then(|| samples as f64 / wall_seconds),
+            worker_seconds: timings.iter().map(|t| t.1).sum(),
+            start_unix: spans[0].0,
+            end_unix,
+            shards_timed: timings.len() as u64,
+            samples_timed,
+            samples_per_second: (wall_seconds > 0.0).then(|| samples_timed as f64 / wall_seconds),
             finished,
             source: BUILD_TIME_SOURCE.to_string(),
         })
     }
 
     /// One line for the text report, saying where the times come from.
-    pub fn to_text(&self) -> String {
+    pub fn to_text(&self, shards: u64) -> String {
         let rate = match self.samples_per_second {
             Some(rate) => format!("{rate:.2} samples/s"),
             None => "samples/s unknown".to_string(),
         };
-        let (what, end) = if self.finished {
-            ("build time", "index.json")
+        let what = if self.finished {
+            "build time"
         } else {
-            (
-                "build time so far (not finished)",
-                "the newest completion record",
+            "build time so far (not finished)"
+        };
+        let untimed = shards.saturating_sub(self.shards_timed);
+        let missing = if untimed == 0 {
+            String::new()
+        } else {
+            format!(
+                "; {untimed} shard{} without a timing not counted",
+                if untimed == 1 { "" } else { "s" }
             )
         };
         format!(
-            "{what}: {:.1} s wall, {rate}\n  from file modification times (build.json to {end}): \
-             a paused or resumed build includes the pause; a copied directory loses it\n",
-            self.wall_seconds
+            "{what}: {:.1} s wall, {rate} ({:.1} s of shard building in all)\n  from timings/ ({} of {shards} shards, {} samples, recorded by the builds{missing}); pauses between resumed builds are not counted\n",
+            self.wall_seconds, self.worker_seconds, self.shards_timed, self.samples_timed
         )
     }
 }
@@ -314,10 +341,10 @@ impl Stats {
             "\nrejected attempts in completion records: {total}\n"
         ));
         match &self.build_time {
-            Some(time) => out.push_str(&time.to_text()),
+            Some(time) => out.push_str(&time.to_text(self.shards)),
             None => out.push_str(
-                "build time: not available (from file modification times: needs build.json and \
-                 index.json or a completion record, the end not before the start)\n",
+                "build time: not available (no shard has a timing in timings/: built before \
+                 timings were recorded, or the directory was copied without it)\n",
             ),
         }
         out
@@ -326,10 +353,7 @@ impl Stats {
 
 /// The label spelling of a pooling rule.
 fn pooling_name(pooling: Pooling) -> String {
-    match serde_json::to_value(pooling) {
-        Ok(serde_json::Value::String(name)) => name,
-        _ => format!("{pooling:?}"),
-    }
+    pooling.name().to_string()
 }
 
 fn histogram(values: &[u64], min: u64, max: u64) -> Histogram {
@@ -516,22 +540,28 @@ mod tests {
     }
 
     #[test]
-    fn build_time_from_file_times() {
-        let time = BuildTime::from_file_times(100.0, 104.0, true, 8).unwrap();
-        assert_eq!(time.wall_seconds, 4.0);
-        assert_eq!(time.samples_per_second, Some(2.0));
+    fn build_time_from_timings_counts_overlaps_once_and_pauses_not_at_all() {
+        // Two workers overlapping on [100, 104] and [102, 106], then a pause, then [200, 202].
+        let timings = [(100.0, 4.0, 4), (102.0, 4.0, 4), (200.0, 2.0, 2)];
+        let time = BuildTime::from_timings(&timings, true).unwrap();
+        assert_eq!(time.wall_seconds, 8.0);
+        assert_eq!(time.worker_seconds, 10.0);
+        assert_eq!(time.samples_timed, 10);
+        assert_eq!(time.samples_per_second, Some(1.25));
+        assert_eq!((time.start_unix, time.end_unix), (100.0, 202.0));
         assert_eq!(time.source, BUILD_TIME_SOURCE);
-        let text = time.to_text();
+        let text = time.to_text(3);
         assert!(
-            text.starts_with("build time: 4.0 s wall, 2.00 samples/s"),
+            text.starts_with("build time: 8.0 s wall, 1.25 samples/s"),
             "{text}"
         );
-        assert!(text.contains("file modification times"), "{text}");
-        let unfinished = BuildTime::from_file_times(100.0, 100.0, false, 8).unwrap();
+        assert!(text.contains("from timings/ (3 of 3 shards"), "{text}");
+        assert!(time.to_text(5).contains("2 shards without a timing"));
+        let unfinished = BuildTime::from_timings(&[(100.0, 0.0, 1)], false).unwrap();
         assert_eq!(unfinished.samples_per_second, None);
-        assert!(unfinished.to_text().contains("not finished"));
-        assert_eq!(BuildTime::from_file_times(100.0, 99.0, true, 8), None);
-        assert_eq!(BuildTime::from_file_times(f64::NAN, 99.0, true, 8), None);
+        assert!(unfinished.to_text(1).contains("not finished"));
+        assert_eq!(BuildTime::from_timings(&[], true), None);
+        assert_eq!(BuildTime::from_timings(&[(f64::NAN, 1.0, 1)], true), None);
     }
 
     #[test]

@@ -6,6 +6,11 @@
 //! process is never mistaken for a live one and needs no cleaning up: the file stays, the
 //! lock does not. The file is always empty, so it never makes two directories differ.
 //!
+//! It is taken before anything is written into a new directory ([`crate::DatasetDir::bind`]
+//! creates the directory, locks it, then writes `manifest.toml` and `build.json`), and again
+//! by the coordinator for the whole build. A `.lock` that is a symbolic link is refused: the
+//! lock never creates a file outside the directory.
+//!
 //! Cluster workers (`bettimill worker --task-index-from-env`) do not take it: they build
 //! disjoint shards on shared file systems where such locks may not work, and every write is
 //! atomic with deterministic bytes anyway.
@@ -44,7 +49,15 @@ pub struct DirLock {
 impl DirLock {
     /// Takes the lock on `dir` (which must exist) without waiting.
     pub fn acquire(dir: &Path) -> Result<DirLock, LockError> {
-        let path = dir.join(".lock");
+        let path = dir.join(crate::dir::LOCK_FILE);
+        if std::fs::symlink_metadata(&path).is_ok_and(|meta| meta.file_type().is_symlink()) {
+            return Err(LockError::Io {
+                source: std::io::Error::other(
+                    "it is a symbolic link; bettimill writes nothing through links inside a dataset directory",
+                ),
+                path,
+            });
+        }
         let file = OpenOptions::new()
             .create(true)
             .truncate(false)

@@ -1,0 +1,129 @@
+//! SIGINT and SIGTERM during `bettimill build`, handled from the first instruction of
+//! `main` on (before arguments are parsed, the manifest is read or the plan is made).
+//!
+//! Two modes:
+//! - While no worker runs (start-up: planning, creating or checking the directory; and
+//!   after the workers have stopped: finalize), a signal ends the process at once with
+//!   exit code 130 and a one-line message on stderr. Nothing needs undoing: every file is
+//!   written under a temporary name and renamed, the temporaries are removed by the next
+//!   build, and a creation stopped half-way is finished by it.
+//! - While workers run ([`Watching`] is alive, inside the coordinator's control future), a
+//!   signal only sets a flag: the coordinator stops its workers, removes their temporaries
+//!   and the build returns 130 with its `resume with:` line.
+//!
+//! The signals are received on a thread of their own (tokio's signal driver: the handler
+//! itself only wakes that thread), so what follows a signal is ordinary code.
+
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::OnceLock;
+
+const EXIT: u8 = 0;
+const FLAG: u8 = 1;
+
+static MODE: AtomicU8 = AtomicU8::new(EXIT);
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+static MESSAGE: OnceLock<String> = OnceLock::new();
+
+const DEFAULT_MESSAGE: &str =
+    "interrupted before any worker started; nothing partial is visible; rerun the same command to resume";
+
+/// Installs the handling of SIGINT and SIGTERM (once, at the start of `main`, for `build`)
+/// and returns once the handlers are in place.
+pub fn install() {
+    let (ready, installed) = std::sync::mpsc::channel();
+    let spawned = std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            let Ok(runtime) = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+            else {
+                let _ = ready.send(());
+                return;
+            };
+            runtime.block_on(async move {
+                #[cfg(unix)]
+                {
+                    use tokio::signal::unix::{signal, SignalKind};
+                    let (Ok(mut interrupt), Ok(mut terminate)) = (
+                        signal(SignalKind::interrupt()),
+                        signal(SignalKind::terminate()),
+                    ) else {
+                        let _ = ready.send(());
+                        return;
+                    };
+                    let _ = ready.send(());
+                    loop {
+                        tokio::select! {
+                            _ = interrupt.recv() => {}
+                            _ = terminate.recv() => {}
+                        }
+                        received();
+                    }
+                }
+                #[cfg(not(unix))]
+                {
+                    let _ = ready.send(());
+                    while tokio::signal::ctrl_c().await.is_ok() {
+                        received();
+                    }
+                }
+            });
+        });
+    if spawned.is_ok() {
+        let _ = installed.recv();
+    }
+}
+
+fn received() {
+    if MODE.load(Ordering::SeqCst) == FLAG {
+        INTERRUPTED.store(true, Ordering::SeqCst);
+        return;
+    }
+    eprintln!("{}", MESSAGE.get().map_or(DEFAULT_MESSAGE, String::as_str));
+    std::process::exit(130);
+}
+
+/// Sets the message printed when a signal ends the process outside the workers' run.
+pub fn set_resume_command(resume: &str) {
+    let _ = MESSAGE.set(format!(
+        "interrupted while no worker was running; nothing partial is visible; resume with: {resume}"
+    ));
+}
+
+/// Whether a signal arrived while a [`Watching`] was alive.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::SeqCst)
+}
+
+/// While alive, signals set the flag [`interrupted`] reads instead of ending the process.
+pub struct Watching(());
+
+impl Watching {
+    /// Switches to flag mode.
+    pub fn start() -> Watching {
+        MODE.store(FLAG, Ordering::SeqCst);
+        Watching(())
+    }
+}
+
+impl Drop for Watching {
+    fn drop(&mut self) {
+        MODE.store(EXIT, Ordering::SeqCst);
+    }
+}
+
+/// Test hook: seconds `build` sleeps once its directory is bound, before the coordinator
+/// starts, so a test can signal it in the middle of start-up. Never set it otherwise.
+pub const PAUSE_AT_STARTUP_ENV: &str = "BETTIMILL_TEST_PAUSE_AT_STARTUP";
+
+/// Sleeps for [`PAUSE_AT_STARTUP_ENV`] seconds when it is set.
+pub fn test_pause_at_startup() {
+    let pause = std::env::var(PAUSE_AT_STARTUP_ENV)
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0);
+    if let Some(seconds) = pause {
+        std::thread::sleep(std::time::Duration::from_secs_f64(seconds));
+    }
+}
