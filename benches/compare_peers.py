@@ -6,38 +6,52 @@ thresholded at its median, so about half the voxels are foreground), "smooth" (t
 at four times the feature size, for big images) and "random" (each voxel foreground with
 probability 0.5), generated with a fixed seed and saved as .npy.
 
-Peers are set up to match bettimill's model (labels.md): f = 0 on foreground, 1 on
-background, padded with one background layer; CubicalRipser's T-construction
-(`computePH_T`) and GUDHI's `CubicalComplex(top_dimensional_cells=f)` with
-`homology_coeff_field=2`; b_k = intervals of dimension k born at 0 that die after 0.
+Peers are set up to match bettimill's model (labels.md), and CubicalRipser is timed on both
+of its routes; a case is compared against the faster one:
+- `cripser-T`: `computePH_T` (T-construction: voxels are top cells, so corner contacts
+  connect) of f = 0 on foreground, 1 on background, padded with one background layer;
+  b_k = intervals of dimension k born at 0 that die after 0.
+- `cripser-V`: `computePH` (V-construction: voxels are vertices, face neighbours joined) of
+  the padded complement g = 1 on foreground, 0 on background, padded with 0: that is the
+  background in the construction dual to ours, and Alexander duality gives the object's
+  numbers: b_0 = b_{d-1}(bg), b_k = b_{d-1-k}(bg), b_{d-1} = b_0(bg) - 1.
+  `--self-check` (run first, unless `--no-self-check`) checks V against T on small random
+  and blob images in 2D, 3D and 4D.
+- `gudhi` (optional, about 10x slower than CubicalRipser): `CubicalComplex(
+  top_dimensional_cells=f)` with `homology_coeff_field=2`.
 Every tool's Betti numbers must agree or the script exits non-zero.
 
-Our side runs `bettimill betti IMAGE.npy --json` when --bettimill is given, otherwise the
-`betti` example of bettimill-homology (build it first:
-`cargo build --release -p bettimill-homology --example betti`). Our times are those of the
-whole process (start-up and file read included), so the comparison does not flatter us.
-Both wall and CPU seconds are recorded; on a shared machine compare CPU seconds. With
---repeat N every tool runs N times on each image, interleaved by image, and keeps its best
-wall and best CPU time (the usual minimum-of-repeats: noise only ever adds time).
+Each peer runs in a child Python process of its own (the image read before the timer
+starts), so that its peak RSS is its own; the time is that of the call only (in-process).
+Our side is the whole process: `bettimill betti IMAGE.npy --json` when --bettimill is given,
+otherwise the `betti` example of bettimill-homology (start-up and file read included, so the
+comparison does not flatter us). Peak RSS of every process comes from GNU time
+(/usr/bin/time); a peer's includes its Python interpreter, NumPy and the image (about 40 MB). With --repeat N
+every tool runs N times on each image and keeps its best wall and best CPU time (the usual
+minimum-of-repeats: noise only ever adds time); the ratio is the peer's best wall time
+(faster route) over ours.
 
 Usage:
-  python benches/compare_peers.py [--cases 3:64:blob,4:32:blob,...] [--skip-gudhi]
-      [--bettimill PATH | --example PATH] [--workdir DIR] [--json OUT.json] [--repeat N]
+  python benches/compare_peers.py [--cases 4:32:blob,4:32:random,...] [--skip-gudhi]
+      [--skip-cripser] [--routes T,V] [--bettimill PATH | --example PATH] [--workdir DIR]
+      [--json OUT.json] [--repeat N] [--markdown]
 
-Needs numpy, cripser and gudhi (pip install numpy cripser gudhi).
+Needs numpy, cripser and gudhi (pip install numpy cripser gudhi; not in the CI
+requirements).
 """
 
 import argparse
 import json
 import os
 import platform
-import resource
 import subprocess
 import sys
 import tempfile
 import time
 
 import numpy as np
+
+TIME = "/usr/bin/time"  # GNU time, for peak RSS
 
 
 def blob(dim, side, seed):
@@ -76,8 +90,14 @@ def smooth(dim, side, seed):
 
 
 def random_image(dim, side, seed):
+    """Each voxel foreground with probability 0.5: the same bytes as
+    `rng.random((side,) * dim) < 0.5`, drawn one hyperplane at a time so that 128^4 needs
+    no 2 GB of doubles."""
     rng = np.random.default_rng(seed)
-    return (rng.random((side,) * dim) < 0.5).astype(np.uint8)
+    out = np.empty((side,) * dim, dtype=np.uint8)
+    for i in range(side):
+        out[i] = rng.random((side,) * (dim - 1)) < 0.5
+    return out
 
 
 def betti_from_pairs(pairs, dim):
@@ -89,29 +109,69 @@ def betti_from_pairs(pairs, dim):
     return betti
 
 
-def peer_input(image):
-    return np.pad(1.0 - image.astype(np.float64), 1, constant_values=1.0)
+def by_duality(background):
+    """The object's Betti numbers from those of the padded background (V-construction)."""
+    d = len(background)
+    return [background[d - 1]] + [background[d - 1 - k] for k in range(1, d - 1)] + [background[0] - 1]
 
 
-def run_cripser(image):
-    import cripser
+def peer_betti(route, image):
+    """Runs one peer route on `image` in this process: (betti, wall seconds, cpu seconds)."""
+    d = image.ndim
+    if route == "T":
+        import cripser
 
-    f = peer_input(image)
-    start, cpu = time.perf_counter(), time.process_time()
-    ph = cripser.computePH_T(f, maxdim=image.ndim - 1)
-    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
-    return betti_from_pairs(((row[0], row[1], row[2]) for row in ph), image.ndim), seconds, cpu
+        f = np.pad(1.0 - image.astype(np.float64), 1, constant_values=1.0)
+        start, cpu = time.perf_counter(), time.process_time()
+        ph = cripser.computePH_T(f, maxdim=d - 1)
+        seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return betti_from_pairs(((r[0], r[1], r[2]) for r in ph), d), seconds, cpu
+    if route == "V":
+        import cripser
+
+        g = np.pad(image.astype(np.float64), 1, constant_values=0.0)
+        start, cpu = time.perf_counter(), time.process_time()
+        ph = cripser.computePH(g, maxdim=d - 1)
+        seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return by_duality(betti_from_pairs(((r[0], r[1], r[2]) for r in ph), d)), seconds, cpu
+    if route == "gudhi":
+        import gudhi
+
+        f = np.pad(1.0 - image.astype(np.float64), 1, constant_values=1.0)
+        start, cpu = time.perf_counter(), time.process_time()
+        complex_ = gudhi.CubicalComplex(top_dimensional_cells=f)
+        pers = complex_.persistence(homology_coeff_field=2)
+        seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return betti_from_pairs(((k, b, dd) for k, (b, dd) in pers), d), seconds, cpu
+    raise ValueError(route)
 
 
-def run_gudhi(image):
-    import gudhi
+def run_measured(command):
+    """Runs `command` as a child: (stdout, wall s, cpu s, peak RSS KB). The peak RSS is GNU
+    time's (%M): a child forked straight from this Python process would report this
+    process's RSS when nothing it does itself comes near it (the kernel keeps the high-water
+    mark across exec)."""
+    with tempfile.TemporaryFile(mode="w+") as out, tempfile.TemporaryFile(mode="w+") as err, \
+            tempfile.NamedTemporaryFile(mode="r") as rss:
+        start = time.perf_counter()
+        child = subprocess.Popen([TIME, "-f", "%M", "-o", rss.name] + command, stdout=out, stderr=err)
+        _, status, usage = os.wait4(child.pid, 0)
+        seconds = time.perf_counter() - start
+        code = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        if code != 0:
+            sys.exit(f"{' '.join(command)} failed ({code}): {err.read().strip()}")
+        max_rss_kb = int(rss.read().split()[-1])
+        return out.read(), seconds, usage.ru_utime + usage.ru_stime, max_rss_kb
 
-    f = peer_input(image)
-    start, cpu = time.perf_counter(), time.process_time()
-    complex_ = gudhi.CubicalComplex(top_dimensional_cells=f)
-    pers = complex_.persistence(homology_coeff_field=2)
-    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
-    return betti_from_pairs(((k, b, d) for k, (b, d) in pers), image.ndim), seconds, cpu
+
+def run_peer(route, path):
+    """One peer route on the image at `path`, in a child process: (betti, wall s of the call,
+    cpu s of the call, peak RSS KB of the child)."""
+    out, _, _, rss = run_measured([sys.executable, os.path.abspath(__file__), "--child", route, path])
+    record = json.loads(out.strip().splitlines()[-1])
+    return record["betti"], record["seconds"], record["cpu"], rss
 
 
 def run_ours(path, args):
@@ -119,27 +179,50 @@ def run_ours(path, args):
         command = [args.bettimill, "betti", path, "--json"]
     else:
         command = [args.example, path]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    out = subprocess.run(command, check=True, capture_output=True, text=True).stdout
-    seconds = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    out, seconds, cpu, rss = run_measured(command)
     record = json.loads(out.strip().splitlines()[-1])
-    return record["betti"], seconds, cpu, after.ru_maxrss
+    return record["betti"], seconds, cpu, rss
+
+
+def self_check(workdir):
+    """CubicalRipser's V route with duality against its T route on small images."""
+    rng = np.random.default_rng(7)
+    checked = 0
+    for dim, side in ((2, 12), (2, 30), (3, 8), (3, 16), (4, 5), (4, 8)):
+        for density in (0.2, 0.5, 0.8):
+            image = (rng.random((side,) * dim) < density).astype(np.uint8)
+            t = peer_betti("T", image)[0]
+            v = peer_betti("V", image)[0]
+            if t != v:
+                sys.exit(f"self-check: {dim}D {side} density {density}: T {t} V-by-duality {v}")
+            checked += 1
+        for seed in range(2):
+            image = blob(dim, max(side, 8), seed)
+            if peer_betti("T", image)[0] != peer_betti("V", image)[0]:
+                sys.exit(f"self-check: {dim}D blob {side}: T and V-by-duality differ")
+            checked += 1
+    print(f"# self-check: CubicalRipser V route by duality = T route on {checked} images", flush=True)
 
 
 def main():
+    if len(sys.argv) == 4 and sys.argv[1] == "--child":
+        route, path = sys.argv[2], sys.argv[3]
+        image = np.load(path)
+        betti, seconds, cpu = peer_betti(route, image)
+        print(json.dumps({"betti": betti, "seconds": seconds, "cpu": cpu}))
+        return
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--cases", default="3:64:blob,3:64:random,4:16:blob,4:32:blob,4:32:random,4:48:blob")
+    parser.add_argument("--cases", default="4:24:random,4:32:random,4:32:blob,4:48:blob")
     parser.add_argument("--bettimill", help="path of the bettimill CLI")
     parser.add_argument(
         "--example",
         default=os.path.join(os.path.dirname(__file__), "..", "target", "release", "examples", "betti"),
         help="path of the betti example binary",
     )
+    parser.add_argument("--routes", default="T,V", help="CubicalRipser routes to time (T, V)")
     parser.add_argument("--skip-gudhi", action="store_true")
     parser.add_argument("--skip-cripser", action="store_true")
+    parser.add_argument("--no-self-check", action="store_true")
     parser.add_argument("--workdir")
     parser.add_argument("--json", help="also write the results here")
     parser.add_argument("--seed", type=int, default=2024)
@@ -149,14 +232,17 @@ def main():
 
     workdir = args.workdir or tempfile.mkdtemp(prefix="bettimill-peers-")
     os.makedirs(workdir, exist_ok=True)
+    print(f"# {platform.node()} {platform.processor() or platform.machine()} {os.cpu_count()} cpus, "
+          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, best of {args.repeat}", flush=True)
+    routes = [] if args.skip_cripser else [r for r in args.routes.split(",") if r]
+    if routes and not args.no_self_check:
+        self_check(workdir)
+    tools = [f"cripser-{r}" for r in routes] + ([] if args.skip_gudhi else ["gudhi"])
     results = []
     failed = False
-    print(f"# {platform.node()} {platform.processor() or platform.machine()} {os.cpu_count()} cpus, "
-          f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}", flush=True)
-    # Wall times suffer when the machine is shared; CPU times (user + system) are the fairer
-    # comparison then, and both are recorded. Ours include process start and file read.
-    print(f"{'case':16} {'betti':22} {'ours wall/cpu s':>16} {'cripser wall/cpu s':>19} "
-          f"{'gudhi wall/cpu s':>17} {'x cripser wall/cpu':>18}", flush=True)
+    header = ["case", "betti", "ours wall/cpu s, MB"] + [f"{t} wall s, MB" for t in tools] + ["x best peer"]
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header), flush=True)
     for case in args.cases.split(","):
         dim, side, kind = case.split(":")
         dim, side = int(dim), int(side)
@@ -164,36 +250,42 @@ def main():
         path = os.path.join(workdir, f"{kind}_{dim}d_{side}.npy")
         np.save(path, image)
         row = {"case": case, "dim": dim, "side": side, "kind": kind,
-               "foreground": int(image.sum())}
-        row["repeat"] = args.repeat
+               "foreground": int(image.sum()), "repeat": args.repeat}
+        del image
         runs = [run_ours(path, args) for _ in range(args.repeat)]
         ours = runs[0][0]
+        row["betti"] = ours
         row["ours_seconds"] = min(r[1] for r in runs)
         row["ours_cpu_seconds"] = min(r[2] for r in runs)
-        row["children_max_rss_kb"] = max(r[3] for r in runs)
-        row["betti"] = ours
-        nan = float("nan")
-        for name, run, skip in (("cripser", run_cripser, args.skip_cripser),
-                                ("gudhi", run_gudhi, args.skip_gudhi)):
-            if skip:
-                continue
-            runs = [run(image) for _ in range(args.repeat)]
-            row[f"{name}_seconds"] = min(r[1] for r in runs)
-            row[f"{name}_cpu_seconds"] = min(r[2] for r in runs)
-            for theirs, _, _ in runs:
+        row["ours_max_rss_kb"] = max(r[3] for r in runs)
+        cells = [case, str(ours),
+                 f"{row['ours_seconds']:.3f}/{row['ours_cpu_seconds']:.3f}, {row['ours_max_rss_kb'] / 1024:.0f}"]
+        best = None
+        for tool in tools:
+            route = tool.split("-")[-1]
+            runs = [run_peer(route, path) for _ in range(args.repeat)]
+            row[f"{tool}_seconds"] = min(r[1] for r in runs)
+            row[f"{tool}_cpu_seconds"] = min(r[2] for r in runs)
+            row[f"{tool}_max_rss_kb"] = max(r[3] for r in runs)
+            for theirs, _, _, _ in runs:
                 if theirs != ours:
-                    print(f"MISMATCH {case}: ours {ours} {name} {theirs}", file=sys.stderr)
+                    print(f"MISMATCH {case}: ours {ours} {tool} {theirs}", file=sys.stderr)
                     failed = True
-        speedup = row.get("cripser_cpu_seconds", nan) / max(row["ours_cpu_seconds"], 1e-9)
-        wall_speedup = row.get("cripser_seconds", nan) / max(row["ours_seconds"], 1e-9)
-        print(f"{case:16} {str(ours):22} {row['ours_seconds']:7.3f}/{row['ours_cpu_seconds']:<8.3f} "
-              f"{row.get('cripser_seconds', nan):9.3f}/{row.get('cripser_cpu_seconds', nan):<9.3f} "
-              f"{row.get('gudhi_seconds', nan):8.3f}/{row.get('gudhi_cpu_seconds', nan):<8.3f} "
-              f"{wall_speedup:10.1f}/{speedup:<7.1f}", flush=True)
+            cells.append(f"{row[f'{tool}_seconds']:.3f}, {row[f'{tool}_max_rss_kb'] / 1024:.0f}")
+            if tool.startswith("cripser") and (best is None or row[f"{tool}_seconds"] < row[f"{best}_seconds"]):
+                best = tool
+        if best:
+            row["best_peer"] = best
+            row["ratio"] = row[f"{best}_seconds"] / max(row["ours_seconds"], 1e-9)
+            row["memory_fraction"] = row["ours_max_rss_kb"] / row[f"{best}_max_rss_kb"]
+            cells.append(f"{row['ratio']:.1f}x ({best}), memory {100 * row['memory_fraction']:.0f}%")
+        else:
+            cells.append("-")
+        print("| " + " | ".join(cells) + " |", flush=True)
         results.append(row)
-    if args.json:
-        with open(args.json, "w") as out:
-            json.dump(results, out, indent=1)
+        if args.json:
+            with open(args.json, "w") as out:
+                json.dump(results, out, indent=1)
     sys.exit(1 if failed else 0)
 
 

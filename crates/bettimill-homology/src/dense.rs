@@ -32,14 +32,33 @@
 //! b_0 is counted by the caller on its voxels before anything is removed, so b_1 follows
 //! (each removed vertex either lowers dim H_0 by one or raises dim H_1 by one). The Euler
 //! characteristic (alternating cell count of the whole complex) checks the bookkeeping; a
-//! mismatch panics rather than returning a wrong answer. The few cells left are reduced
-//! explicitly (boundary matrices, top dimension first, with clearing).
+//! mismatch panics rather than returning a wrong answer. The cells left are ranked
+//! explicitly (boundary matrices, top dimension first, with clearing) by elimination with
+//! free pivots first ([`crate::eliminate`]). That matters on rough images: the pairs can
+//! stall with over a million edges and squares left (a random 32^4 image, issue 18), where
+//! a plain column reduction filled in quadratically (over 1000 s).
 //!
 //! [`crate::reference`] reduces the plain boundary matrices of the whole, unreduced complex
 //! (`CellComplex::betti_by_boundaries`), so the two check each other.
 
+#[cfg(test)]
 use crate::complex::z2_rank;
+use crate::eliminate::rank_by_elimination;
 use std::collections::VecDeque;
+
+/// How [`DenseComplex::betti_with`] ranks the boundary matrices of the cells that the
+/// reduction pairs leave.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum FinalRank {
+    /// Elimination with free pivots first ([`crate::eliminate`]): what [`crate::topology`]
+    /// uses.
+    Elimination,
+    /// Plain left-to-right column reduction ([`crate::complex::z2_rank`], the oracle's),
+    /// quadratic on large remnants (issue 18): the route before elimination, kept so that
+    /// tests can run both on the same images.
+    #[cfg(test)]
+    ColumnReduction,
+}
 
 /// A closed set of cells of the grid of one image shape, as owner masks (module docs).
 ///
@@ -281,7 +300,10 @@ impl DenseComplex {
     /// number of connected components, which the caller counts on its voxels (far fewer
     /// than the complex's vertices). Consumes the complex: the reduction deletes cells as it
     /// goes.
-    pub(crate) fn betti(mut self, b0: u64) -> Vec<u64> {
+    ///
+    /// The final rank is computed as `final_rank` says; also returns how many general
+    /// (fill-in) pivots the elimination took.
+    pub(crate) fn betti_with(mut self, b0: u64, final_rank: FinalRank) -> (Vec<u64>, u64) {
         let d = self.d;
         // The vertex code: every axis even.
         let top = self.all_codes;
@@ -298,7 +320,7 @@ impl DenseComplex {
             })
             .sum();
         if self.owners.is_empty() {
-            return vec![0; d + 1];
+            return (vec![0; d + 1], 0);
         }
         // Free faces start the collapses; first in, first out, so that coreductions spread
         // from a removed vertex in waves, which leaves far fewer cells stuck than
@@ -362,6 +384,7 @@ impl DenseComplex {
             cells.sort_unstable();
         }
         let mut rank = vec![0u64; d + 2];
+        let mut general = 0u64;
         let mut cleared = vec![false; by_dim[d].len()];
         for k in (1..=d).rev() {
             let rows = &by_dim[k - 1];
@@ -391,7 +414,15 @@ impl DenseComplex {
                     column
                 })
                 .collect();
-            let (r, pivots) = z2_rank(columns, rows.len());
+            let (r, pivots) = match final_rank {
+                FinalRank::Elimination => {
+                    let found = rank_by_elimination(columns, rows.len());
+                    general += found.general;
+                    (found.rank, found.pivots)
+                }
+                #[cfg(test)]
+                FinalRank::ColumnReduction => z2_rank(columns, rows.len()),
+            };
             rank[k] = r;
             cleared = vec![false; rows.len()];
             for row in pivots {
@@ -421,7 +452,7 @@ impl DenseComplex {
             "reduction pairs lost homology: Betti numbers {betti:?} disagree with the Euler \
              characteristic {chi}"
         );
-        betti
+        (betti, general)
     }
 }
 
@@ -460,9 +491,19 @@ mod tests {
             CellComplex::of_image(&image).betti_by_boundaries(),
             vec![1, 1, 0, 0]
         );
-        assert_eq!(DenseComplex::of_image(&image).betti(1), vec![1, 1, 0, 0]);
+        assert_eq!(
+            DenseComplex::of_image(&image)
+                .betti_with(1, FinalRank::Elimination)
+                .0,
+            vec![1, 1, 0, 0]
+        );
         let empty = BinaryImage::zeros(&[4, 4, 4, 4]).unwrap();
-        assert_eq!(DenseComplex::of_image(&empty).betti(0), vec![0; 5]);
+        assert_eq!(
+            DenseComplex::of_image(&empty)
+                .betti_with(0, FinalRank::Elimination)
+                .0,
+            vec![0; 5]
+        );
     }
 
     /// Every cell has one owner: a voxel's closure is 3^d distinct cells, and the closures
@@ -513,11 +554,14 @@ mod tests {
                     image.data_mut()[index] = on as u8;
                 }
                 let b0 = crate::components::count_components(&image, 1);
-                assert_eq!(
-                    DenseComplex::of_image(&image).betti(b0),
-                    CellComplex::of_image(&image).betti_by_boundaries(),
-                    "{d}D trial {trial}, density {density:.2}"
-                );
+                let expected = CellComplex::of_image(&image).betti_by_boundaries();
+                for final_rank in [FinalRank::Elimination, FinalRank::ColumnReduction] {
+                    assert_eq!(
+                        DenseComplex::of_image(&image).betti_with(b0, final_rank).0,
+                        expected,
+                        "{d}D trial {trial}, density {density:.2}, {final_rank:?}"
+                    );
+                }
             }
         }
     }

@@ -202,6 +202,81 @@ fn agrees_with_reference_on_random_4d() {
     agree_with_reference(4, 4, 60, 41);
 }
 
+/// Random images of density 0.2 to 0.8 at the largest sides the oracle affords (its plain
+/// column reduction takes about 0.1 s on a 7^4 image and 0.2 s on an 8^4 one), every route
+/// against it.
+#[test]
+fn every_route_agrees_with_reference_on_larger_random_images() {
+    let mut rng = ChaCha8Rng::seed_from_u64(90);
+    let mut general = 0;
+    for (d, side, n) in [(2, 40, 200), (3, 14, 100), (4, 7, 16), (4, 8, 8)] {
+        for trial in 0..n {
+            let density = 0.2 + 0.6 * trial as f64 / (n - 1) as f64;
+            let image = random_image(&mut rng, &vec![side; d], density);
+            let name = format!("{d}D {side} density {density:.2} #{trial}");
+            general += every_route_agrees(&name, &image, &reference::topology(&image));
+        }
+    }
+    // The elimination met stalled remnants, not only free pivots.
+    assert!(general > 100, "{general} general pivots");
+}
+
+/// Every route of [`topology`] on `image` against `expected`: the one it picks, counting
+/// (2D, 3D), thinning the object with both final ranks, and in 4D thinning the background
+/// (both final ranks when its cores stay off the frame). Returns the general pivots the
+/// elimination took on the object route.
+fn every_route_agrees(name: &str, image: &BinaryImage, expected: &Topology) -> u64 {
+    assert_eq!(&topology(image), expected, "{name}: topology");
+    let d = image.dim().get();
+    if d < 4 {
+        assert_eq!(
+            &topology_from_counts(&image.padded(1)),
+            expected,
+            "{name}: counts"
+        );
+    } else {
+        assert_eq!(
+            &topology_by_background(image.padded(1)),
+            expected,
+            "{name}: background route"
+        );
+        for final_rank in [FinalRank::Elimination, FinalRank::ColumnReduction] {
+            if let Ok(found) = background_cores(image.padded(1), final_rank) {
+                assert_eq!(&found, expected, "{name}: background cores, {final_rank:?}");
+            }
+        }
+    }
+    let (found, _) = topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction);
+    assert_eq!(&found, expected, "{name}: thinning, column reduction");
+    let (found, general) = topology_by_thinning_with(image.padded(1), FinalRank::Elimination);
+    assert_eq!(&found, expected, "{name}: thinning, elimination");
+    general
+}
+
+/// Random 4D images too large for the oracle, where the remnant is big enough for the
+/// elimination to take thousands of general pivots: every route on the same images, the
+/// plain column reduction (slow but simple) as the judge, and the background's other
+/// construction through duality (no thinning, no reduction pairs) on the smaller ones.
+#[test]
+fn every_4d_route_agrees_on_rough_images() {
+    let mut rng = ChaCha8Rng::seed_from_u64(91);
+    let mut general = 0;
+    for (side, density) in [(10, 0.5), (12, 0.35), (12, 0.5), (12, 0.65), (16, 0.5)] {
+        let image = random_image(&mut rng, &[side; 4], density);
+        let name = format!("4D {side} density {density}");
+        let (expected, _) = topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction);
+        if side <= 10 {
+            assert_eq!(
+                reference::topology_by_duality(&image),
+                expected,
+                "{name}: duality"
+            );
+        }
+        general += every_route_agrees(&name, &image, &expected);
+    }
+    assert!(general > 1000, "{general} general pivots");
+}
+
 #[test]
 fn thinning_agrees_with_counting_in_2d_and_3d() {
     let mut rng = ChaCha8Rng::seed_from_u64(50);
@@ -390,8 +465,8 @@ fn structured_4d_images_agree_with_reference() {
     }
 }
 
-/// Both 4D routes, forced, against the reference: thinning the object, and thinning its
-/// background (duality), on random images from sparse to nearly full (where the background
+/// Both 4D routes, forced, against the reference: thinning the object (its remnant ranked
+/// by elimination, and by plain column reduction), and thinning its background (duality), on random images from sparse to nearly full (where the background
 /// route is the one `topology` picks), the adversarial images and their complements,
 /// carved cubes with cavities of every Table I type, and cavities that reach the border
 /// (the background route must fall back).
@@ -440,6 +515,7 @@ fn both_4d_routes_agree_with_reference() {
     }
     let mut by_cores = 0;
     let mut walls = 0;
+    let mut general = 0;
     for (name, image) in images {
         let expected = reference::topology(&image);
         // Carved cubes have a foreground wall, so `topology` takes the background route.
@@ -447,16 +523,19 @@ fn both_4d_routes_agree_with_reference() {
             assert!(has_foreground_wall(&image), "{name}");
         }
         walls += has_foreground_wall(&image) as usize;
-        if let Ok(found) = background_cores(image.padded(1)) {
+        if let Ok(found) = background_cores(image.padded(1), FinalRank::Elimination) {
             assert_eq!(found, expected, "{name}: background cores");
             by_cores += 1;
         } else {
             assert!(!name.starts_with("carved"), "{name} fell back");
         }
+        let (found, pivots) = topology_by_thinning_with(image.padded(1), FinalRank::Elimination);
+        general += pivots;
+        assert_eq!(found, expected, "{name}: object route");
         assert_eq!(
-            topology_by_thinning(image.padded(1)),
+            topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction).0,
             expected,
-            "{name}: object route"
+            "{name}: object route, column reduction"
         );
         assert_eq!(
             topology_by_background(image.padded(1)),
@@ -470,4 +549,6 @@ fn both_4d_routes_agree_with_reference() {
     assert!(by_cores > 100, "{by_cores}");
     // Random images mostly have none (their background reaches the border).
     assert!(walls < 100, "{walls}");
+    // The object route's elimination met stalled remnants, not only free pivots.
+    assert!(general > 0, "{general} general pivots");
 }
