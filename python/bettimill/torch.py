@@ -130,7 +130,7 @@ class Conv4d(nn.Module):
 
 
 class BettiNet4d(nn.Module):
-    """A small 4D CNN: three ``Conv4d`` blocks (stride 2), global max and mean pooling, and
+    """A small 4D CNN: three ``Conv4d`` blocks (each of stride 2), global max and mean pooling, and
     one classification head per Betti number (``b_k`` in ``0..max_betti``).
 
     ``forward`` returns logits ``[N, dimension, max_betti + 1]``; train with cross entropy
@@ -144,7 +144,7 @@ class BettiNet4d(nn.Module):
         layers = []
         channels = 1
         for i, out in enumerate((width, 2 * width, 2 * width)):
-            layers += [Conv4d(channels, out, 3, stride=1 if i == 0 else 2, padding=1), nn.ReLU()]
+            layers += [Conv4d(channels, out, 3, stride=2, padding=1), nn.ReLU()]
             channels = out
         self.features = nn.Sequential(*layers)
         self.head = nn.Linear(2 * channels, dimension * (max_betti + 1))
