@@ -461,7 +461,10 @@ fn verify_and_audit_draw_no_progress_when_stderr_is_not_a_terminal() {
     assert_eq!(audit["rebuilt"].as_array().unwrap().len(), 2);
     assert_eq!(audit["findings"].as_array().unwrap().len(), 0);
     let verify = text(&run_in(dir, &["verify", out_str]).stdout);
-    assert!(verify.starts_with("ok: 2 shards match"), "{verify}");
+    assert!(
+        verify.starts_with("ok: 2 shards and 6 other files match"),
+        "{verify}"
+    );
 }
 
 #[test]

@@ -5,7 +5,9 @@
 //!   and audit and preview never hold a `serde_json::Value`;
 //! - no other crate spells the layout (`join("records")`, `join("build.json")`, ...);
 //! - audit, preview and the CLI depend on the format crate, preview no longer on sample;
-//! - a directory started by another bettimill version is refused, naming both versions.
+//! - a directory started by another bettimill version is refused, naming both versions;
+//! - every file a build writes is covered by `index.json` and checked by `verify`;
+//! - `classes.json` says what every `KEY.cls` of the dataset means.
 
 use std::path::{Path, PathBuf};
 
@@ -213,7 +215,7 @@ fn verify_and_audit_of_an_index_of_format_version_1_say_so() {
     let index = out.join("index.json");
     let text = std::fs::read_to_string(&index).unwrap();
     let old = text
-        .replace("\"format_version\": 2", "\"format_version\": 1")
+        .replace("\"format_version\": 3", "\"format_version\": 1")
         .replace("  \"shard_count\": 2,\n  \"samples\": 4,\n", "")
         .replace("\"record_blake3\"", "\"members\": [], \"x\"");
     assert_ne!(old, text);
@@ -235,4 +237,102 @@ fn verify_and_audit_of_an_index_of_format_version_1_say_so() {
         String::from_utf8_lossy(&finalized.stderr)
     );
     assert_eq!(std::fs::read_to_string(&index).unwrap(), text);
+}
+
+#[test]
+fn every_file_a_build_writes_is_listed_in_the_index_and_checked_by_verify() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (_, out) = built_dataset(tmp.path());
+    let o = out.to_str().unwrap();
+    let index = std::fs::read(out.join("index.json")).unwrap();
+    let index = bettimill_shard::Index::from_json_bytes(&index, Path::new("index.json")).unwrap();
+    let listed: Vec<&str> = index.header.files.iter().map(|f| f.name.as_str()).collect();
+    // Every top-level file but the index itself and the lock; shards and records are
+    // covered by the shard entries.
+    let mut on_disk: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| e.file_type().unwrap().is_file())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "index.json" && n != ".lock")
+        .collect();
+    on_disk.sort();
+    assert_eq!(listed, on_disk);
+    for name in bettimill_format::REQUIRED_FILES {
+        assert!(listed.contains(name), "{name} is listed");
+    }
+    // One changed byte in any of them is found, naming the file.
+    for name in &on_disk {
+        let path = out.join(name);
+        let original = std::fs::read(&path).unwrap();
+        let mut changed = original.clone();
+        changed[original.len() / 2] ^= 1;
+        std::fs::write(&path, &changed).unwrap();
+        let found = bettimill(&["verify", o]);
+        let stdout = String::from_utf8_lossy(&found.stdout);
+        assert_eq!(found.status.code(), Some(1), "{name}: {stdout}");
+        assert!(stdout.contains(&format!("{name}: ")), "{name}: {stdout}");
+        std::fs::write(&path, &original).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let missing = bettimill(&["verify", o]);
+        assert_eq!(missing.status.code(), Some(1), "{name} removed");
+        std::fs::write(&path, &original).unwrap();
+    }
+    assert!(bettimill(&["verify", o]).status.success());
+}
+
+#[test]
+fn classes_json_says_what_every_cls_of_the_dataset_means() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (manifest, _) = built_dataset(tmp.path());
+    // Two modes and two classes of equal Betti numbers in 2D (a handle embedded, a ball
+    // carved: both [1, 1]), so strata outnumber topology classes.
+    let text = std::fs::read_to_string(&manifest)
+        .unwrap()
+        .replace("mode = [\"embed\"]", "mode = [\"embed\", \"carve\"]")
+        .replace("samples = 4", "samples = 8")
+        .replace("side = 16", "side = 24")
+        + "\n[[classes]]\nfamily = \"handle\"\n";
+    std::fs::write(&manifest, text).unwrap();
+    let out = tmp.path().join("classes");
+    let built = bettimill(&[
+        "build",
+        manifest.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    let table = bettimill_format::DatasetDir::new(&out)
+        .read_class_table()
+        .unwrap();
+    assert_eq!(table.classes, 4);
+    assert_eq!(table.topology_classes, 3, "{table:#?}");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(out.join("shards")).unwrap() {
+        let bytes = std::fs::read(entry.unwrap().path()).unwrap();
+        let members = bettimill_shard::read_tar(&bytes).unwrap();
+        for member in members.iter().filter(|m| m.name.ends_with(".json")) {
+            let label = bettimill_format::Label::from_json(&member.data).unwrap();
+            let cls_name = member.name.replace(".json", ".cls");
+            let cls = members.iter().find(|m| m.name == cls_name).unwrap();
+            let cls: usize = std::str::from_utf8(&cls.data).unwrap().parse().unwrap();
+            let entry = &table.strata[cls];
+            assert_eq!(entry.cls, cls);
+            assert_eq!(entry.name, label.class_label);
+            assert_eq!(entry.betti, label.betti);
+            assert_eq!(entry.mode, label.mode);
+            assert_eq!(entry.knot_type, label.knot_type);
+            let topology = &table.topology[entry.topology_class];
+            assert_eq!(topology.betti, label.betti);
+            seen += 1;
+        }
+    }
+    assert_eq!(seen, 8);
+    let counted: u64 = table.strata.iter().map(|s| s.samples).sum();
+    assert_eq!(counted, 8);
 }

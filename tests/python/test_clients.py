@@ -92,7 +92,7 @@ class Dataset:
             path = root / shard["name"]
             assert path.is_file(), f"{path}: listed in index.json but missing"
             assert path.stat().st_size == shard["bytes"], f"{path}: size differs from index.json"
-            # index.json (format version 2) lists shards; each shard's members (name, offset,
+            # index.json (format version 3) lists shards; each shard's members (name, offset,
             # bytes, blake3) are in its completion record, records/NAME.json.
             stem = shard["name"].removeprefix("shards/").removesuffix(".tar")
             record = json.loads((root / "records" / f"{stem}.json").read_text())
@@ -273,3 +273,34 @@ def test_wids_index_opens_with_shard_list_dataset(dataset, tmp_path):
             shape = check_labels(key, sample[".json"], sample[".cls"])
             check_array(key, sample[".npy"], shape, sample[".json"]["hypervolume"])
         ds.close()
+
+
+def test_classes_json_says_what_every_cls_means(dataset):
+    """classes.json (datasets built by the CLI) names every cls value: the stratum's Betti
+    numbers are the label's, and its topology class is the one of that Betti vector."""
+    import tarfile
+
+    listed = [f["name"] for f in dataset.index["files"]]
+    if "classes.json" not in listed:
+        assert not (dataset.root / "build.json").exists(), "a CLI-built dataset lists classes.json in index.json"
+        pytest.skip("built by the bettimill-shard example, which writes no class table")
+    table = json.loads((dataset.root / "classes.json").read_text())
+    assert table["classes"] == len(table["strata"])
+    assert [s["cls"] for s in table["strata"]] == list(range(table["classes"]))
+    seen = 0
+    for shards in dataset.splits.values():
+        for shard in shards:
+            with tarfile.open(dataset.root / shard["name"]) as tar:
+                members = {m.name: tar.extractfile(m).read() for m in tar.getmembers()}
+            for name, data in members.items():
+                if not name.endswith(".json"):
+                    continue
+                label = json.loads(data)
+                cls = int(members[name.removesuffix(".json") + ".cls"])
+                stratum = table["strata"][cls]
+                assert stratum["betti"] == label["betti"], f"{name}: cls {cls}"
+                assert stratum["name"] == label["class_label"], f"{name}: cls {cls}"
+                topology = table["topology"][stratum["topology_class"]]
+                assert topology["betti"] == label["betti"] and cls in topology["strata"]
+                seen += 1
+    assert seen == dataset.index["samples"]

@@ -116,8 +116,11 @@ enum Command {
     },
     /// Draw a sample, or a contact sheet of several, as a PNG with its label.
     ///
-    /// 2D images are drawn as they are, 3D images as a projection and slices along the first
-    /// axis, 4D images as one row per 3D slice along the first axis.
+    /// Every view is cropped to the object (carve: the cavities) and cut where a hole shows:
+    /// the slice (or thin slab) whose own Betti numbers show the most holes is drawn
+    /// outlined. 2D images are drawn as they are, 3D images as a projection and slices along
+    /// the chosen axis, 4D images as one row per 3D slice; each slice is labelled with its
+    /// own Betti numbers.
     ///
     /// Example: bettimill preview demo-out --n 16 --out sheet.png
     Preview {
@@ -265,8 +268,9 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else if report.problems.is_empty() {
         outln!(
-            "ok: {} shards match {}",
+            "ok: {} shards and {} other files match {}",
             report.shards_checked,
+            report.files_checked,
             bettimill_format::DatasetDir::new(dir)
                 .index_path()
                 .display()

@@ -4,7 +4,10 @@
 use crate::commands::ExitStatus;
 use anyhow::{bail, Context};
 use bettimill_format::DatasetDir;
-use bettimill_preview::{caption, contact_sheet, render_sample, samples_in_tar, short_caption};
+use bettimill_preview::{
+    caption, contact_sheet, guess_mode, label_mode, render_sample, samples_in_tar, short_caption,
+    Subject,
+};
 use std::path::{Path, PathBuf};
 
 /// What to draw.
@@ -57,6 +60,15 @@ fn read_shard(path: &Path) -> anyhow::Result<Vec<u8>> {
     std::fs::read(path).with_context(|| format!("cannot read shard {}", path.display()))
 }
 
+/// What the picture of a sample read from a shard knows: its label's mode and Betti numbers.
+fn subject(sample: &bettimill_preview::SampleView) -> Subject<'_> {
+    Subject {
+        image: &sample.image,
+        mode: label_mode(&sample.label),
+        betti: &sample.label.betti,
+    }
+}
+
 /// Runs `bettimill preview`.
 pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
     let input = request.input;
@@ -86,7 +98,12 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
                 shape.join("x")
             ),
         ];
-        render_sample(image, &lines)?
+        let subject = Subject {
+            image,
+            mode: guess_mode(image),
+            betti: &topology.betti,
+        };
+        render_sample(&subject, &lines)?
     } else {
         let shards: Vec<PathBuf> = if input.is_dir() {
             dataset_shards(input)?.into_iter().map(|(_, p)| p).collect()
@@ -128,15 +145,12 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
         }
         if request.n.is_some() {
             let tiles: Vec<_> = found
-                .into_iter()
-                .map(|s| {
-                    let lines = short_caption(&s.label);
-                    (s.image, lines)
-                })
+                .iter()
+                .map(|s| (subject(s), short_caption(&s.label)))
                 .collect();
             contact_sheet(&tiles)?
         } else {
-            render_sample(&found[0].image, &caption(&found[0].label))?
+            render_sample(&subject(&found[0]), &caption(&found[0].label))?
         }
     };
     let png = canvas.to_png();

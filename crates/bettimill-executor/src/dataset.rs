@@ -382,16 +382,33 @@ impl Dataset {
                     source,
                 })?;
         }
-        // Indexes for other tools and the dataset card first: index.json is written last,
-        // so its presence means the whole dataset is complete.
-        for (_, writer) in wids {
+        // Indexes for other tools, the class table and the dataset card first: index.json is
+        // written last (listing each of them), so its presence means the whole dataset is
+        // complete.
+        let mut files = Vec::new();
+        for (split, writer) in wids {
             let file = writer.finish().map_err(|source| BuildError::Io {
                 path: index_tmp.clone(),
                 source,
             })?;
             file.commit()?;
+            files.push(self.layout.wids_index_path(&split));
         }
+        self.layout.write_class_table(&self.plan.class_table())?;
         shard::write_atomic(&self.layout.card_path(), self.dataset_card().as_bytes())?;
+        let mut listed = Vec::new();
+        for name in bettimill_format::REQUIRED_FILES
+            .iter()
+            .map(|name| name.to_string())
+            .chain(
+                files
+                    .iter()
+                    .filter_map(|path| path.file_name().map(|n| n.to_string_lossy().into_owned())),
+            )
+        {
+            listed.push(self.layout.index_file(&name)?);
+        }
+        index.set_files(listed);
         let file = index.finish().map_err(|source| BuildError::Io {
             path: index_tmp.clone(),
             source,
@@ -413,6 +430,11 @@ impl Dataset {
              - manifest: `manifest.toml` (canonical hash `{mh}`)\n- plan hash: `{ph}`\n\
              - rebuild or extend: `bettimill build manifest.toml --out DIR`\n\
              - check: `bettimill verify DIR`\n\n## Labels\n\n\
+             `KEY.cls` is the sample's stratum (class x mode x components x hypervolume bin), \
+             so two values can share a Betti vector. `classes.json` lists every `cls` with its \
+             family, mode, components, bin, Betti numbers and knot type, and maps it to a \
+             **topology class** (one per distinct Betti vector and knot type): train a \
+             topology classifier on that.\n\n\
              | cls | class | betti | samples |\n|---|---|---|---|\n",
             name = plan.name,
             samples = plan.samples,

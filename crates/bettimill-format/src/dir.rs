@@ -14,6 +14,13 @@ pub const BUILD_INFO_FILE: &str = "build.json";
 pub const INDEX_FILE: &str = "index.json";
 /// `DIR/README.md`: the dataset card.
 pub const CARD_FILE: &str = "README.md";
+/// `DIR/classes.json`: the class table ([`crate::ClassTable`]), written by finalize.
+pub const CLASSES_FILE: &str = "classes.json";
+/// The files besides shards and records that every finished dataset has; `index.json`
+/// lists each (and the wids indexes) in `files`, and `verify` checks them.
+pub const REQUIRED_FILES: &[&str] = &[BUILD_INFO_FILE, CARD_FILE, CLASSES_FILE, MANIFEST_FILE];
+/// Largest `classes.json` read (a table of a million strata is far smaller).
+pub const MAX_CLASS_TABLE_BYTES: u64 = 256 << 20;
 /// `DIR/shards/`: the tar shards.
 pub const SHARDS_DIR: &str = "shards";
 /// `DIR/records/`: one completion record per finished shard.
@@ -127,6 +134,53 @@ impl DatasetDir {
     /// `DIR/README.md`.
     pub fn card_path(&self) -> PathBuf {
         self.root.join(CARD_FILE)
+    }
+
+    /// `DIR/classes.json`.
+    pub fn classes_path(&self) -> PathBuf {
+        self.root.join(CLASSES_FILE)
+    }
+
+    /// Writes `DIR/classes.json` (atomically).
+    pub fn write_class_table(&self, table: &crate::ClassTable) -> Result<(), FormatError> {
+        Ok(shard::write_atomic(
+            &self.classes_path(),
+            &table.to_json_bytes(),
+        )?)
+    }
+
+    /// Reads `DIR/classes.json`, refusing a file over [`MAX_CLASS_TABLE_BYTES`] (streamed,
+    /// never read whole first).
+    pub fn read_class_table(&self) -> Result<crate::ClassTable, FormatError> {
+        use std::io::Read;
+        let path = self.classes_path();
+        let file = std::fs::File::open(&path).map_err(io(&path))?;
+        let mut limited = std::io::BufReader::new(file).take(MAX_CLASS_TABLE_BYTES + 1);
+        let table = serde_json::from_reader(&mut limited);
+        if limited.limit() == 0 {
+            return Err(FormatError::Corrupt {
+                path,
+                reason: format!("larger than {MAX_CLASS_TABLE_BYTES} bytes"),
+            });
+        }
+        table.map_err(|err| FormatError::Corrupt {
+            path,
+            reason: format!("not a class table: {err}"),
+        })
+    }
+
+    /// The entry `index.json` lists for the directory's file `name` (size and a blake3
+    /// streamed through a fixed buffer).
+    pub fn index_file(&self, name: &str) -> Result<shard::IndexFile, FormatError> {
+        let path = self.root.join(name);
+        let mut file = std::fs::File::open(&path).map_err(io(&path))?;
+        let mut hasher = blake3::Hasher::new();
+        let bytes = std::io::copy(&mut file, &mut hasher).map_err(io(&path))?;
+        Ok(shard::IndexFile {
+            name: name.to_string(),
+            bytes,
+            blake3: hasher.finalize().to_hex().to_string(),
+        })
     }
 
     /// `DIR/shardindex-SPLIT.json`.
@@ -282,6 +336,7 @@ impl DatasetDir {
         };
         Ok(shard::verify_with_progress(
             &self.root,
+            REQUIRED_FILES,
             &mut records,
             progress,
         )?)

@@ -8,22 +8,29 @@
 //!   streaming "does this tar match its record" check ([`DatasetDir::check_tar`]).
 //! - [`label`]: the label stored as `KEY.json` ([`Label`], [`ResolutionLabel`]).
 //! - [`member`]: member names and their compression suffixes.
+//! - [`classes`]: the class table stored as `classes.json` ([`ClassTable`]): what every
+//!   `KEY.cls` means, and the topology-only class index.
 //!
 //! ```text
 //! DIR/manifest.toml             the manifest, byte for byte as given
 //! DIR/build.json                tool version, manifest hash, plan hash (written first)
 //! DIR/shards/NAME-000000.tar    WebDataset shards
 //! DIR/records/NAME-000000.json  one completion record per finished shard
-//! DIR/index.json                the hash manifest (written last, by finalize)
+//! DIR/classes.json              the class table (what each KEY.cls means)
+//! DIR/index.json                the hash manifest (written last, by finalize): every
+//!                               shard, its record, and every file above
 //! DIR/shardindex-SPLIT.json     wids indexes, DIR/README.md the dataset card
 //! ```
 
+pub mod classes;
 pub mod dir;
 pub mod label;
 pub mod member;
 
+pub use classes::{ClassTable, StratumClass, TopologyClass, CLASS_TABLE_FORMAT};
 pub use dir::{
-    check_build_info, check_tar_file, BuildInfo, CompletionRecord, DatasetDir, ShardState, TarCheck,
+    check_build_info, check_tar_file, BuildInfo, CompletionRecord, DatasetDir, ShardState,
+    TarCheck, CLASSES_FILE, REQUIRED_FILES,
 };
 pub use label::{Label, ResolutionLabel};
 pub use member::{member_name, MemberName};

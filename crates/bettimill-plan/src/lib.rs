@@ -24,6 +24,7 @@
 //! `blake3-derive-key("bettimill attempt seed v1", sample_seed || k_le)` as a ChaCha8 seed.
 
 use bettimill_deform::DeformSettings;
+pub use bettimill_format::{ClassTable, StratumClass, TopologyClass};
 use bettimill_grid::{Dim, Mode};
 use bettimill_manifest::{ClassKind, ClassSpec, Manifest, ManifestError};
 use bettimill_shapes::Family;
@@ -313,6 +314,30 @@ impl Plan {
         })
     }
 
+    /// The class table (`DIR/classes.json`): what every `cls` value means, with a
+    /// topology-only class index over the distinct (Betti vector, knot type) pairs.
+    pub fn class_table(&self) -> ClassTable {
+        let counts = self.total_counts();
+        ClassTable::new(
+            self.strata
+                .iter()
+                .zip(counts)
+                .map(|(stratum, samples)| StratumClass {
+                    cls: stratum.index,
+                    name: stratum.label.clone(),
+                    family: one_copy(&stratum.family, stratum.components).label(),
+                    mode: mode_name(stratum.mode).to_string(),
+                    components: stratum.components,
+                    hypervolume_bin: stratum.hypervolume,
+                    betti: stratum.betti.clone(),
+                    knot_type: stratum.family.knot_type(self.dimension, stratum.mode),
+                    topology_class: 0,
+                    samples,
+                })
+                .collect(),
+        )
+    }
+
     /// blake3 of the plan's canonical JSON (64 hex digits).
     pub fn hash(&self) -> String {
         let json = serde_json::to_string(self).expect("a plan always serialises");
@@ -498,6 +523,22 @@ pub fn class_with_copies(class: &Family, copies: u32) -> Family {
     };
     Family::Scene {
         objects: (0..copies).flat_map(|_| one.iter().cloned()).collect(),
+    }
+}
+
+/// The class object of a stratum's family: [`class_with_copies`] undone.
+fn one_copy(family: &Family, copies: u32) -> Family {
+    match family {
+        Family::Scene { objects } if copies > 1 => {
+            let per_copy = objects.len() / copies as usize;
+            match &objects[..per_copy] {
+                [one] => one.clone(),
+                several => Family::Scene {
+                    objects: several.to_vec(),
+                },
+            }
+        }
+        other => other.clone(),
     }
 }
 
@@ -776,6 +817,69 @@ family = "ball"
 
     fn spread(c: &[u64]) -> u64 {
         c.iter().max().unwrap() - c.iter().min().unwrap()
+    }
+
+    #[test]
+    fn class_table_names_every_stratum_and_merges_equal_topologies() {
+        let text = GOOD
+            .replace("mode = \"embed\"", "mode = [\"embed\", \"carve\"]")
+            .replace("seed = 1\n", "seed = 1\ncomponents = [1, 2]\n")
+            + "\n[[classes]]\nfamily = \"handle\"\n\n[[classes]]\nfamily = \"knot\"\nknot = \"trefoil\"\n";
+        let text = text
+            .replace("side = 24", "side = 64")
+            .replace("samples = 10", "samples = 50");
+        let plan = plan(&text).unwrap();
+        let table = plan.class_table();
+        assert_eq!(table.classes, plan.strata.len());
+        let total: u64 = table.strata.iter().map(|s| s.samples).sum();
+        assert_eq!(total, plan.samples);
+        for (entry, stratum) in table.strata.iter().zip(&plan.strata) {
+            assert_eq!(entry.cls, stratum.index);
+            assert_eq!(entry.betti, stratum.betti);
+            assert_eq!(entry.name, stratum.label);
+            let topology = &table.topology[entry.topology_class];
+            assert_eq!(
+                (&topology.betti, &topology.knot_type),
+                (&entry.betti, &entry.knot_type)
+            );
+            assert!(topology.strata.contains(&entry.cls));
+            // One copy of the stratum's object, whatever the component count.
+            let family = &plan.strata[entry.cls].family;
+            assert_eq!(
+                class_with_copies(&one_copy(family, entry.components), entry.components),
+                *family
+            );
+        }
+        // A trefoil and a handle have the same Betti numbers but are different topologies.
+        let knots: Vec<_> = table
+            .strata
+            .iter()
+            .filter(|s| s.family.starts_with("knot"))
+            .collect();
+        assert!(!knots.is_empty());
+        assert!(
+            knots.iter().all(|s| s.knot_type.contains("trefoil")),
+            "{knots:?}"
+        );
+        let handle = table
+            .strata
+            .iter()
+            .find(|s| s.family == "handle" && s.components == 1 && s.mode == "embed")
+            .unwrap();
+        let knot = knots
+            .iter()
+            .find(|s| s.components == 1 && s.mode == "embed")
+            .unwrap();
+        assert_eq!(handle.betti, knot.betti);
+        assert_ne!(handle.topology_class, knot.topology_class);
+        // Distinct topologies are fewer than strata here (embed and carve balls differ, but
+        // copies of handles in two modes repeat Betti vectors only within a mode).
+        let distinct: std::collections::BTreeSet<_> = table
+            .strata
+            .iter()
+            .map(|s| (s.betti.clone(), s.knot_type.clone()))
+            .collect();
+        assert_eq!(table.topology_classes, distinct.len());
     }
 
     proptest::proptest! {

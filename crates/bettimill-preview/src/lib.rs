@@ -1,6 +1,6 @@
 //! Pictures and summaries of datasets for people: PNG previews of samples (2D as is, 3D as
-//! slices and a projection, 4D as rows of 3D slices), contact sheets, and statistics with a
-//! histogram chart.
+//! slices and a projection, 4D as rows of 3D slices, each cropped to the object and cut
+//! where a hole shows), contact sheets, and statistics with a histogram chart.
 //!
 //! Everything here is a pure function of bytes and images: the CLI reads the files and
 //! writes the PNGs. Equal inputs give equal PNG bytes (see [`png`]).
@@ -8,11 +8,13 @@
 //! - [`png`]: the PNG encoder.
 //! - [`font`]: the built-in 5x7 bitmap font for captions.
 //! - [`canvas`]: the RGB drawing surface.
+//! - [`focus`]: the crop box and the slice that shows the topology.
 //! - [`render`]: layouts of one sample and of contact sheets.
 //! - [`samples`]: labels and arrays read back from shard bytes.
 //! - [`stats`]: counts, regeneration rates, the hypervolume histogram and the chart.
 
 pub mod canvas;
+pub mod focus;
 pub mod font;
 pub mod png;
 pub mod render;
@@ -20,7 +22,8 @@ pub mod samples;
 pub mod stats;
 
 pub use canvas::Canvas;
-pub use render::{caption, contact_sheet, render_sample, short_caption};
+pub use focus::guess_mode;
+pub use render::{caption, contact_sheet, label_mode, render_sample, short_caption, Subject};
 pub use samples::{keys_in_tar, labels_in_tar, samples_in_tar, SampleView};
 pub use stats::{plot, BuildTime, Stats};
 

@@ -9,7 +9,7 @@
 //! features.
 
 use crate::geometry::round6;
-use crate::labels::{embed_betti, expected, knot_type_of, realised_as};
+use crate::labels::{embed_betti, expected, knot_type_label, realised_as};
 use crate::place::{
     canonical_layout, grid_fits, place_objects, place_tunnel, PlacementArea, Region, CUBE_MARGIN,
 };
@@ -189,12 +189,7 @@ pub(crate) fn generate_sized(
             ("voxels", json!(voxels.len())),
         ]));
     }
-    let knot_types: Vec<String> = objects.iter().filter_map(|o| knot_type_of(o, d)).collect();
-    let knot_type = if knot_types.is_empty() {
-        "none".to_string()
-    } else {
-        knot_types.join("+")
-    };
+    let knot_type = knot_type_label(family, dim, mode);
     let components = objects
         .iter()
         .map(|o| embed_betti(o, dim).map(|(b, _)| b[0]).unwrap_or(0))

@@ -332,6 +332,31 @@ pub(crate) fn realised_as(err: ShapeError, class: &Family, realised: &Family) ->
     }
 }
 
+/// The `knot_type` a sample of `family` records: the knot or link types of its objects
+/// joined by `+`, or `"none"`. A class given as a Betti vector records that of its
+/// realisation.
+pub(crate) fn knot_type_label(family: &Family, dim: Dim, mode: Mode) -> String {
+    if let Family::Betti { betti } = family {
+        return match crate::betti_class::realise(betti, dim, mode) {
+            Ok(realised) => knot_type_label(&realised, dim, mode),
+            Err(_) => "none".to_string(),
+        };
+    }
+    let objects: Vec<&Family> = match family {
+        Family::Scene { objects } => objects.iter().collect(),
+        other => vec![other],
+    };
+    let types: Vec<String> = objects
+        .iter()
+        .filter_map(|o| knot_type_of(o, dim.get()))
+        .collect();
+    if types.is_empty() {
+        "none".to_string()
+    } else {
+        types.join("+")
+    }
+}
+
 pub(crate) fn knot_type_of(family: &Family, dim: usize) -> Option<String> {
     let suffix = if dim == 4 { "_x_interval" } else { "" };
     match family {

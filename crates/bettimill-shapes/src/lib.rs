@@ -304,6 +304,12 @@ impl Family {
             })
     }
 
+    /// The `knot_type` every sample of this family records in `mode`: the knot or link
+    /// types of its objects joined by `+` (`"trefoil"`, `"hopf_x_interval"`), or `"none"`.
+    pub fn knot_type(&self, dim: Dim, mode: Mode) -> String {
+        labels::knot_type_label(self, dim, mode)
+    }
+
     /// A short stable name for tables ("ball", "handlebody(genus=2)", ...).
     pub fn label(&self) -> String {
         match self {

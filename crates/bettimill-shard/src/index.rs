@@ -4,7 +4,11 @@
 //!
 //! A JSON object with keys in this order: `format` (always `"bettimill-index"`),
 //! `format_version` ([`INDEX_FORMAT_VERSION`]), `tool_version`, `manifest_hash`,
-//! `plan_hash`, `shard_count`, `samples`, `shards`. Each entry of `shards`
+//! `plan_hash`, `shard_count`, `samples`, `shards`, `files`. `files` ([`IndexFile`]) lists
+//! every other file of the directory the build wrote (manifest, identity, class table,
+//! dataset card, wids indexes) with its size and blake3, sorted by name, so that
+//! [`crate::verify()`] covers every byte a build writes; it comes after `shards` so that the
+//! wids indexes, written while the shards are listed, can be in it. Each entry of `shards`
 //! ([`IndexShard`]) holds `name` (path relative to the dataset directory, always under
 //! `shards/`), `split`, `samples`, `bytes`, `blake3` (hex of the whole tar), `first_key`,
 //! `last_key` and `record_blake3` (hex of the shard's completion record file, which holds
@@ -15,12 +19,14 @@
 //! at a time and [`read_index`] reads it one shard at a time, so neither holds the list.
 //!
 //! Format version 1 (bettimill 0.1.0 before this change) listed every member in the index
-//! instead (about 590 bytes per sample); it is refused with a message saying so.
+//! instead (about 590 bytes per sample); version 2 had no `files`. Both are refused with a
+//! message saying so (`bettimill finalize DIR` rewrites the index from the records).
 //!
 //! Invariants checked while reading (an index breaking them is refused, because
 //! [`crate::verify()`] and readers join shard names onto the dataset directory): the format
 //! name and version match, shard names are unique, relative, under `shards/` and free of
-//! `..`, and `shard_count` and `samples` add up.
+//! `..`, `shard_count` and `samples` add up, and `files` names at most [`MAX_INDEX_FILES`]
+//! distinct plain file names of the directory itself (not `index.json`).
 //!
 //! # wids index
 //!
@@ -39,7 +45,22 @@ use std::path::Path;
 /// Value of [`Index::format`].
 pub const INDEX_FORMAT: &str = "bettimill-index";
 /// Value of [`Index::format_version`] written by this version.
-pub const INDEX_FORMAT_VERSION: u32 = 2;
+pub const INDEX_FORMAT_VERSION: u32 = 3;
+/// Most entries `files` may hold (a dataset has a few files besides its shards and records:
+/// one wids index per split).
+pub const MAX_INDEX_FILES: usize = 4096;
+
+/// A file of the dataset directory other than shards and records, as `index.json` lists it.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct IndexFile {
+    /// File name, relative to the dataset directory (no directory part).
+    pub name: String,
+    /// Its size.
+    pub bytes: u64,
+    /// BLAKE3 of the whole file, lowercase hex.
+    pub blake3: String,
+}
 
 /// Where one member's data sits in its shard, and its hash.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
@@ -146,6 +167,9 @@ pub struct IndexHeader {
     pub shard_count: u64,
     /// Samples in all shards.
     pub samples: u64,
+    /// Every other file of the directory, sorted by name (written after `shards`).
+    #[serde(skip)]
+    pub files: Vec<IndexFile>,
 }
 
 impl IndexHeader {
@@ -165,7 +189,15 @@ impl IndexHeader {
             plan_hash: plan_hash.into(),
             shard_count,
             samples,
+            files: Vec::new(),
         }
+    }
+
+    /// The header listing `files` (sorted here by name).
+    pub fn with_files(mut self, mut files: Vec<IndexFile>) -> IndexHeader {
+        files.sort_by(|a, b| a.name.cmp(&b.name));
+        self.files = files;
+        self
     }
 }
 
@@ -283,12 +315,26 @@ impl<W: Write> StreamedObject<W> {
         Ok(())
     }
 
-    fn finish(mut self) -> std::io::Result<W> {
+    /// Closes the list, writes `key: value` (pretty, indented as a field) when given, and
+    /// closes the object.
+    fn finish<T: Serialize>(mut self, trailer: Option<(&str, &T)>) -> std::io::Result<W> {
         if self.elements == 0 {
-            self.out.write_all(b"]\n}\n")?;
+            self.out.write_all(b"]")?;
         } else {
-            self.out.write_all(b"\n  ]\n}\n")?;
+            self.out.write_all(b"\n  ]")?;
         }
+        if let Some((key, value)) = trailer {
+            let text = serde_json::to_string_pretty(value).expect("index types serialise");
+            self.out
+                .write_all(format!(",\n  {}: ", serde_json::Value::from(key)).as_bytes())?;
+            for (n, line) in text.lines().enumerate() {
+                if n > 0 {
+                    self.out.write_all(b"\n  ")?;
+                }
+                self.out.write_all(line.as_bytes())?;
+            }
+        }
+        self.out.write_all(b"\n}\n")?;
         self.out.flush()?;
         Ok(self.out)
     }
@@ -297,6 +343,7 @@ impl<W: Write> StreamedObject<W> {
 /// Writes `index.json` one shard at a time (the list is never held in memory).
 pub struct IndexWriter<W: Write> {
     inner: StreamedObject<W>,
+    files: Vec<IndexFile>,
 }
 
 impl<W: Write> IndexWriter<W> {
@@ -305,7 +352,14 @@ impl<W: Write> IndexWriter<W> {
     pub fn new(out: W, header: &IndexHeader) -> std::io::Result<Self> {
         Ok(IndexWriter {
             inner: StreamedObject::new(out, header, "shards")?,
+            files: header.files.clone(),
         })
+    }
+
+    /// Sets the `files` written after the shards (sorted here by name).
+    pub fn set_files(&mut self, mut files: Vec<IndexFile>) {
+        files.sort_by(|a, b| a.name.cmp(&b.name));
+        self.files = files;
     }
 
     /// Appends one shard.
@@ -313,9 +367,10 @@ impl<W: Write> IndexWriter<W> {
         self.inner.push(shard)
     }
 
-    /// Closes the list and the object, flushes and returns the output.
+    /// Closes the list, writes `files` and closes the object, flushes and returns the
+    /// output.
     pub fn finish(self) -> std::io::Result<W> {
-        self.inner.finish()
+        self.inner.finish(Some(("files", &self.files)))
     }
 }
 
@@ -371,6 +426,7 @@ struct PartialHeader {
     plan_hash: Option<String>,
     shard_count: Option<u64>,
     samples: Option<u64>,
+    files: Option<Vec<IndexFile>>,
 }
 
 impl PartialHeader {
@@ -390,6 +446,11 @@ impl PartialHeader {
             Some(1) => {
                 return Err(format!(
                     "format_version 1 (written by bettimill {tool}, listing every member) is not read by this bettimill, which reads version {INDEX_FORMAT_VERSION} (shards only; member hashes are in records/NAME.json); rewrite the index with `bettimill finalize DIR`, or use bettimill {tool}"
+                ))
+            }
+            Some(2) => {
+                return Err(format!(
+                    "format_version 2 (written by bettimill {tool}, without the list of the directory's other files) is not read by this bettimill, which reads version {INDEX_FORMAT_VERSION}; rewrite the index with `bettimill finalize DIR` (shards and records are unchanged), or use bettimill {tool}"
                 ))
             }
             Some(other) => {
@@ -414,8 +475,38 @@ impl PartialHeader {
             plan_hash: self.plan_hash.clone().ok_or_else(|| missing("plan_hash"))?,
             shard_count: self.shard_count.ok_or_else(|| missing("shard_count"))?,
             samples: self.samples.ok_or_else(|| missing("samples"))?,
+            files: Vec::new(),
         })
     }
+}
+
+fn check_files(files: &[IndexFile]) -> Result<(), String> {
+    if files.len() > MAX_INDEX_FILES {
+        return Err(format!(
+            "files lists {} entries, at most {MAX_INDEX_FILES} are allowed",
+            files.len()
+        ));
+    }
+    for (n, file) in files.iter().enumerate() {
+        let name = file.name.as_str();
+        if name.is_empty()
+            || name == "."
+            || name == ".."
+            || name == "index.json"
+            || name.contains(['/', '\\'])
+            || name.chars().any(char::is_control)
+        {
+            return Err(format!(
+                "file name {name:?} is not a plain file name of the dataset directory"
+            ));
+        }
+        if n > 0 && files[n - 1].name.as_str() >= name {
+            return Err(format!(
+                "files are not sorted by name, or {name:?} is listed twice"
+            ));
+        }
+    }
+    Ok(())
 }
 
 struct IndexVisitor<'a> {
@@ -447,6 +538,11 @@ impl<'de> serde::de::Visitor<'de> for IndexVisitor<'_> {
                 "plan_hash" => partial.plan_hash = Some(map.next_value()?),
                 "shard_count" => partial.shard_count = Some(map.next_value()?),
                 "samples" => partial.samples = Some(map.next_value()?),
+                "files" => {
+                    let files = map.next_value_seed(FilesSeed)?;
+                    check_files(&files).map_err(|reason| refuse(self.refusal, reason))?;
+                    partial.files = Some(files);
+                }
                 "shards" => {
                     let complete = partial
                         .complete()
@@ -467,9 +563,13 @@ impl<'de> serde::de::Visitor<'de> for IndexVisitor<'_> {
                 }
             }
         }
-        match header {
-            Some(header) => Ok(header),
-            None => Err(refuse(
+        match (header, partial.files.take()) {
+            (Some(mut header), Some(files)) => {
+                header.files = files;
+                Ok(header)
+            }
+            (Some(_), None) => Err(refuse(self.refusal, "files is missing".into())),
+            (None, _) => Err(refuse(
                 self.refusal,
                 partial
                     .complete()
@@ -477,6 +577,42 @@ impl<'de> serde::de::Visitor<'de> for IndexVisitor<'_> {
                     .unwrap_or_else(|| "shards is missing".into()),
             )),
         }
+    }
+}
+
+/// Reads `files`, refusing more than [`MAX_INDEX_FILES`] entries as they arrive (the list
+/// is never read whole because it claims to be short).
+struct FilesSeed;
+
+impl<'de> serde::de::DeserializeSeed<'de> for FilesSeed {
+    type Value = Vec<IndexFile>;
+
+    fn deserialize<D: serde::Deserializer<'de>>(
+        self,
+        deserializer: D,
+    ) -> Result<Self::Value, D::Error> {
+        deserializer.deserialize_seq(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for FilesSeed {
+    type Value = Vec<IndexFile>;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a list of files")
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+        let mut files = Vec::new();
+        while let Some(file) = seq.next_element::<IndexFile>()? {
+            if files.len() == MAX_INDEX_FILES {
+                return Err(serde::de::Error::custom(format!(
+                    "files lists more than {MAX_INDEX_FILES} entries"
+                )));
+            }
+            files.push(file);
+        }
+        Ok(files)
     }
 }
 
@@ -704,7 +840,7 @@ impl<W: Write> WidsWriter<W> {
 
     /// Closes the file's JSON, flushes and returns the output.
     pub fn finish(self) -> std::io::Result<W> {
-        self.inner.finish()
+        self.inner.finish::<()>(None)
     }
 }
 
@@ -797,12 +933,21 @@ mod tests {
         let (_, second) =
             build_shard("shards/t-000001.tar", "val", &[sample("b", &["json"])]).unwrap();
         let entry = record.index_entry("ab".repeat(32));
-        let index = Index::new(
+        let mut index = Index::new(
             "0.1.0",
             "m",
             "p",
             vec![entry.clone(), second.index_entry("cd".repeat(32))],
         );
+        let file = |name: &str| IndexFile {
+            name: name.into(),
+            bytes: 7,
+            blake3: "ef".repeat(32),
+        };
+        index.header = index
+            .header
+            .with_files(vec![file("manifest.toml"), file("README.md")]);
+        assert_eq!(index.header.files[0].name, "README.md", "sorted by name");
         let bytes = index.to_json_bytes();
         // The streamed writer gives exactly serde_json's pretty bytes.
         #[derive(Serialize)]
@@ -810,10 +955,12 @@ mod tests {
             #[serde(flatten)]
             header: &'a IndexHeader,
             shards: &'a [IndexShard],
+            files: &'a [IndexFile],
         }
         let whole = to_pretty_json(&Whole {
             header: &index.header,
             shards: &index.shards,
+            files: &index.header.files,
         });
         assert_eq!(
             String::from_utf8(bytes.clone()).unwrap(),
@@ -822,7 +969,7 @@ mod tests {
         let empty = Index::new("0.1.0", "m", "p", vec![]);
         assert!(String::from_utf8(empty.to_json_bytes())
             .unwrap()
-            .ends_with("\"shards\": []\n}\n"));
+            .ends_with("\"shards\": [],\n  \"files\": []\n}\n"));
         let text = String::from_utf8(bytes.clone()).unwrap();
         let format_at = text.find("\"format\"").unwrap();
         let shards_at = text.find("\"shards\"").unwrap();
@@ -850,9 +997,29 @@ mod tests {
         let err = Index::from_json_bytes(&lying.to_json_bytes(), path).unwrap_err();
         assert!(err.to_string().contains("header says"), "{err}");
         let mut future = index.clone();
-        future.header.format_version = 3;
+        future.header.format_version = 4;
         let err = Index::from_json_bytes(&future.to_json_bytes(), path).unwrap_err();
-        assert!(err.to_string().contains("format_version 3"), "{err}");
+        assert!(err.to_string().contains("format_version 4"), "{err}");
+        // Version 2 had no files; a version-3 index without them, or with a file name that
+        // leaves the directory or is listed twice, is refused.
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        let v2 = text.replace("\"format_version\": 3", "\"format_version\": 2");
+        let err = Index::from_json_bytes(v2.as_bytes(), path).unwrap_err();
+        assert!(err.to_string().contains("format_version 2"), "{err}");
+        assert!(err.to_string().contains("bettimill finalize"), "{err}");
+        let cut = &text[..text.find(",\n  \"files\"").unwrap()];
+        let err = Index::from_json_bytes(format!("{cut}\n}}").as_bytes(), path).unwrap_err();
+        assert!(err.to_string().contains("files is missing"), "{err}");
+        for bad in ["../x", "shards/a.tar", "index.json", ""] {
+            let mut evil = index.clone();
+            evil.header.files[0].name = bad.into();
+            let err = Index::from_json_bytes(&evil.to_json_bytes(), path).unwrap_err();
+            assert!(err.to_string().contains("plain file name"), "{bad}: {err}");
+        }
+        let mut twice = index.clone();
+        twice.header.files[1].name = "README.md".into();
+        let err = Index::from_json_bytes(&twice.to_json_bytes(), path).unwrap_err();
+        assert!(err.to_string().contains("listed twice"), "{err}");
         assert!(matches!(
             Index::from_json_bytes(b"{", path),
             Err(ShardError::Json { .. })

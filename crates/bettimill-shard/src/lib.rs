@@ -30,8 +30,8 @@ pub use compress::{compress, decoder, decompress, sniff, Compression};
 pub use error::ShardError;
 pub use index::{
     blake3_hex, build_shard, count_samples, read_index, read_index_from, wids_index, Index,
-    IndexHeader, IndexShard, IndexWriter, MemberRecord, ShardRecord, WidsWriter, INDEX_FORMAT,
-    INDEX_FORMAT_VERSION,
+    IndexFile, IndexHeader, IndexShard, IndexWriter, MemberRecord, ShardRecord, WidsWriter,
+    INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES,
 };
 pub use ustar::{
     read_tar, read_tar_with_limit, split_key, tar_bytes, tar_entries, Member, TarEntry,

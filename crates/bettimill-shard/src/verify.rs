@@ -152,6 +152,14 @@ pub enum Problem {
         /// What disagrees.
         reason: String,
     },
+    /// A file of the directory (not a shard) that index.json lists differs from what it
+    /// says, is missing, or is required and not listed.
+    File {
+        /// Path relative to the dataset directory.
+        path: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// A file under `shards/` that the index does not list.
     ExtraFile {
         /// Path relative to the dataset directory.
@@ -241,6 +249,7 @@ impl fmt::Display for Problem {
                 "{shard}: the index says {expected} samples, its members form {found}"
             ),
             Problem::RecordInconsistent { shard, reason } => write!(f, "{shard}: {reason}"),
+            Problem::File { path, reason } => write!(f, "{path}: {reason}"),
             Problem::ExtraFile { path } => write!(f, "{path}: not listed in index.json"),
         }
     }
@@ -255,6 +264,8 @@ pub struct VerifyReport {
     pub samples_checked: u64,
     /// Bytes of shard files read.
     pub bytes_checked: u64,
+    /// Other files of the directory checked against the index's `files`.
+    pub files_checked: u64,
     /// Every problem, in index order, then extra files in path order.
     pub problems: Vec<Problem>,
 }
@@ -274,7 +285,7 @@ pub type RecordSource<'a> = dyn FnMut(&IndexShard) -> Result<ShardRecord, String
 /// (see the module documentation). Returns `Err` only when the index itself cannot be read
 /// or is invalid.
 pub fn verify(dir: &Path, records: &mut RecordSource) -> Result<VerifyReport, ShardError> {
-    verify_with_progress(dir, records, &mut |_, _| {})
+    verify_with_progress(dir, &[], records, &mut |_, _| {})
 }
 
 /// Whether the file at `path` has `bytes` bytes and blake3 `blake3`, hashed through a fixed
@@ -305,9 +316,11 @@ pub fn file_matches(path: &Path, bytes: u64, blake3: &str) -> Result<(), String>
 }
 
 /// [`verify`], calling `progress` with (shards checked, shards in the index): once with
-/// zero checked when the index's header is read, then after each shard.
+/// zero checked when the index's header is read, then after each shard; every name in
+/// `required` must be among the index's `files` (the dataset format's own files).
 pub fn verify_with_progress(
     dir: &Path,
+    required: &[&str],
     records: &mut RecordSource,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<VerifyReport, ShardError> {
@@ -328,6 +341,23 @@ pub fn verify_with_progress(
     })?;
     if !started {
         progress(0, header.shard_count);
+    }
+    for name in required {
+        if !header.files.iter().any(|f| f.name == *name) {
+            report.problems.push(Problem::File {
+                path: name.to_string(),
+                reason: "not listed in index.json's files".into(),
+            });
+        }
+    }
+    for file in &header.files {
+        report.files_checked += 1;
+        if let Err(reason) = file_matches(&dir.join(&file.name), file.bytes, &file.blake3) {
+            report.problems.push(Problem::File {
+                path: file.name.clone(),
+                reason: reason.replace("its record says", "index.json says"),
+            });
+        }
     }
     let mut found = Vec::new();
     list_files(dir, Path::new("shards"), &mut found, &mut report.problems);

@@ -83,7 +83,7 @@ fn verify_with_progress(
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<VerifyReport, ShardError> {
-    bettimill_shard::verify_with_progress(dir, &mut sidecar(dir), progress)
+    bettimill_shard::verify_with_progress(dir, &[], &mut sidecar(dir), progress)
 }
 
 #[test]

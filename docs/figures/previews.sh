@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Regenerates every preview picture the README shows (docs/figures/previews/*.png except the
+# stats chart, and docs/figures/families-{3d,4d}.png) with the commands written next to them
+# in README.md. Usage, from the repository root:
+#   docs/figures/previews.sh [path/to/bettimill]    (default: bettimill on PATH)
+# The datasets are built in a temporary directory and removed afterwards.
+set -euo pipefail
+bin=${1:-bettimill}
+root=$(cd "$(dirname "$0")/../.." && pwd)
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+out="$root/docs/figures"
+for d in 2d 3d 4d; do
+  "$bin" build "$root/manifests/demo-$d.toml" --out "$work/demo-$d" --quiet
+done
+"$bin" preview "$work/demo-2d" --key s000000 --out "$out/previews/demo-2d-s000000.png" --quiet
+"$bin" preview "$work/demo-3d" --key s000006 --out "$out/previews/demo-3d-s000006.png" --quiet
+"$bin" preview "$work/demo-4d" --key s000007 --out "$out/previews/demo-4d-s000007.png" --quiet
+for d in 2d 3d 4d; do
+  "$bin" preview "$work/demo-$d" --n 12 --out "$out/previews/demo-$d-sheet.png" --quiet
+done
+"$bin" build "$out/families-3d.toml" --out "$work/f3" --quiet
+"$bin" preview "$work/f3" --n 31 --out "$out/families-3d.png" --quiet
+"$bin" build "$out/families-4d.toml" --out "$work/f4" --quiet
+"$bin" preview "$work/f4" --n 21 --out "$out/families-4d.png" --quiet
