@@ -75,6 +75,16 @@ def test_plan_fields(tmp_path):
     assert again.hash == plan.hash and again.sample(5)[1] == plan.sample(5)[1]
 
 
+@pytest.mark.parametrize("manifest", DEMOS[:2], ids=lambda p: p.stem)
+def test_classes_equal_the_built_classes_json(built, manifest):
+    plan = bettimill.Plan(manifest)
+    classes = plan.classes
+    assert classes == json.loads((built(manifest) / "classes.json").read_text())
+    assert classes["classes"] == len(plan.strata)
+    assert [s["cls"] for s in classes["strata"]] == [s["cls"] for s in plan.strata]
+    assert sum(t["samples"] for t in classes["topology"]) == len(plan)
+
+
 def test_named_splits_are_contiguous_ranges():
     text = (MANIFESTS / "families-2d.toml").read_text() + "\n[splits]\ntrain = 5\ntest = 3\n"
     plan = bettimill.Plan(text)

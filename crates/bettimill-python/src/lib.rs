@@ -302,6 +302,15 @@ impl PyPlan {
         Ok(list)
     }
 
+    /// The class table (`classes.json` of the built dataset, from `Plan::class_table`):
+    /// what every `cls` (stratum) means, and the topology class of each (one per distinct
+    /// Betti vector and knot type), with counts.
+    #[getter]
+    fn classes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let json = serde_json::to_string(&self.plan.class_table()).map_err(value_error)?;
+        json_to_py(py, &json)
+    }
+
     /// The sample indices of one split, as a `range` (splits are contiguous).
     fn split<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyRange>> {
         let mut start = 0;
