@@ -21,4 +21,9 @@ if [ -x ci/python-clients.sh ]; then
   ci/python-clients.sh
 fi
 
+if [ -x ci/python-package.sh ]; then
+  echo "== Python package (python/tests)"
+  ci/python-package.sh
+fi
+
 echo "== all tests passed"

@@ -58,3 +58,25 @@ def test_python_md_snippets_load_the_dataset(tmp_path):
     assert sample[".npy"].shape == index_shape
     assert set(sample[".npy"].ravel().tolist()) <= {0, 1}
     assert len(namespace["ds"]) == sum(s["samples"] for s in index["shards"] if s["split"] == "train")
+
+
+def test_dataset_card_loader_snippet_runs_in_the_dataset(monkeypatch, capsys):
+    """The ``python`` block of the dataset's own README.md (the card `bettimill build`
+    writes), run as written in the dataset directory: it must load every sample of its
+    split, on datasets of each member compression."""
+    root = os.environ.get("BETTIMILL_DATASET")
+    if not root:
+        pytest.skip("BETTIMILL_DATASET is not set")
+    root = Path(root)
+    card = root / "README.md"
+    if not card.exists():
+        pytest.skip(f"{root} was not written by `bettimill build` (no dataset card)")
+    blocks = re.findall(r"```python\n(.*?)```", card.read_text(), re.S)
+    assert len(blocks) == 1, f"{card}: expected one python block"
+    monkeypatch.chdir(root)
+    exec(compile(blocks[0], str(card), "exec"), {})
+    lines = capsys.readouterr().out.strip().splitlines()
+    index = json.loads((root / "index.json").read_text())
+    first_split = index["shards"][0]["split"]
+    assert len(lines) == sum(s["samples"] for s in index["shards"] if s["split"] == first_split), lines
+    assert all(line.endswith("]") for line in lines), lines  # "torch.Size([...]) [b0, ...]"

@@ -4,7 +4,7 @@
 
 use crate::build_display::Display;
 use crate::commands::{load_manifest, ExitStatus};
-use anyhow::{bail, Context};
+use anyhow::bail;
 use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
 use bettimill_executor::Dataset;
 use std::ffi::OsString;
@@ -57,7 +57,7 @@ pub fn build(
     if workers == 0 {
         bail!("--workers must be at least 1");
     }
-    let program = std::env::current_exe().context("cannot find the running bettimill binary")?;
+    let program = crate::own_program()?;
     let options = BuildOptions {
         workers,
         max_shard_failures,

@@ -131,7 +131,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     let tasks = args
         .tasks
         .unwrap_or_else(|| dataset.plan.shard_count().clamp(1, 1000));
-    let program = std::env::current_exe().context("cannot find the running bettimill binary")?;
+    let program = crate::own_program()?;
     let scripts = cluster::write_slurm_scripts(
         &dataset,
         &SlurmOptions {

@@ -3,7 +3,6 @@
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 /// bettimill builds reproducible datasets of 2D, 3D and 4D binary images whose Betti
 /// numbers are known exactly.
@@ -178,9 +177,10 @@ pub enum ExitStatus {
     Code(u8),
 }
 
-impl From<ExitStatus> for ExitCode {
-    fn from(status: ExitStatus) -> ExitCode {
-        ExitCode::from(match status {
+impl ExitStatus {
+    /// The process exit code.
+    pub fn code(self) -> i32 {
+        i32::from(match self {
             ExitStatus::Success => 0,
             ExitStatus::Differs => 1,
             ExitStatus::Failure => 2,

@@ -543,16 +543,31 @@ impl Dataset {
             let shards = plan.split_shards(split).count();
             card.push_str(&format!("| {split} | {size} | {shards} |\n"));
         }
-        let first = plan.shard(0).name;
-        let last = plan.shard(plan.shard_count() - 1).name;
+        // The loader snippet runs as written in the dataset directory (tests/python/
+        // test_docs.py executes it on none, gzip and zstd datasets): the shard list comes
+        // from index.json, the array field is any of the member names a compression gives,
+        // and zstd members get the decoder webdataset lacks.
+        let (zstd_import, decoder) = match plan.compression {
+            bettimill_shard::Compression::Zstd => (
+                ", zstandard\n\
+                 zst = lambda key, data: wds.autodecode.Continue(key[:-4], \
+                 zstandard.ZstdDecompressor().decompress(data)) if key.endswith(\".zst\") else None",
+                "zst",
+            ),
+            _ => ("", ""),
+        };
+        let split = &plan.splits[0].0;
         card.push_str(&format!(
-            "\n## Loading in PyTorch\n\n```python\nimport torch, webdataset as wds\n\
-             urls = \"shards/{{{first}..{last}}}.tar\"  # or list the files of one split\n\
-             ds = wds.WebDataset(urls, shardshuffle=False).decode().to_tuple(\"npy\", \"json\")\n\
+            "\n## Loading in PyTorch\n\nRun in this directory (`pip install torch webdataset{extra}`):\n\n\
+             ```python\nimport json, torch, webdataset as wds{zstd_import}\n\
+             urls = [s[\"name\"] for s in json.load(open(\"index.json\"))[\"shards\"] if s[\"split\"] == \"{split}\"]\n\
+             ds = wds.WebDataset(urls, shardshuffle=False, empty_check=False).decode({decoder}).to_tuple(\"npy;npy.gz;npy.zst\", \"json\")\n\
              loader = torch.utils.data.DataLoader(ds, batch_size=None, num_workers=2)\n\
              for image, label in loader:\n    print(image.shape, label[\"betti\"])\n```\n\n\
-             Each sample `KEY` has `KEY.cls` (class index), `KEY.json` (label) and `KEY.npy`. \
-             `shardindex-SPLIT.json` files open with `wids.ShardListDataset`.\n"
+             Each sample `KEY` has `KEY.cls` (stratum index), `KEY.json` (label) and `KEY.npy` \
+             (`KEY.npy.gz` or `KEY.npy.zst` when compressed). `shardindex-SPLIT.json` files open \
+             with `wids.ShardListDataset`.\n",
+            extra = if decoder.is_empty() { "" } else { " zstandard" },
         ));
         card
     }

@@ -219,12 +219,7 @@ pub fn read_bytes(bytes: &[u8], strict: bool) -> Result<NpyImage, NpyError> {
         });
     }
     // Shape validity (rank, zero axes) is checked before the voxel buffer is allocated.
-    if !(2..=4).contains(&shape.len()) {
-        return Err(GridError::BadRank(shape.len()).into());
-    }
-    if let Some(axis) = shape.iter().position(|&n| n == 0) {
-        return Err(GridError::EmptyAxis { axis }.into());
-    }
+    check_shape(&shape)?;
     let raw = &bytes[data_start..];
     let mut voxels = Vec::with_capacity(n_voxels as usize);
     if dtype.size == 1 {
@@ -240,15 +235,58 @@ pub fn read_bytes(bytes: &[u8], strict: bool) -> Result<NpyImage, NpyError> {
         let image = BinaryImage::from_vec(&shape, voxels)?;
         return Ok(NpyImage { image, dtype });
     }
-    for (index, chunk) in raw.chunks_exact(dtype.size).enumerate() {
-        let value = element_value(chunk, dtype);
+    let values = raw
+        .chunks_exact(dtype.size)
+        .map(|c| element_value(c, dtype));
+    let image = image_from_values(&shape, values, strict)?;
+    Ok(NpyImage { image, dtype })
+}
+
+/// Checks that `shape` is one of an image bettimill handles (2 to 4 axes, none of length
+/// 0), before anything is allocated for it. The error is the one reading a `.npy` file of
+/// that shape gives.
+pub fn check_shape(shape: &[usize]) -> Result<(), NpyError> {
+    if !(2..=4).contains(&shape.len()) {
+        return Err(GridError::BadRank(shape.len()).into());
+    }
+    if let Some(axis) = shape.iter().position(|&n| n == 0) {
+        return Err(GridError::EmptyAxis { axis }.into());
+    }
+    Ok(())
+}
+
+/// Builds an image of `shape` from its element values in C order, with the rules (and the
+/// errors) of reading a `.npy` file: the shape is checked first ([`check_shape`]), any
+/// non-zero value is foreground, and with `strict` a value other than 0 or 1 is refused,
+/// naming its flat C-order index. This is how arrays that are not files (the Python
+/// package's numpy arrays, in any memory order) are read exactly as `bettimill betti` reads
+/// a file.
+pub fn image_from_values<T: Into<i128>>(
+    shape: &[usize],
+    values: impl IntoIterator<Item = T>,
+    strict: bool,
+) -> Result<BinaryImage, NpyError> {
+    check_shape(shape)?;
+    let n_voxels = shape
+        .iter()
+        .try_fold(1usize, |acc, &n| acc.checked_mul(n))
+        .ok_or_else(|| NpyError::Format(format!("shape {shape:?} overflows")))?;
+    let mut voxels = Vec::with_capacity(n_voxels);
+    for (index, value) in values.into_iter().enumerate() {
+        let value: i128 = value.into();
         if strict && value != 0 && value != 1 {
             return Err(NpyError::NotBinary { index, value });
         }
         voxels.push((value != 0) as u8);
     }
-    let image = BinaryImage::from_vec(&shape, voxels)?;
-    Ok(NpyImage { image, dtype })
+    Ok(BinaryImage::from_vec(shape, voxels)?)
+}
+
+/// The dtype a NumPy `descr` string (`'|b1'`, `'<i8'`, `'>u2'`...) names, if bettimill
+/// reads it; anything else (floats, objects, strings) is [`NpyError::Dtype`], the error a
+/// `.npy` file of that dtype gives.
+pub fn parse_dtype(descr: &str) -> Result<Dtype, NpyError> {
+    parse_descr(descr)
 }
 
 fn element_value(chunk: &[u8], dtype: Dtype) -> i128 {

@@ -455,31 +455,59 @@ impl Plan {
 
     /// The tasks of one shard, in the order they are written.
     pub fn shard_tasks(&self, shard: &ShardPlan) -> Vec<SampleTask> {
+        let positions = self.shard_positions(shard);
+        (0..shard.samples)
+            .map(|offset| self.task_in(shard, &positions, offset))
+            .collect()
+    }
+
+    /// The task of sample `index` (from 0, over the whole dataset), the same as its entry in
+    /// [`Plan::shard_tasks`] of its shard; `None` past the last sample. Costs one shuffle of
+    /// its shard's positions, not the other samples' seeds.
+    pub fn task(&self, index: u64) -> Option<SampleTask> {
+        if index >= self.samples {
+            return None;
+        }
+        let mut first_shard = 0;
+        let mut split_start = 0;
+        for (_, size) in &self.splits {
+            if index < split_start + size {
+                let shard = self.shard(first_shard + (index - split_start) / self.shard_size);
+                let positions = self.shard_positions(&shard);
+                return Some(self.task_in(&shard, &positions, index - shard.first_sample));
+            }
+            first_shard += size.div_ceil(self.shard_size);
+            split_start += size;
+        }
+        None
+    }
+
+    /// The shard's dealt positions in the order its samples are written.
+    fn shard_positions(&self, shard: &ShardPlan) -> Vec<u64> {
         let mut positions: Vec<u64> = (0..shard.samples).collect();
         let mut rng = ChaCha8Rng::from_seed(derive_seed(
             "bettimill shard shuffle v1",
             &[self.manifest_hash.as_bytes(), &shard.index.to_le_bytes()],
         ));
         positions.shuffle(&mut rng);
-        let width = key_width(self.samples);
         positions
-            .iter()
-            .enumerate()
-            .map(|(offset, &dealt)| {
-                let index = shard.first_sample + offset as u64;
-                let dealt_index = shard.first_sample + dealt;
-                let stratum = self.deal_order[(dealt_index % self.strata.len() as u64) as usize];
-                SampleTask {
-                    index,
-                    key: format!("s{index:0width$}"),
-                    stratum,
-                    seed: derive_seed(
-                        "bettimill sample seed v1",
-                        &[self.manifest_hash.as_bytes(), &index.to_le_bytes()],
-                    ),
-                }
-            })
-            .collect()
+    }
+
+    /// The task written at `offset` in `shard`, given its [`Plan::shard_positions`].
+    fn task_in(&self, shard: &ShardPlan, positions: &[u64], offset: u64) -> SampleTask {
+        let width = key_width(self.samples);
+        let index = shard.first_sample + offset;
+        let dealt_index = shard.first_sample + positions[offset as usize];
+        let stratum = self.deal_order[(dealt_index % self.strata.len() as u64) as usize];
+        SampleTask {
+            index,
+            key: format!("s{index:0width$}"),
+            stratum,
+            seed: derive_seed(
+                "bettimill sample seed v1",
+                &[self.manifest_hash.as_bytes(), &index.to_le_bytes()],
+            ),
+        }
     }
 }
 
@@ -723,6 +751,23 @@ family = "ball"
         all.sort();
         assert_eq!(all, (0..103).collect::<Vec<_>>());
         assert_eq!(plan.shard(10).samples, 3);
+    }
+
+    #[test]
+    fn task_of_an_index_is_its_shard_task() {
+        // Named splits of sizes that are not multiples of the shard size, so shards start
+        // at split boundaries as well as every shard_size samples.
+        let text = format!("{GOOD}\n[splits]\ntrain = 5\nval = 2\ntest = 3\n");
+        let plan = plan(&text).unwrap();
+        let mut seen = 0;
+        for shard in plan.shards() {
+            for task in plan.shard_tasks(&shard) {
+                assert_eq!(plan.task(task.index).as_ref(), Some(&task), "{}", task.key);
+                seen += 1;
+            }
+        }
+        assert_eq!(seen, 10);
+        assert_eq!(plan.task(10), None);
     }
 
     fn counts(plan: &Plan, tasks: &[SampleTask]) -> Vec<u64> {

@@ -1,0 +1,104 @@
+//! The `bettimill` command line as a library: [`run`] parses arguments, dispatches, prints
+//! and returns the exit code. The `bettimill` binary (`main.rs`) and the Python package's
+//! console script (`bettimill-python`) both call it, so both are the same CLI with the same
+//! exit codes.
+//!
+//! Exit codes (documented in README.md): 0 success; 1 a check found differences (verify);
+//! 2 bad input, usage error or failure; 3 a cluster task failed on purpose (test hook);
+//! 130 interrupted (resumable). Everything else lives in library crates; this crate
+//! is the only one that prints.
+
+// This crate is the one place that prints or writes to stdout/stderr (the workspace denies
+// it everywhere else: Cargo.toml [workspace.lints], clippy.toml).
+#![allow(clippy::print_stdout, clippy::print_stderr, clippy::disallowed_methods)]
+
+/// `println!` for data on stdout that ends quietly when the reader closes the pipe
+/// (`bettimill plan | head`) instead of panicking; see `stats::write_stdout`. Only usable
+/// in functions that return `anyhow::Result`.
+macro_rules! outln {
+    () => {
+        crate::stats::write_stdout(b"\n")?
+    };
+    ($($arg:tt)*) => {
+        crate::stats::write_stdout(format!("{}\n", format_args!($($arg)*)).as_bytes())?
+    };
+}
+
+mod audit;
+mod build;
+mod build_display;
+mod cluster;
+mod commands;
+mod completions;
+mod deform;
+mod directory;
+mod image;
+mod plan;
+mod preview;
+mod progress;
+mod signals;
+mod stats;
+
+use anyhow::Context;
+use clap::Parser;
+use std::ffi::OsString;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// The program that runs this CLI, when it is not the running executable (see
+/// [`run_as`]).
+static PROGRAM: OnceLock<PathBuf> = OnceLock::new();
+
+/// Runs the command line `args` (the first is the program name, as in `std::env::args`)
+/// and returns the process exit code.
+pub fn run(args: impl IntoIterator<Item = OsString>) -> i32 {
+    let args: Vec<OsString> = args.into_iter().collect();
+    // Before anything else (arguments, manifest, plan): a signal at any moment of a build
+    // gives exit code 130 and a resumable directory (see `signals`).
+    let first_word = args
+        .iter()
+        .skip(1)
+        .find(|arg| !arg.to_string_lossy().starts_with('-'));
+    if first_word.is_some_and(|word| word == "build") {
+        signals::install();
+    }
+    let cli = match commands::Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(err) => {
+            // What clap's `parse` does before exiting: help and version on stdout with
+            // code 0, usage errors on stderr with code 2.
+            let _ = err.print();
+            return err.exit_code();
+        }
+    };
+    let status = match commands::run(cli) {
+        Ok(status) => status,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            commands::ExitStatus::Failure
+        }
+    };
+    // A process that ends in `main` flushes stdout on exit; a caller that goes on (the
+    // Python console script) must see everything printed before the code is returned.
+    let _ = std::io::stdout().flush();
+    status.code()
+}
+
+/// [`run`] for a CLI that is not its own executable: `program` is the file that runs this
+/// CLI (the Python package's `bettimill` console script), used wherever the CLI starts
+/// itself again (the worker processes of `build`, the scripts `slurm` writes). The first
+/// call's `program` holds for the life of the process.
+pub fn run_as(args: impl IntoIterator<Item = OsString>, program: PathBuf) -> i32 {
+    let _ = PROGRAM.set(program);
+    run(args)
+}
+
+/// The program that runs this CLI: the one given to [`run_as`], else the running
+/// executable.
+pub(crate) fn own_program() -> anyhow::Result<PathBuf> {
+    match PROGRAM.get() {
+        Some(program) => Ok(program.clone()),
+        None => std::env::current_exe().context("cannot find the running bettimill binary"),
+    }
+}

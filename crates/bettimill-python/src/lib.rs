@@ -1,0 +1,511 @@
+//! `bettimill._bettimill`, the extension module of the `bettimill` Python package
+//! (`python/`). It is a thin binding: every answer comes from the crates the CLI uses, so
+//! that Python and the CLI cannot disagree.
+//!
+//! - [`topology`]: an array's Betti numbers, with the checks and messages of
+//!   `bettimill betti` (`bettimill_grid::npy`) and its computation
+//!   (`bettimill_homology::topology`). The array is borrowed, in any memory order, and read
+//!   once into a [`BinaryImage`] with the GIL released.
+//! - [`PyPlan`]: a manifest's plan (`bettimill_plan::Plan`) and its samples, made by
+//!   `bettimill_sample::make_sample` from `Plan::task`, the same path the build's workers
+//!   take, so `plan.sample(i)` equals `KEY.npy` and `KEY.json` of the built dataset.
+//! - [`build`] and [`verify`]: `bettimill_executor` and `bettimill_format`, in this process
+//!   or with worker processes of the console script.
+//! - [`run_cli`]: the `bettimill` command line itself (`bettimill_cli::run_as`), for the
+//!   package's console script.
+//!
+//! Errors: bad input is `ValueError` (a missing file `FileNotFoundError`, a failed write
+//! `OSError`) with the message the CLI prints after `error: `. Nothing here prints.
+
+use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
+use bettimill_executor::{Dataset, DirLock};
+use bettimill_grid::npy;
+use bettimill_grid::BinaryImage;
+use bettimill_manifest::{Manifest, DEMO_MANIFEST};
+use bettimill_plan::Plan;
+use numpy::ndarray::{ArrayD, IxDyn};
+use numpy::{
+    PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyIndexError, PyKeyboardInterrupt, PyOSError, PyValueError,
+};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyRange};
+use std::ffi::OsString;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+fn value_error(err: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(err.to_string())
+}
+
+/// Reads one borrowed numpy array of element type `T` into an image, GIL released.
+fn image_of<T>(py: Python<'_>, array: &Bound<'_, PyAny>, strict: bool) -> PyResult<BinaryImage>
+where
+    T: numpy::Element + Copy + Into<i128> + Sync,
+{
+    let array: PyReadonlyArrayDyn<'_, T> = array.cast::<PyArrayDyn<T>>()?.readonly();
+    let view = array.as_array();
+    let shape = view.shape().to_vec();
+    py.detach(|| match view.as_slice() {
+        // C order: the memory is the order of the values.
+        Some(slice) => npy::image_from_values(&shape, slice.iter().copied(), strict),
+        // Any other layout: the view's iterator walks it in C order, without a copy.
+        None => npy::image_from_values(&shape, view.iter().copied(), strict),
+    })
+    .map_err(value_error)
+}
+
+/// The numpy array `array` as a binary image, with the checks of reading a `.npy` file:
+/// bool or integer dtype, 2 to 4 axes, none empty, and with `strict` only 0 and 1.
+fn read_array(py: Python<'_>, array: &Bound<'_, PyAny>, strict: bool) -> PyResult<BinaryImage> {
+    let untyped = array.cast::<PyUntypedArray>().map_err(|_| {
+        PyValueError::new_err(format!(
+            "expected a numpy array, got {}",
+            array
+                .get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))
+    })?;
+    let descr: String = untyped.dtype().getattr("str")?.extract()?;
+    let dtype = npy::parse_dtype(&descr).map_err(value_error)?;
+    // The shape is checked before the dtype's byte order matters, as a file's would be.
+    npy::check_shape(untyped.shape()).map_err(value_error)?;
+    if dtype.big_endian && dtype.size > 1 {
+        return Err(PyValueError::new_err(format!(
+            "dtype {descr:?} is big-endian: convert it with array.astype(array.dtype.newbyteorder('='))"
+        )));
+    }
+    match (dtype.kind, dtype.size) {
+        ('b', 1) => image_of::<bool>(py, array, strict),
+        ('u', 1) => image_of::<u8>(py, array, strict),
+        ('i', 1) => image_of::<i8>(py, array, strict),
+        ('u', 2) => image_of::<u16>(py, array, strict),
+        ('i', 2) => image_of::<i16>(py, array, strict),
+        ('u', 4) => image_of::<u32>(py, array, strict),
+        ('i', 4) => image_of::<i32>(py, array, strict),
+        ('u', 8) => image_of::<u64>(py, array, strict),
+        ('i', 8) => image_of::<i64>(py, array, strict),
+        _ => Err(value_error(npy::NpyError::Dtype(descr))),
+    }
+}
+
+/// `bettimill.topology(array, strict=False)`: what `bettimill betti --json` prints for the
+/// array saved as `.npy` (betti, euler, shape, hypervolume, field), plus `components` (b0).
+#[pyfunction]
+#[pyo3(signature = (array, strict = false))]
+fn topology<'py>(
+    py: Python<'py>,
+    array: &Bound<'py, PyAny>,
+    strict: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let image = read_array(py, array, strict)?;
+    let (topology, hypervolume) = py.detach(|| {
+        (
+            bettimill_homology::topology(&image),
+            image.count_foreground(),
+        )
+    });
+    let dict = PyDict::new(py);
+    dict.set_item("betti", &topology.betti)?;
+    dict.set_item("euler", topology.euler)?;
+    dict.set_item("shape", image.shape())?;
+    dict.set_item("hypervolume", hypervolume)?;
+    dict.set_item("field", "Z/2")?;
+    dict.set_item("components", topology.betti[0])?;
+    Ok(dict)
+}
+
+/// Parses JSON text into Python objects with Python's own `json` module, so a label is the
+/// same dict `json.loads` gives for `KEY.json`.
+fn json_to_py<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// Where a manifest came from: its text and the name its errors carry.
+struct Source {
+    text: String,
+    origin: PathBuf,
+}
+
+/// A manifest given as a path (str or os.PathLike), TOML text (a str with a newline or an
+/// `=`), or None for the embedded demo manifest (what `bettimill build` builds without one).
+fn manifest_source(source: Option<&Bound<'_, PyAny>>) -> PyResult<Source> {
+    let Some(source) = source.filter(|s| !s.is_none()) else {
+        return Ok(Source {
+            text: DEMO_MANIFEST.to_string(),
+            origin: PathBuf::from("<embedded demo manifest>"),
+        });
+    };
+    if let Ok(text) = source.extract::<String>() {
+        if text.contains('\n') || text.contains('=') {
+            return Ok(Source {
+                text,
+                origin: PathBuf::from("<manifest text>"),
+            });
+        }
+    }
+    let path: PathBuf = source.extract().map_err(|_| {
+        PyValueError::new_err("a manifest is a path, TOML text, or None for the demo manifest")
+    })?;
+    if !path.exists() {
+        return Err(PyFileNotFoundError::new_err(format!(
+            "cannot read the manifest {}: no such file",
+            path.display()
+        )));
+    }
+    let text = bettimill_manifest::read_text(&path).map_err(value_error)?;
+    Ok(Source { text, origin: path })
+}
+
+fn parse_manifest(source: &Source) -> PyResult<Manifest> {
+    Manifest::parse(&source.text, &source.origin).map_err(value_error)
+}
+
+/// `bettimill.Plan(manifest=None)`: the plan of a manifest (a path, TOML text, or None for
+/// the demo manifest) and its samples, made on demand.
+#[pyclass(name = "Plan", module = "bettimill", frozen)]
+struct PyPlan {
+    plan: Arc<Plan>,
+    text: String,
+    origin: PathBuf,
+}
+
+impl PyPlan {
+    fn from_source(source: Source) -> PyResult<PyPlan> {
+        let manifest = parse_manifest(&source)?;
+        let plan = Plan::new(&manifest).map_err(value_error)?;
+        Ok(PyPlan {
+            plan: Arc::new(plan),
+            text: source.text,
+            origin: source.origin,
+        })
+    }
+
+    fn index(&self, index: i64) -> PyResult<u64> {
+        let n = self.plan.samples as i64;
+        let i = if index < 0 { index + n } else { index };
+        if i < 0 || i >= n {
+            return Err(PyIndexError::new_err(format!(
+                "sample {index} of a plan with {n} samples"
+            )));
+        }
+        Ok(i as u64)
+    }
+}
+
+#[pymethods]
+impl PyPlan {
+    #[new]
+    #[pyo3(signature = (manifest = None))]
+    fn new(manifest: Option<&Bound<'_, PyAny>>) -> PyResult<PyPlan> {
+        PyPlan::from_source(manifest_source(manifest)?)
+    }
+
+    fn __len__(&self) -> usize {
+        self.plan.samples as usize
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Plan({:?}: {} samples, {}D, side {}, {} strata)",
+            self.plan.name,
+            self.plan.samples,
+            self.plan.dimension,
+            self.plan.side,
+            self.plan.strata.len()
+        )
+    }
+
+    /// Pickling (a DataLoader's workers under spawn): the manifest text, replanned there.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<(Bound<'py, PyAny>, (String, PathBuf))> {
+        let py = slf.py();
+        let plan = slf.get();
+        let rebuild = py
+            .import("bettimill._bettimill")?
+            .getattr("_plan_from_text")?;
+        Ok((rebuild, (plan.text.clone(), plan.origin.clone())))
+    }
+
+    /// The dataset name (the prefix of every shard).
+    #[getter]
+    fn name(&self) -> &str {
+        &self.plan.name
+    }
+
+    /// Number of axes.
+    #[getter]
+    fn dimension(&self) -> usize {
+        self.plan.dimension.get()
+    }
+
+    /// Voxels per axis.
+    #[getter]
+    fn side(&self) -> u32 {
+        self.plan.side
+    }
+
+    /// The manifest's canonical hash (`manifest_hash` in every label).
+    #[getter]
+    fn manifest_hash(&self) -> &str {
+        &self.plan.manifest_hash
+    }
+
+    /// The plan's hash (build.json, the dataset card).
+    #[getter]
+    fn hash(&self) -> String {
+        self.plan.hash()
+    }
+
+    /// Side lengths of the downscaled copies every sample carries.
+    #[getter]
+    fn resolutions(&self) -> Vec<u32> {
+        self.plan.resolutions.clone()
+    }
+
+    /// The manifest text the plan was made from.
+    #[getter]
+    fn manifest(&self) -> &str {
+        &self.text
+    }
+
+    /// Samples per split, in split order.
+    #[getter]
+    fn splits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = PyDict::new(py);
+        for (name, size) in &self.plan.splits {
+            dict.set_item(name, size)?;
+        }
+        Ok(dict)
+    }
+
+    /// The strata (what `KEY.cls` indexes): dicts of cls, name, family, mode, components,
+    /// bin (inclusive foreground voxel bounds, or None), betti and count (samples).
+    #[getter]
+    fn strata<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for (stratum, count) in self.plan.strata.iter().zip(self.plan.total_counts()) {
+            let dict = PyDict::new(py);
+            dict.set_item("cls", stratum.index)?;
+            dict.set_item("name", &stratum.label)?;
+            dict.set_item("family", stratum.family.label())?;
+            dict.set_item("mode", bettimill_plan::mode_name(stratum.mode))?;
+            dict.set_item("components", stratum.components)?;
+            dict.set_item("bin", stratum.hypervolume)?;
+            dict.set_item("betti", &stratum.betti)?;
+            dict.set_item("count", count)?;
+            list.append(dict)?;
+        }
+        Ok(list)
+    }
+
+    /// The class table (`classes.json` of the built dataset, from `Plan::class_table`):
+    /// what every `cls` (stratum) means, and the topology class of each (one per distinct
+    /// Betti vector and knot type), with counts.
+    #[getter]
+    fn classes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let json = serde_json::to_string(&self.plan.class_table()).map_err(value_error)?;
+        json_to_py(py, &json)
+    }
+
+    /// The sample indices of one split, as a `range` (splits are contiguous).
+    fn split<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyRange>> {
+        let mut start = 0;
+        for (split, size) in &self.plan.splits {
+            if split == name {
+                return PyRange::new(py, start as isize, (start + size) as isize);
+            }
+            start += size;
+        }
+        let names: Vec<&str> = self.plan.splits.iter().map(|(n, _)| n.as_str()).collect();
+        Err(PyValueError::new_err(format!(
+            "the plan has no split {name:?}; its splits are {names:?}"
+        )))
+    }
+
+    /// `(voxels, label)` of sample `index`: a uint8 array of 0 and 1 (C order) and the label
+    /// dict, equal to `KEY.npy` and `KEY.json` of the built dataset. With `resolution`, the
+    /// voxels are that downscaled copy (`KEY.rSIDE.npy`); it must be one of
+    /// `plan.resolutions`. The GIL is released while the sample is made.
+    #[pyo3(signature = (index, resolution = None))]
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        index: i64,
+        resolution: Option<u32>,
+    ) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyAny>)> {
+        let index = self.index(index)?;
+        if let Some(side) = resolution {
+            if side != self.plan.side && !self.plan.resolutions.contains(&side) {
+                return Err(PyValueError::new_err(format!(
+                    "resolution {side}: the plan's samples have side {} and downscaled copies {:?}",
+                    self.plan.side, self.plan.resolutions
+                )));
+            }
+        }
+        let plan = Arc::clone(&self.plan);
+        let (image, json) = py
+            .detach(move || {
+                let task = plan.task(index).expect("the index was checked");
+                let sample = bettimill_sample::make_sample(&plan, &task)?;
+                let json = String::from_utf8(sample.json_bytes()).expect("labels are JSON");
+                let image = match resolution {
+                    Some(side) if side != plan.side => sample
+                        .downscaled
+                        .into_iter()
+                        .find(|d| d.shape()[0] == side as usize)
+                        .expect("the resolution was checked"),
+                    _ => sample.image,
+                };
+                Ok::<_, bettimill_sample::SampleError>((image, json))
+            })
+            .map_err(|err| pyo3::exceptions::PyRuntimeError::new_err(err.to_string()))?;
+        let shape = image.shape().to_vec();
+        let array = ArrayD::from_shape_vec(IxDyn(&shape), image.into_vec())
+            .expect("an image's data fits its shape");
+        Ok((
+            PyArrayDyn::from_owned_array(py, array),
+            json_to_py(py, &json)?,
+        ))
+    }
+}
+
+/// Unpickles a [`PyPlan`] (see `__reduce__`).
+#[pyfunction]
+fn _plan_from_text(text: String, origin: PathBuf) -> PyResult<PyPlan> {
+    PyPlan::from_source(Source { text, origin })
+}
+
+/// `bettimill.build(manifest, out, workers=None, worker_program=None)`: builds (or resumes)
+/// the dataset of `manifest` in `out`, as `bettimill build` does. With `workers` None or 1
+/// the shards are built in this process; with more, by that many worker processes of
+/// `worker_program` (the package's `bettimill` console script). Returns the totals.
+#[pyfunction]
+#[pyo3(signature = (manifest, out, workers = None, worker_program = None))]
+fn build<'py>(
+    py: Python<'py>,
+    manifest: Option<&Bound<'py, PyAny>>,
+    out: PathBuf,
+    workers: Option<usize>,
+    worker_program: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let source = manifest_source(manifest)?;
+    let parsed = parse_manifest(&source)?;
+    if workers == Some(0) {
+        return Err(PyValueError::new_err("workers must be at least 1"));
+    }
+    let dataset = py
+        .detach(|| Dataset::bind(&out, &source.text, parsed))
+        .map_err(value_error)?;
+    let dict = PyDict::new(py);
+    match workers {
+        None | Some(1) => {
+            let summary = py
+                .detach(|| {
+                    let _lock = DirLock::acquire(&dataset.dir).map_err(|e| e.to_string())?;
+                    dataset
+                        .build_in_process(|_, _| {})
+                        .map_err(|e| e.to_string())
+                })
+                .map_err(PyOSError::new_err)?;
+            dict.set_item("built", summary.built)?;
+            dict.set_item("skipped", summary.skipped)?;
+            dict.set_item("regenerations", summary.regenerations)?;
+            dict.set_item("workers", 1)?;
+        }
+        Some(workers) => {
+            let program = worker_program.ok_or_else(|| {
+                PyValueError::new_err("workers > 1 needs the bettimill console script")
+            })?;
+            let options = BuildOptions {
+                workers,
+                max_shard_failures: coordinator::DEFAULT_MAX_SHARD_FAILURES,
+                worker_program: program,
+                worker_args: vec![
+                    OsString::from("worker"),
+                    OsString::from("--dir"),
+                    out.as_os_str().to_owned(),
+                ],
+            };
+            // Ctrl-C in Python: the interpreter's handler only sets a flag, so the build
+            // asks for it every 100 ms and stops its workers (resumable, like the CLI's).
+            let control = async {
+                loop {
+                    tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+                    if Python::attach(|py| py.check_signals()).is_err() {
+                        return BuildControl::Interrupt;
+                    }
+                }
+            };
+            let report = py
+                .detach(|| coordinator::run(&dataset, &options, control, |_| {}))
+                .map_err(value_error)?;
+            if report.interrupted {
+                return Err(PyKeyboardInterrupt::new_err(format!(
+                    "interrupted: {} of {} shards complete, nothing partial is visible; build again to resume",
+                    report.complete, report.shards
+                )));
+            }
+            if !report.failed.is_empty() {
+                let reasons: Vec<String> = report
+                    .failed
+                    .iter()
+                    .map(|f| {
+                        format!(
+                            "{}: {}",
+                            f.shard,
+                            f.reasons.last().map(String::as_str).unwrap_or("")
+                        )
+                    })
+                    .collect();
+                return Err(PyOSError::new_err(format!(
+                    "{} shard(s) failed and were given up; index.json not written:\n{}",
+                    report.failed.len(),
+                    reasons.join("\n")
+                )));
+            }
+            dict.set_item("built", report.built)?;
+            dict.set_item("skipped", report.skipped)?;
+            dict.set_item("regenerations", report.regenerations)?;
+            dict.set_item("workers", workers)?;
+        }
+    }
+    dict.set_item("samples", dataset.plan.samples)?;
+    dict.set_item("shards", dataset.plan.shard_count())?;
+    dict.set_item("index", dataset.layout().index_path())?;
+    Ok(dict)
+}
+
+/// `bettimill.verify(dir)`: what `bettimill verify DIR --json` prints, as a dict; its
+/// `problems` list is empty when every shard matches `index.json`.
+#[pyfunction]
+fn verify<'py>(py: Python<'py>, dir: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+    let report = py
+        .detach(|| bettimill_format::DatasetDir::new(&dir).verify(&mut |_, _| {}))
+        .map_err(value_error)?;
+    let json = serde_json::to_string(&report).map_err(value_error)?;
+    json_to_py(py, &json)
+}
+
+/// The `bettimill` command line: `args` as `sys.argv` (the program name first), `program`
+/// the file that runs it again (for workers). Returns the exit code; the GIL is released.
+#[pyfunction]
+fn run_cli(py: Python<'_>, args: Vec<OsString>, program: PathBuf) -> i32 {
+    py.detach(|| bettimill_cli::run_as(args, program))
+}
+
+/// The extension module.
+#[pymodule]
+fn _bettimill(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(topology, m)?)?;
+    m.add_function(wrap_pyfunction!(build, m)?)?;
+    m.add_function(wrap_pyfunction!(verify, m)?)?;
+    m.add_function(wrap_pyfunction!(run_cli, m)?)?;
+    m.add_function(wrap_pyfunction!(_plan_from_text, m)?)?;
+    m.add_class::<PyPlan>()?;
+    m.add("__version__", bettimill_format::TOOL_VERSION)?;
+    Ok(())
+}

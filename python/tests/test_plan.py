@@ -1,0 +1,147 @@
+"""bettimill.Plan against the datasets the CLI builds, and build/verify in Python."""
+
+import gzip
+import hashlib
+import io
+import json
+import pickle
+import tarfile
+
+import numpy as np
+import pytest
+import zstandard
+
+import bettimill
+from conftest import MANIFESTS, REPO, run_cli
+
+DEMOS = [REPO / "manifests" / f"demo-{d}.toml" for d in ("2d", "3d", "4d")]
+
+
+def shard_members(directory):
+    """{KEY: {field: bytes}} of every shard of a built dataset, read with tarfile."""
+    index = json.loads((directory / "index.json").read_text())
+    samples = {}
+    for shard in index["shards"]:
+        with tarfile.open(directory / shard["name"]) as tar:
+            for member in tar.getmembers():
+                key, field = member.name.split(".", 1)
+                data = tar.extractfile(member).read()
+                if field.endswith(".gz"):
+                    data, field = gzip.decompress(data), field[:-3]
+                elif field.endswith(".zst"):
+                    data, field = zstandard.ZstdDecompressor().decompress(data), field[:-4]
+                samples.setdefault(key, {})[field] = data
+    return samples
+
+
+@pytest.mark.parametrize("manifest", DEMOS, ids=lambda p: p.stem)
+def test_every_sample_equals_the_built_shards(built, manifest):
+    directory = built(manifest)
+    plan = bettimill.Plan(manifest)
+    members = shard_members(directory)
+    assert len(members) == len(plan)
+    for key, fields in sorted(members.items()):
+        index = int(key[1:])
+        voxels, label = plan.sample(index)
+        stored = np.load(io.BytesIO(fields["npy"]))
+        assert voxels.dtype == np.uint8 and voxels.flags.c_contiguous
+        assert stored.dtype == voxels.dtype and stored.shape == voxels.shape, key
+        assert np.array_equal(stored, voxels), key
+        assert json.loads(fields["json"]) == label, key
+        assert int(fields["cls"]) == label["class_index"]
+        for side in plan.resolutions:
+            small, _ = plan.sample(index, resolution=side)
+            assert np.array_equal(np.load(io.BytesIO(fields[f"r{side}.npy"])), small), key
+
+
+def test_plan_fields(tmp_path):
+    plan = bettimill.Plan(REPO / "manifests" / "demo-3d.toml")
+    assert plan.dimension == 3 and plan.name == "demo-3d"
+    assert sum(s["count"] for s in plan.strata) == len(plan)
+    assert [s["cls"] for s in plan.strata] == list(range(len(plan.strata)))
+    assert set(plan.strata[0]) == {"cls", "name", "family", "mode", "components", "bin", "betti", "count"}
+    assert list(plan.split("train")) == list(range(len(plan)))
+    with pytest.raises(ValueError, match="no split"):
+        plan.split("nope")
+    with pytest.raises(IndexError):
+        plan.sample(len(plan))
+    assert plan.sample(-1)[1]["key"] == plan.sample(len(plan) - 1)[1]["key"]
+    # The text and the path give the same plan; None is the CLI's embedded demo.
+    text = (REPO / "manifests" / "demo-3d.toml").read_text()
+    assert bettimill.Plan(text).hash == plan.hash
+    assert len(bettimill.Plan()) == 240
+    # A pickled plan (a DataLoader worker under spawn) makes the same samples.
+    again = pickle.loads(pickle.dumps(plan))
+    assert again.hash == plan.hash and again.sample(5)[1] == plan.sample(5)[1]
+
+
+@pytest.mark.parametrize("manifest", DEMOS[:2], ids=lambda p: p.stem)
+def test_classes_equal_the_built_classes_json(built, manifest):
+    plan = bettimill.Plan(manifest)
+    classes = plan.classes
+    assert classes == json.loads((built(manifest) / "classes.json").read_text())
+    assert classes["classes"] == len(plan.strata)
+    assert [s["cls"] for s in classes["strata"]] == [s["cls"] for s in plan.strata]
+    assert sum(t["samples"] for t in classes["topology"]) == len(plan)
+
+
+def test_named_splits_are_contiguous_ranges():
+    text = (MANIFESTS / "families-2d.toml").read_text() + "\n[splits]\ntrain = 5\ntest = 3\n"
+    plan = bettimill.Plan(text)
+    assert plan.splits == {"train": 5, "test": 3}
+    assert plan.split("train") == range(0, 5) and plan.split("test") == range(5, 8)
+
+
+def test_bad_manifests_name_the_file_and_field(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((MANIFESTS / "families-2d.toml").read_text().replace('"curve"', '"nope"'))
+    with pytest.raises(ValueError, match=r"bad\.toml:\d+: field `classes`"):
+        bettimill.Plan(bad)
+    with pytest.raises(FileNotFoundError):
+        bettimill.Plan(tmp_path / "missing.toml")
+
+
+def tar_hashes(directory):
+    index = json.loads((directory / "index.json").read_text())
+    return {s["name"]: hashlib.sha256((directory / s["name"]).read_bytes()).hexdigest() for s in index["shards"]}
+
+
+@pytest.mark.parametrize("workers", [None, 2])
+def test_build_and_verify_in_python_equal_the_cli(built, tmp_path, workers):
+    manifest = MANIFESTS / "families-2d.toml"
+    out = tmp_path / "py"
+    summary = bettimill.build(manifest, out, workers=workers)
+    assert summary["built"] == summary["shards"] == 2 and summary["samples"] == 8
+    assert tar_hashes(out) == tar_hashes(built(manifest))
+    report = bettimill.verify(out)
+    assert report["problems"] == [] and report["shards_checked"] == 2
+    assert bettimill.build(manifest, out, workers=workers)["skipped"] == 2
+    # A damaged shard is a problem, as `bettimill verify` says.
+    shard = next((out / "shards").iterdir())
+    shard.write_bytes(shard.read_bytes()[:-1] + b"x")
+    assert bettimill.verify(out)["problems"]
+
+
+def test_console_script_is_the_cli(cli, tmp_path):
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(sys.executable).parent / "bettimill"
+    assert script.is_file(), "pip install puts the bettimill console script next to python"
+    image = np.zeros((5, 5), np.uint8)
+    image[1:4, 1:4] = 1
+    image[2, 2] = 0
+    np.save(tmp_path / "a.npy", image)
+    for args in (["betti", tmp_path / "a.npy", "--json"], ["plan", MANIFESTS / "families-2d.toml"], ["--version"],
+                 ["nonsense"], ["betti", tmp_path / "missing.npy"], ["verify", tmp_path]):
+        ours = subprocess.run([script, *map(str, args)], capture_output=True, text=True)
+        theirs = subprocess.run([cli, *map(str, args)], capture_output=True, text=True)
+        assert (ours.returncode, ours.stdout, ours.stderr) == (theirs.returncode, theirs.stdout, theirs.stderr), args
+    # build with worker processes: the workers are the console script again.
+    out = tmp_path / "built"
+    result = subprocess.run([script, "build", MANIFESTS / "families-2d.toml", "--out", out, "--workers", "2", "--quiet"])
+    assert result.returncode == 0
+    assert run_cli(cli, "verify", out).returncode == 0
+    assert shutil.which("bettimill") is not None
