@@ -186,14 +186,15 @@ pub enum CoordinatorError {
     #[error("worker handshake failed: {0}")]
     Handshake(ProtocolError),
     /// A worker exited before its handshake.
-    #[error(
-        "worker process {pid} exited before its handshake ({status}); its error is printed above"
-    )]
+    #[error("worker process {pid} exited before its handshake ({status}){note}")]
     WorkerDiedEarly {
         /// The process id.
         pid: u32,
         /// How it ended.
         status: String,
+        /// Where to look: `; its error is printed above` when it exited with an error
+        /// code (it printed one), or why nothing was printed when a signal killed it.
+        note: &'static str,
     },
     /// A worker sent no handshake within the worker timeout (retried like a death).
     #[error("worker process {pid} sent no handshake within {seconds} s (--worker-timeout) and was killed")]
@@ -497,12 +498,11 @@ async fn start_worker(context: &SlotContext) -> Result<Worker, CoordinatorError>
             return Err(CoordinatorError::Handshake(err))
         }
         _ => {
-            let status = child
-                .wait()
-                .await
-                .map(|s| s.to_string())
-                .unwrap_or_else(|e| e.to_string());
-            return Err(CoordinatorError::WorkerDiedEarly { pid, status });
+            let (status, note) = match child.wait().await {
+                Ok(status) => (describe_exit(status), early_death_note(status)),
+                Err(err) => (err.to_string(), ""),
+            };
+            return Err(CoordinatorError::WorkerDiedEarly { pid, status, note });
         }
     };
     protocol::check_handshake(&context.handshake, &theirs, Peer::Worker)
@@ -540,7 +540,7 @@ async fn run_slot(
                     let _ = events.send(BuildEvent::WorkerStarted { slot, pid: w.pid });
                     worker = Some(w);
                 }
-                Err(CoordinatorError::WorkerDiedEarly { pid, status })
+                Err(CoordinatorError::WorkerDiedEarly { pid, status, .. })
                     if context
                         .any_handshake
                         .load(std::sync::atomic::Ordering::Relaxed) =>
@@ -652,6 +652,19 @@ async fn worker_is_dead(worker: &mut Worker) -> Option<String> {
     }
 }
 
+/// What to tell about a worker that ended before its handshake: a worker that exits with an
+/// error code has printed its error (its stderr is the build's), one killed by a signal
+/// printed nothing.
+fn early_death_note(status: std::process::ExitStatus) -> &'static str {
+    if status.code().is_some_and(|code| code != 0) {
+        "; its error is printed above"
+    } else if status.code().is_none() {
+        "; it printed nothing (killed from outside, or by the kernel for lack of memory)"
+    } else {
+        ""
+    }
+}
+
 fn describe_exit(status: std::process::ExitStatus) -> String {
     #[cfg(unix)]
     {
@@ -735,6 +748,27 @@ async fn attempt_shard(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn an_early_death_says_its_error_is_above_only_when_it_printed_one() {
+        use std::os::unix::process::ExitStatusExt;
+        let exited = std::process::ExitStatus::from_raw(2 << 8);
+        let killed = std::process::ExitStatus::from_raw(9);
+        let message = |status| {
+            CoordinatorError::WorkerDiedEarly {
+                pid: 7,
+                status: describe_exit(status),
+                note: early_death_note(status),
+            }
+            .to_string()
+        };
+        assert!(message(exited).ends_with("its error is printed above"), "{}", message(exited));
+        let text = message(killed);
+        assert!(text.contains("(killed by signal 9)"), "{text}");
+        assert!(!text.contains("printed above"), "{text}");
+        assert!(text.contains("it printed nothing"), "{text}");
+    }
 
     fn drain(mut queue: ShardQueue) -> Vec<usize> {
         std::iter::from_fn(|| queue.pop_front()).collect()
