@@ -132,7 +132,11 @@ fn a_4d_side_256_sample_is_refused_with_the_numbers_before_any_worker_starts() {
     // The plan is printed, then refused.
     assert!(stdout(&out).contains("worker memory: about 68.0 GiB"));
     for needle in expected {
-        assert!(stderr(&out).contains(needle), "{needle:?}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains(needle),
+            "{needle:?}: {}",
+            stderr(&out)
+        );
     }
     let dir = tmp.path().join("out");
     let out = run(&[
@@ -145,7 +149,11 @@ fn a_4d_side_256_sample_is_refused_with_the_numbers_before_any_worker_starts() {
     ]);
     assert_exit(&out, 2);
     for needle in expected {
-        assert!(stderr(&out).contains(needle), "{needle:?}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains(needle),
+            "{needle:?}: {}",
+            stderr(&out)
+        );
     }
     assert!(!dir.exists(), "a refused build wrote {}", dir.display());
     // The same plan with the memory it needs is accepted by plan.

@@ -32,6 +32,7 @@ pub fn build(
         bail!("--progress-interval must be a positive number of seconds, got {progress_interval}");
     }
     let manifest_path = manifest;
+    crate::commands::check_out_dir(out)?;
     let (text, manifest) = load_manifest(manifest)?;
     let workers = workers.unwrap_or_else(|| {
         std::thread::available_parallelism()

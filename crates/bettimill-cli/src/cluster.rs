@@ -141,6 +141,7 @@ pub struct SlurmArgs {
 
 /// `bettimill slurm`.
 pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
+    crate::commands::check_out_dir(&args.out)?;
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
     let mut extra = args.sbatch_options.clone();
     if let Some(limit) = args.max_memory {
@@ -246,6 +247,7 @@ pub struct KubernetesArgs {
 
 /// `bettimill k8s`: prints the Indexed Job on stdout.
 pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
+    crate::commands::check_out_dir(&args.out)?;
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
     let dataset = Dataset::bind(&args.out, &text, manifest)?;
     let yaml = cluster::kubernetes_job(

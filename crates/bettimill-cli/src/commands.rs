@@ -278,6 +278,22 @@ fn parse_worker_timeout(text: &str) -> Result<f64, String> {
     Ok(seconds)
 }
 
+/// Refuses an `--out` that cannot become a dataset directory for a reason the operating
+/// system would only report as `File exists`: a symbolic link to nothing.
+pub(crate) fn check_out_dir(out: &Path) -> anyhow::Result<()> {
+    if let Ok(target) = std::fs::read_link(out) {
+        if !out.exists() {
+            anyhow::bail!(
+                "--out {} is a symbolic link to {}, which does not exist: create that directory, \
+                 remove the link, or give another --out",
+                out.display(),
+                target.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Manifest)> {
     match path {
         Some(path) => {

@@ -95,7 +95,10 @@ mod tests {
         .context("cannot write shard x");
         let line = super::error_line(&err);
         assert_eq!(line.matches("os error 28").count(), 1, "{line}");
-        assert!(line.starts_with("cannot write shard x: shards/x.tar: "), "{line}");
+        assert!(
+            line.starts_with("cannot write shard x: shards/x.tar: "),
+            "{line}"
+        );
         // Causes that add something are kept.
         let err = anyhow::anyhow!("inner").context("outer");
         assert_eq!(super::error_line(&err), "outer: inner");

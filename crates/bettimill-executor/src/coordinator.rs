@@ -763,7 +763,11 @@ mod tests {
             }
             .to_string()
         };
-        assert!(message(exited).ends_with("its error is printed above"), "{}", message(exited));
+        assert!(
+            message(exited).ends_with("its error is printed above"),
+            "{}",
+            message(exited)
+        );
         let text = message(killed);
         assert!(text.contains("(killed by signal 9)"), "{text}");
         assert!(!text.contains("printed above"), "{text}");
