@@ -14,7 +14,7 @@
 //! (the image, the homology's padded copy and complex, the deformation's buffers, the
 //! serialised arrays), measured with `/usr/bin/time -v` (maximum resident set) on
 //! one-sample builds of 3D and 4D samples of several sides (docs/reliability.md, "Memory
-//! per sample": 2-13 bytes per voxel without deformation, 10-20 with deformation or
+//! per sample": 2-18 bytes per voxel without deformation, 10-21 with deformation or
 //! hypervolume targeting), rounded up with room to spare. `sample_bytes` is the plan's upper
 //! bound of one sample's uncompressed bytes in a shard; a worker holds a shard's members and
 //! then its tar, so two copies of an uncompressed shard. With compressed members the shard's
@@ -117,13 +117,18 @@ impl WorkerMemory {
 
 /// Refuses `plan` when one worker running `threads` samples at once needs more than
 /// `limit` bytes; `limit_origin` says where the limit came from, for the message.
-pub fn check(plan: &Plan, threads: u64, limit: u64, limit_origin: &str) -> Result<(), MemoryError> {
+pub fn check(
+    plan: &Plan,
+    threads: u64,
+    limit: u64,
+    limit_origin: &str,
+) -> Result<(), Box<MemoryError>> {
     let estimate = WorkerMemory::of(plan);
     let need = estimate.total(threads);
     if need <= limit {
         return Ok(());
     }
-    Err(MemoryError {
+    Err(Box::new(MemoryError {
         name: plan.name.clone(),
         dim: plan.dimension.get(),
         side: plan.side,
@@ -137,7 +142,7 @@ pub fn check(plan: &Plan, threads: u64, limit: u64, limit_origin: &str) -> Resul
         limit_origin: limit_origin.to_string(),
         need_bytes: need,
         limit_bytes: limit,
-    })
+    }))
 }
 
 /// Bytes in binary units: `512 B`, `5.6 MiB`, `3.2 TiB`.
