@@ -338,9 +338,10 @@ fn a_frozen_worker_is_killed_after_the_worker_timeout_and_the_build_is_identical
 #[test]
 fn a_worker_busy_with_one_long_sample_is_kept_alive_by_its_heartbeat() {
     let tmp = Dir::new();
-    // One 4D sample of side 80 (41 M voxels) takes several seconds, longer than the 3 s
-    // timeout: only the heartbeat, not progress, shows the worker alive meanwhile.
-    let m = manifest(tmp.path(), 4, 80, 1, 1);
+    // One 4D sample of side 96 (85 M voxels) takes several seconds (10 s on the 2-core
+    // build machine), longer than the 3 s timeout: only the heartbeat, not progress, shows
+    // the worker alive meanwhile.
+    let m = manifest(tmp.path(), 4, 96, 1, 1);
     let out = tmp.path().join("slow");
     let started = std::time::Instant::now();
     let (code, stderr) = finish(spawn_build_with_timeout(&m, &out, 3));
