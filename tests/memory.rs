@@ -215,3 +215,34 @@ fn the_memory_limit_is_shared_by_the_workers_and_checked_by_each_worker() {
         stderr(&out)
     );
 }
+
+#[test]
+fn slurm_checks_one_array_task_and_asks_for_its_memory() {
+    let tmp = Dir::new();
+    let m = with_side(tmp.path(), 32);
+    let m = m.to_str().unwrap();
+    let dir = tmp.path().join("cluster");
+    let d = dir.to_str().unwrap();
+    // Two CPUs a task: two 32^4 samples at once need about 97 MiB.
+    let out = run(&[
+        "slurm",
+        m,
+        "--out",
+        d,
+        "--cpus-per-task",
+        "2",
+        "--max-memory",
+        "60M",
+    ]);
+    assert_exit(&out, 2);
+    assert!(
+        stderr(&out).contains("needs about 97.0 MiB"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!dir.exists(), "a refused slurm wrote {d}");
+    let out = run(&["slurm", m, "--out", d, "--max-memory", "1G"]);
+    assert_exit(&out, 0);
+    let script = std::fs::read_to_string(dir.join("slurm/build.sbatch")).unwrap();
+    assert!(script.contains("#SBATCH --mem=1024M"), "{script}");
+}
