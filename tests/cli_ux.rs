@@ -606,3 +606,136 @@ fn a_reader_that_stops_early_is_not_a_crash() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_eq!(out.status.code(), Some(0), "{stderr}");
 }
+
+/// A manifest with the given lines after the usual head (schema ... seed) and one class.
+fn manifest_with(dir: &Path, name: &str, head: &str, tail: &str) -> String {
+    std::fs::write(
+        dir.join(name),
+        format!(
+            "schema_version = 1\nname = \"x\"\ndimension = 2\nside = 24\n{head}samples = 4\n\
+             shard_size = 2\n{tail}"
+        ),
+    )
+    .unwrap();
+    name.to_string()
+}
+
+#[test]
+fn manifest_mistakes_are_named_as_written() {
+    let tmp = Dir::new();
+    let dir = tmp.path();
+    let class = "[[classes]]\nfamily = \"ball\"\n";
+    // A missing field is named itself, not after the first line of the file.
+    let m = manifest_with(dir, "no_classes.toml", "mode = \"embed\"\n", "seed = 1\n");
+    check_one_line_error(
+        dir,
+        &["plan", &m],
+        &["field `classes`: missing field `classes`"],
+    );
+    std::fs::write(dir.join("empty.toml"), "").unwrap();
+    check_one_line_error(
+        dir,
+        &["plan", "empty.toml"],
+        &["empty.toml: field `schema_version`: missing field `schema_version`"],
+    );
+    // A TOML date-time is called one.
+    let m = manifest_with(
+        dir,
+        "datetime.toml",
+        "mode = \"embed\"\n",
+        &format!("seed = 1979-05-27T07:32:00Z\n{class}"),
+    );
+    check_one_line_error(
+        dir,
+        &["plan", &m],
+        &["datetime.toml:8: field `seed`: invalid type: date-time"],
+    );
+    // A bad mode lists the valid ones and leaks no type name.
+    let m = manifest_with(
+        dir,
+        "mode.toml",
+        "mode = \"sideways\"\n",
+        &format!("seed = 1\n{class}"),
+    );
+    check_one_line_error(
+        dir,
+        &["plan", &m],
+        &["field `mode`: \"sideways\" is not a mode: write \"embed\", \"carve\""],
+    );
+    let out = run_in(dir, &["plan", &m]);
+    assert!(
+        !text(&out.stderr).contains("untagged"),
+        "{}",
+        text(&out.stderr)
+    );
+    // A 100,000-key table gives a short line that says how much it left out.
+    let keys: String = (0..100_000).map(|i| format!("k{i}=1,")).collect();
+    let m = manifest_with(
+        dir,
+        "wide.toml",
+        &format!("mode = {{ {}}}\n", keys.trim_end_matches(',')),
+        &format!("seed = 1\n{class}"),
+    );
+    let out = run_in(dir, &["plan", &m]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = text(&out.stderr);
+    assert!(err.len() < 1000, "{} bytes of error", err.len());
+    assert!(err.contains("more characters)"), "{err}");
+    // A family refused in carve mode is refused in carve mode.
+    let m = manifest_with(
+        dir,
+        "carve.toml",
+        "mode = \"carve\"\n",
+        "seed = 1\n[[classes]]\nfamily = \"s2_x_b2\"\n",
+    );
+    check_one_line_error(dir, &["plan", &m], &["not available in 2D carve mode"]);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_dangling_symlink_as_out_is_named_as_such() {
+    let tmp = Dir::new();
+    let dir = tmp.path();
+    std::os::unix::fs::symlink(dir.join("gone"), dir.join("link")).unwrap();
+    for command in ["build", "slurm"] {
+        check_one_line_error(
+            dir,
+            &[command, "--out", "link"],
+            &[
+                "--out link is a symbolic link to",
+                "gone",
+                "which does not exist",
+            ],
+        );
+    }
+    assert!(!dir.join("gone").exists());
+}
+
+#[test]
+fn audit_of_a_non_binary_array_does_not_suggest_a_betti_flag() {
+    let tmp = Dir::new();
+    let dir = tmp.path();
+    let out_dir = build_small(dir, 2, 16);
+    // Make one voxel of a stored (uncompressed) array a 2, re-indexed as an attacker would
+    // not even need to: relabel reads the arrays whatever the hashes say.
+    let shards = out_dir.join("shards");
+    let tar = std::fs::read_dir(&shards)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "tar"))
+        .unwrap();
+    let mut bytes = std::fs::read(&tar).unwrap();
+    let magic = b"\x93NUMPY";
+    let at = bytes.windows(magic.len()).position(|w| w == magic).unwrap();
+    let header_len = u16::from_le_bytes([bytes[at + 8], bytes[at + 9]]) as usize;
+    bytes[at + 10 + header_len] = 2;
+    std::fs::write(&tar, &bytes).unwrap();
+    let out = run_in(dir, &["audit", out_dir.to_str().unwrap(), "--relabel"]);
+    let report = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{report}{}", text(&out.stderr));
+    assert!(
+        report.contains("has value 2; a dataset array holds only 0 and 1"),
+        "{report}"
+    );
+    assert!(!report.contains("--strict"), "{report}");
+}

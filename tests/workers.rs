@@ -289,3 +289,88 @@ fn a_worker_of_another_version_is_refused_with_what_to_do() {
     );
     assert!(!out.join("index.json").exists());
 }
+
+/// `bettimill build MANIFEST --out OUT --workers 1 --worker-timeout SECONDS` in the
+/// background; stdout discarded, stderr captured.
+fn spawn_build_with_timeout(manifest: &Path, out: &Path, seconds: u32) -> Child {
+    common::bettimill()
+        .args(["build", manifest.to_str().unwrap(), "--out"])
+        .arg(out)
+        .args(["--workers", "1", "--worker-timeout", &seconds.to_string()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+#[test]
+fn a_frozen_worker_is_killed_after_the_worker_timeout_and_the_build_is_identical() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 4, 32, 24, 12);
+    let clean = tmp.path().join("clean");
+    assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
+
+    let out = tmp.path().join("frozen");
+    let coordinator = spawn_build_with_timeout(&m, &out, 3);
+    let mut first = 0;
+    wait_until("a worker", Duration::from_secs(30), || {
+        first = children(coordinator.id()).first().copied().unwrap_or(0);
+        first != 0
+    });
+    wait_until("the worker to compute", Duration::from_secs(60), || {
+        cpu_ticks(first) >= 15
+    });
+    // Stopped, not dead: its pipes stay open, so only the missing heartbeat tells.
+    assert!(kill("-STOP", first), "kill -STOP {first}");
+    let started = std::time::Instant::now();
+    let (code, stderr) = finish(coordinator);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("not even a heartbeat, for 3 s (--worker-timeout)"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("re-queued"), "{stderr}");
+    assert!(!alive(first), "the frozen worker {first} was not killed");
+    assert!(started.elapsed() >= Duration::from_secs(3));
+    assert_same(&clean, &out);
+}
+
+#[test]
+fn a_worker_busy_with_one_long_sample_is_kept_alive_by_its_heartbeat() {
+    let tmp = Dir::new();
+    // One 4D sample of side 96 (85 M voxels) takes several seconds (10 s on the 2-core
+    // build machine), longer than the 3 s timeout: only the heartbeat, not progress, shows
+    // the worker alive meanwhile.
+    let m = manifest(tmp.path(), 4, 96, 1, 1);
+    let out = tmp.path().join("slow");
+    let started = std::time::Instant::now();
+    let (code, stderr) = finish(spawn_build_with_timeout(&m, &out, 3));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        started.elapsed() > Duration::from_secs(4),
+        "the sample took {:?}; the test needs a sample slower than the timeout",
+        started.elapsed()
+    );
+    assert!(stderr.contains("0 retried shard attempts"), "{stderr}");
+    assert!(!stderr.contains("heartbeat"), "{stderr}");
+}
+
+#[test]
+fn a_worker_timeout_shorter_than_three_heartbeats_is_refused() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 2, 1);
+    let out = run(&[
+        "build",
+        m.to_str().unwrap(),
+        "--out",
+        tmp.path().join("o").to_str().unwrap(),
+        "--worker-timeout",
+        "1",
+    ]);
+    assert_exit(&out, 2);
+    assert!(
+        text(&out.stderr).contains("at least 3 s"),
+        "{}",
+        text(&out.stderr)
+    );
+}

@@ -7,9 +7,16 @@
 //!   directory and compare them byte for byte with the stored ones. Because every shard is a
 //!   pure function of (manifest, shard index, tool version), any difference means the
 //!   stored shard was not made by this manifest and version (or was altered and re-indexed).
-//! - **relabel**: decode every stored array and recompute its Betti numbers and Euler
-//!   characteristic (and those of its downscaled copies), comparing them with the stored
-//!   label.
+//! - **relabel**: decode every stored array and recompute every label field that the voxels
+//!   determine, comparing each with the stored label and naming the field: `betti`,
+//!   `euler`, `hypervolume`, `shape`, `dim`, `components` (b0 of the object in embed mode,
+//!   b_{d-1} (one cavity each) in carve mode, 1 for a tunnel), `hypervolume_bin` (the plan's
+//!   bin of the sample's stratum, which must hold the hypervolume), the `cls` member, and for
+//!   each downscaled copy its `side`, `betti`, `euler`, `hypervolume` and `preserved` (its
+//!   Betti numbers equal the full image's). The stratum's `class_label`, `mode` and `family`
+//!   are compared with the plan. Not derived from the voxels, so not checked here:
+//!   `betti_rational`, `knot_type`, `construction`, `seed`, `attempt` (a rebuild checks
+//!   those, byte for byte).
 //!
 //! The scratch directory lives inside the dataset directory (`DIR/.audit-PID`) so it is on
 //! the same file system, and is removed afterwards; nothing else in DIR is written.
@@ -68,6 +75,20 @@ pub enum Finding {
         /// What the voxels say.
         computed: Vec<u64>,
     },
+    /// A label field other than the Betti numbers disagrees with the voxels (or with the
+    /// plan's stratum, for the fields the stratum fixes).
+    FieldDiffers {
+        /// The shard name.
+        shard: String,
+        /// The sample key (with `@rSIDE` for a downscaled copy).
+        key: String,
+        /// The label field, as written in `KEY.json` (`euler`, `resolutions[r10].preserved`).
+        field: String,
+        /// What the label says (JSON).
+        stored: String,
+        /// What the voxels (or the plan) say (JSON).
+        computed: String,
+    },
     /// A member could not be decoded.
     Undecodable {
         /// The shard name.
@@ -103,6 +124,16 @@ impl std::fmt::Display for Finding {
             } => write!(
                 f,
                 "{shard}: {key}: label says betti {stored:?}, the voxels give {computed:?}"
+            ),
+            Finding::FieldDiffers {
+                shard,
+                key,
+                field,
+                stored,
+                computed,
+            } => write!(
+                f,
+                "{shard}: {key}: label field `{field}` says {stored}, the voxels give {computed}"
             ),
             Finding::Undecodable {
                 shard,
@@ -331,64 +362,231 @@ fn relabel_shard(
         let last = samples.last_mut().expect("just pushed");
         last.1.push((field, member.data));
     }
-    let limit = 1 << 34;
     for (key, fields) in &samples {
         progress();
-        let Some((_, json)) = fields
-            .iter()
-            .find(|f| f.0 == bettimill_format::member::LABEL_FIELD)
-        else {
-            findings.push(undecodable(key, "no json label".into()));
-            continue;
-        };
-        let label = match Label::from_json(json) {
-            Ok(label) => label,
-            Err(err) => {
-                findings.push(undecodable(&format!("{key}.json"), err.to_string()));
-                continue;
-            }
-        };
-        for (field, data) in fields {
-            let member = format!("{key}.{field}");
-            let parsed = MemberName::parse(&member).expect("grouped members have a field");
-            if !parsed.is_array() {
-                continue;
-            }
-            let raw = match bettimill_shard::decompress(data, parsed.compression, limit) {
-                Ok(raw) => raw,
-                Err(err) => {
-                    findings.push(undecodable(&member, err.to_string()));
-                    continue;
-                }
-            };
-            let image = match bettimill_grid::npy::read_bytes(&raw, true) {
-                Ok(npy) => npy.image,
-                Err(err) => {
-                    findings.push(undecodable(&member, err.to_string()));
-                    continue;
-                }
-            };
-            let side = (!parsed.is_image()).then(|| image.shape()[0] as u32);
-            let stored: Vec<u64> = label
-                .betti_at(side)
-                .map(<[u64]>::to_vec)
-                .unwrap_or_default();
-            let computed = bettimill_homology::topology(&image).betti;
-            if stored != computed {
-                findings.push(Finding::LabelDiffers {
-                    shard: shard.name.clone(),
-                    key: if parsed.is_image() {
-                        key.clone()
-                    } else {
-                        format!("{key}@{}", parsed.field.trim_end_matches(".npy"))
-                    },
-                    stored,
-                    computed,
-                });
-            }
-        }
+        findings.extend(relabel_sample(dataset, &shard.name, key, fields));
     }
     Ok((samples.len() as u64, findings))
+}
+
+/// Decodes one array member (`KEY.npy`, `KEY.r10.npy.gz`, ...) into an image.
+fn decode_array(data: &[u8], parsed: &MemberName) -> Result<bettimill_grid::BinaryImage, String> {
+    let limit = 1 << 34;
+    let raw =
+        bettimill_shard::decompress(data, parsed.compression, limit).map_err(|e| e.to_string())?;
+    // Stored arrays are 0/1 by construction; a value other than 0 or 1 is damage.
+    bettimill_grid::npy::read_bytes(&raw, true)
+        .map(|npy| npy.image)
+        .map_err(|err| match err {
+            bettimill_grid::npy::NpyError::NotBinary { index, value } => {
+                format!("voxel {index} has value {value}; a dataset array holds only 0 and 1")
+            }
+            other => other.to_string(),
+        })
+}
+
+/// The findings of one sample, as they are made.
+struct SampleFindings<'a> {
+    shard: &'a str,
+    findings: Vec<Finding>,
+}
+
+impl SampleFindings<'_> {
+    /// Records a [`Finding::FieldDiffers`] when `stored` and `computed` differ as JSON.
+    fn compare(
+        &mut self,
+        key: &str,
+        field: &str,
+        stored: impl Serialize,
+        computed: impl Serialize,
+    ) {
+        let (stored, computed) = (to_json(&stored), to_json(&computed));
+        if stored != computed {
+            self.findings.push(Finding::FieldDiffers {
+                shard: self.shard.to_string(),
+                key: key.to_string(),
+                field: field.to_string(),
+                stored,
+                computed,
+            });
+        }
+    }
+
+    fn undecodable(&mut self, member: &str, reason: String) {
+        self.findings.push(Finding::Undecodable {
+            shard: self.shard.to_string(),
+            member: member.to_string(),
+            reason,
+        });
+    }
+
+    fn betti(&mut self, key: &str, stored: &[u64], computed: &[u64]) {
+        if stored != computed {
+            self.findings.push(Finding::LabelDiffers {
+                shard: self.shard.to_string(),
+                key: key.to_string(),
+                stored: stored.to_vec(),
+                computed: computed.to_vec(),
+            });
+        }
+    }
+}
+
+fn to_json(value: &impl Serialize) -> String {
+    serde_json::to_string(value).unwrap_or_else(|err| format!("(unserialisable: {err})"))
+}
+
+/// Every finding of one sample: each label field recomputed from its arrays (and the plan's
+/// stratum) and compared.
+fn relabel_sample(dataset: &Dataset, shard: &str, key: &str, fields: &Fields) -> Vec<Finding> {
+    let mut out = SampleFindings {
+        shard,
+        findings: Vec::new(),
+    };
+    let Some((_, json)) = fields
+        .iter()
+        .find(|f| f.0 == bettimill_format::member::LABEL_FIELD)
+    else {
+        out.undecodable(key, "no json label".into());
+        return out.findings;
+    };
+    let label = match Label::from_json(json) {
+        Ok(label) => label,
+        Err(err) => {
+            out.undecodable(&format!("{key}.json"), err.to_string());
+            return out.findings;
+        }
+    };
+    // Fields the plan's stratum fixes.
+    let plan = &dataset.plan;
+    match plan.strata.get(label.stratum) {
+        None => out.compare(
+            key,
+            "class_index",
+            label.stratum,
+            format!("a stratum below {}", plan.strata.len()),
+        ),
+        Some(stratum) => {
+            out.compare(key, "class_label", &label.class_label, &stratum.label);
+            out.compare(
+                key,
+                "mode",
+                &label.mode,
+                bettimill_plan::mode_name(stratum.mode),
+            );
+            out.compare(key, "family", &label.family, stratum.family.label());
+            out.compare(
+                key,
+                "hypervolume_bin",
+                label.hypervolume_bin,
+                stratum.hypervolume,
+            );
+        }
+    }
+    if let Some((_, cls)) = fields.iter().find(|f| f.0 == "cls") {
+        out.compare(
+            &format!("{key}.cls"),
+            "cls",
+            String::from_utf8_lossy(cls),
+            label.stratum.to_string(),
+        );
+    }
+    // The full image first: the copies' `preserved` compares with its Betti numbers.
+    let mut arrays: Vec<(String, &Vec<u8>)> = fields
+        .iter()
+        .map(|(field, data)| (format!("{key}.{field}"), data))
+        .filter(|(member, _)| MemberName::parse(member).is_some_and(|m| m.is_array()))
+        .collect();
+    arrays.sort_by_key(|(member, _)| !MemberName::parse(member).is_some_and(|m| m.is_image()));
+    let mut full: Option<Vec<u64>> = None;
+    let mut copies_seen = Vec::new();
+    for (member, data) in &arrays {
+        let parsed = MemberName::parse(member).expect("filtered above");
+        let image = match decode_array(data, &parsed) {
+            Ok(image) => image,
+            Err(reason) => {
+                out.undecodable(member, reason);
+                continue;
+            }
+        };
+        let topology = bettimill_homology::topology(&image);
+        let hypervolume = image.count_foreground();
+        if parsed.is_image() {
+            let d = image.dim().get();
+            out.betti(key, &label.betti, &topology.betti);
+            out.compare(key, "euler", label.euler, topology.euler);
+            out.compare(key, "hypervolume", label.hypervolume, hypervolume);
+            out.compare(key, "shape", &label.shape, image.shape());
+            out.compare(key, "dim", label.dim, d);
+            // One object is b0 of its voxels in embed mode, one cavity is a (d-1)-cycle in
+            // carve mode (Alexander duality); a tunnel is one object however it is counted.
+            let components = if label.family == "tunnel" {
+                1
+            } else if label.mode == "carve" {
+                topology.betti[d - 1]
+            } else {
+                topology.betti[0]
+            };
+            out.compare(key, "components", label.components, components);
+            if let Some((lo, hi)) = label.hypervolume_bin {
+                if !(lo..=hi).contains(&hypervolume) {
+                    out.compare(
+                        key,
+                        "hypervolume_bin",
+                        label.hypervolume_bin,
+                        format!("a bin holding the hypervolume {hypervolume}"),
+                    );
+                }
+            }
+            full = Some(topology.betti);
+            continue;
+        }
+        let side = image.shape()[0] as u32;
+        let copy_key = format!("{key}@{}", parsed.field.trim_end_matches(".npy"));
+        copies_seen.push(side);
+        let Some((position, stored)) = label
+            .resolutions
+            .iter()
+            .enumerate()
+            .find(|(_, r)| r.side == side)
+        else {
+            out.compare(
+                &copy_key,
+                "resolutions",
+                "no entry",
+                format!("a copy of side {side}"),
+            );
+            continue;
+        };
+        let at = |name: &str| format!("resolutions[{position}].{name}");
+        out.betti(&copy_key, &stored.betti, &topology.betti);
+        out.compare(&copy_key, &at("euler"), stored.euler, topology.euler);
+        out.compare(
+            &copy_key,
+            &at("hypervolume"),
+            stored.hypervolume,
+            hypervolume,
+        );
+        if let Some(full) = &full {
+            out.compare(
+                &copy_key,
+                &at("preserved"),
+                stored.preserved,
+                topology.betti == *full,
+            );
+        }
+    }
+    for (position, stored) in label.resolutions.iter().enumerate() {
+        if !copies_seen.contains(&stored.side) {
+            out.compare(
+                key,
+                &format!("resolutions[{position}].side"),
+                stored.side,
+                "no stored copy of that side",
+            );
+        }
+    }
+    out.findings
 }
 
 #[cfg(test)]

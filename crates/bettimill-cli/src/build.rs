@@ -10,6 +10,14 @@ use bettimill_executor::Dataset;
 use std::ffi::OsString;
 use std::path::Path;
 
+/// The build's limits on its workers: `--worker-timeout` and `--max-memory`.
+pub struct Limits {
+    /// A worker silent this long is killed and its shard retried.
+    pub worker_timeout: std::time::Duration,
+    /// Memory per worker (default: a share of MemAvailable divided by the workers).
+    pub max_memory: Option<u64>,
+}
+
 /// `bettimill build`.
 pub fn build(
     manifest: Option<&Path>,
@@ -17,6 +25,7 @@ pub fn build(
     workers: Option<usize>,
     max_shard_failures: u32,
     progress_interval: f64,
+    limits: Limits,
     quiet: bool,
 ) -> anyhow::Result<ExitStatus> {
     if !(progress_interval.is_finite() && progress_interval > 0.0) {
@@ -31,7 +40,25 @@ pub fn build(
         out.display()
     );
     crate::signals::set_resume_command(&resume);
+    crate::commands::check_out_dir(out)?;
     let (text, manifest) = load_manifest(manifest)?;
+    let workers = workers.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    if workers == 0 {
+        bail!("--workers must be at least 1");
+    }
+    // Refused before anything is written or any worker starts: a sample that cannot fit
+    // would otherwise kill every worker attempt after minutes.
+    let plan = bettimill_plan::Plan::new(&manifest)?;
+    let running = (workers as u64).min(plan.shard_count()).max(1);
+    let memory_limit = crate::plan::memory_limit(limits.max_memory, running);
+    if let Some((limit, origin)) = &memory_limit {
+        bettimill_plan::memory::check(&plan, 1, *limit, origin)?;
+    }
+    drop(plan);
     let dataset = Dataset::bind(out, &text, manifest)?;
     crate::signals::test_pause_at_startup();
     if !quiet && !dataset.plan.infeasible.is_empty() {
@@ -49,24 +76,26 @@ pub fn build(
             eprintln!("  {}: {}", item.label, item.reason);
         }
     }
-    let workers = workers.unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-    });
-    if workers == 0 {
-        bail!("--workers must be at least 1");
-    }
     let program = crate::own_program()?;
     let options = BuildOptions {
         workers,
         max_shard_failures,
         worker_program: program,
-        worker_args: vec![
+        worker_args: [
             OsString::from("worker"),
             OsString::from("--dir"),
             out.as_os_str().to_owned(),
-        ],
+        ]
+        .into_iter()
+        // Each worker checks the same limit the coordinator did.
+        .chain(memory_limit.iter().flat_map(|(limit, _)| {
+            [
+                OsString::from("--max-memory"),
+                OsString::from(limit.to_string()),
+            ]
+        }))
+        .collect(),
+        worker_timeout: limits.worker_timeout,
     };
     let started = std::time::Instant::now();
     let mut display = Display::new(quiet, std::time::Duration::from_secs_f64(progress_interval));

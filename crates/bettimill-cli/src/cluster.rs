@@ -29,11 +29,21 @@ pub struct WorkerArgs {
     /// Threads for an array task (default: all cores). Coordinator workers use one.
     #[arg(long)]
     threads: Option<usize>,
+    /// Memory this worker may use, e.g. 8G (default: 80% of MemAvailable): a plan whose
+    /// samples (one per thread) need more is refused before any work.
+    #[arg(long, value_name = "SIZE", value_parser = crate::commands::parse_memory)]
+    max_memory: Option<u64>,
 }
 
 /// `bettimill worker`.
 pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     let dataset = Dataset::open(&args.dir)?;
+    let threads = match (args.task_count, args.threads) {
+        (None, _) => 1,
+        (Some(_), Some(threads)) => threads.max(1),
+        (Some(_), None) => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    crate::plan::check_memory(&dataset.plan, args.max_memory, 1, threads as u64)?;
     let Some(count) = args.task_count else {
         // Served by a coordinator: exit as soon as it goes away (its pipe closes).
         worker::serve(&dataset, std::io::stdin(), std::io::stdout(), || {
@@ -116,6 +126,11 @@ pub struct SlurmArgs {
     /// (repeatable).
     #[arg(long = "sbatch-option", allow_hyphen_values = true)]
     sbatch_options: Vec<String>,
+    /// Memory of one array task, e.g. 16G: the plan is refused if a task's samples (one per
+    /// CPU) need more, and the array job asks Slurm for it (`#SBATCH --mem`). Without it,
+    /// each task checks its node's own MemAvailable when it starts.
+    #[arg(long, value_name = "SIZE", value_parser = crate::commands::parse_memory)]
+    max_memory: Option<u64>,
     /// Submit with sbatch: the array job, then finalize with --dependency=afterok.
     #[arg(long)]
     submit: bool,
@@ -126,7 +141,14 @@ pub struct SlurmArgs {
 
 /// `bettimill slurm`.
 pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
+    crate::commands::check_out_dir(&args.out)?;
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
+    let mut extra = args.sbatch_options.clone();
+    if let Some(limit) = args.max_memory {
+        let plan = bettimill_plan::Plan::new(&manifest)?;
+        crate::plan::check_memory(&plan, Some(limit), 1, args.cpus_per_task.max(1))?;
+        extra.push(format!("--mem={}M", limit.div_ceil(1 << 20)));
+    }
     let dataset = Dataset::bind(&args.out, &text, manifest)?;
     let tasks = args
         .tasks
@@ -139,7 +161,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
             throttle: args.throttle,
             cpus_per_task: args.cpus_per_task,
             program,
-            extra: args.sbatch_options.clone(),
+            extra,
         },
     )?;
     if !quiet {
@@ -225,6 +247,7 @@ pub struct KubernetesArgs {
 
 /// `bettimill k8s`: prints the Indexed Job on stdout.
 pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
+    crate::commands::check_out_dir(&args.out)?;
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
     let dataset = Dataset::bind(&args.out, &text, manifest)?;
     let yaml = cluster::kubernetes_job(

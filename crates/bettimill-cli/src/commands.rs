@@ -37,6 +37,14 @@ enum Command {
         /// cluster log, nohup, CI); on a terminal a progress bar is drawn instead.
         #[arg(long, default_value_t = 10.0)]
         progress_interval: f64,
+        /// Kill and retry a worker that sends nothing (not even its heartbeat, every second)
+        /// for this many seconds: a frozen or stopped worker.
+        #[arg(long, default_value_t = bettimill_executor::coordinator::DEFAULT_WORKER_TIMEOUT.as_secs_f64(), value_parser = parse_worker_timeout)]
+        worker_timeout: f64,
+        /// Memory one worker may use, e.g. 8G (default: 80% of MemAvailable divided by the
+        /// workers). A plan whose samples need more is refused before any worker starts.
+        #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
+        max_memory: Option<u64>,
     },
     /// Internal: a build worker (started by `build`, or as an array task on a cluster).
     #[command(hide = true)]
@@ -113,6 +121,10 @@ enum Command {
         /// Print the plan summary as JSON.
         #[arg(long)]
         json: bool,
+        /// Memory one worker may use, e.g. 8G (default: 80% of MemAvailable): a plan whose
+        /// worker would need more is printed, then refused (exit 2).
+        #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
+        max_memory: Option<u64>,
     },
     /// Draw a sample, or a contact sheet of several, as a PNG with its label.
     ///
@@ -199,12 +211,18 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             workers,
             max_shard_failures,
             progress_interval,
+            worker_timeout,
+            max_memory,
         } => crate::build::build(
             manifest.as_deref(),
             &out,
             workers,
             max_shard_failures,
             progress_interval,
+            crate::build::Limits {
+                worker_timeout: std::time::Duration::from_secs_f64(worker_timeout),
+                max_memory,
+            },
             cli.quiet,
         ),
         Command::Worker(args) => crate::cluster::worker(args, cli.quiet),
@@ -220,9 +238,13 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             json,
             strict,
         } => betti(&image, json, strict),
-        Command::Plan { manifest, json } => {
+        Command::Plan {
+            manifest,
+            json,
+            max_memory,
+        } => {
             let (_, manifest) = load_manifest(manifest.as_deref())?;
-            crate::plan::show(&manifest, json)?;
+            crate::plan::show(&manifest, json, max_memory)?;
             Ok(ExitStatus::Success)
         }
         Command::Preview { input, key, n, out } => crate::preview::run(&crate::preview::Request {
@@ -237,6 +259,42 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
         }
         Command::Completions { shell } => crate::completions::run(shell),
     }
+}
+
+/// `--max-memory`: a size such as `8G`, `512M` or a number of bytes.
+pub(crate) fn parse_memory(text: &str) -> Result<u64, String> {
+    bettimill_plan::memory::parse_bytes(text)
+}
+
+/// `--worker-timeout`: seconds, at least 3 heartbeat intervals.
+fn parse_worker_timeout(text: &str) -> Result<f64, String> {
+    let seconds: f64 = text
+        .parse()
+        .map_err(|_| format!("{text:?} is not a number of seconds"))?;
+    let minimum = 3.0 * bettimill_executor::protocol::HEARTBEAT_INTERVAL.as_secs_f64();
+    if !(seconds.is_finite() && seconds >= minimum && seconds <= 1e9) {
+        return Err(format!(
+            "{text} s is too short: workers send a heartbeat every {} s, so the timeout must be at least {minimum} s",
+            bettimill_executor::protocol::HEARTBEAT_INTERVAL.as_secs_f64()
+        ));
+    }
+    Ok(seconds)
+}
+
+/// Refuses an `--out` that cannot become a dataset directory for a reason the operating
+/// system would only report as `File exists`: a symbolic link to nothing.
+pub(crate) fn check_out_dir(out: &Path) -> anyhow::Result<()> {
+    if let Ok(target) = std::fs::read_link(out) {
+        if !out.exists() {
+            anyhow::bail!(
+                "--out {} is a symbolic link to {}, which does not exist: create that directory, \
+                 remove the link, or give another --out",
+                out.display(),
+                target.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Manifest)> {

@@ -75,7 +75,7 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> i32 {
     let status = match commands::run(cli) {
         Ok(status) => status,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", error_line(&err));
             commands::ExitStatus::Failure
         }
     };
@@ -100,5 +100,61 @@ pub(crate) fn own_program() -> anyhow::Result<PathBuf> {
     match PROGRAM.get() {
         Some(program) => Ok(program.clone()),
         None => std::env::current_exe().context("cannot find the running bettimill binary"),
+    }
+}
+
+/// An error and its causes on one line, `outer: cause: cause`, leaving out a cause whose
+/// text the line already holds (many errors print their source in their own message, and
+/// `No space left on device (os error 28)` should be said once).
+fn error_line(err: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn an_os_reason_is_printed_once() {
+        /// Like the library errors: the source in the message and as `source()`.
+        #[derive(Debug)]
+        struct Wrapped {
+            path: String,
+            source: std::io::Error,
+        }
+        impl std::fmt::Display for Wrapped {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "{}: {}", self.path, self.source)
+            }
+        }
+        impl std::error::Error for Wrapped {
+            fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+                Some(&self.source)
+            }
+        }
+        let os = std::io::Error::from_raw_os_error(28);
+        let err = anyhow::Error::from(Wrapped {
+            path: "shards/x.tar".into(),
+            source: os,
+        })
+        .context("cannot write shard x");
+        let line = super::error_line(&err);
+        assert_eq!(line.matches("os error 28").count(), 1, "{line}");
+        assert!(
+            line.starts_with("cannot write shard x: shards/x.tar: "),
+            "{line}"
+        );
+        // Causes that add something are kept.
+        let err = anyhow::anyhow!("inner").context("outer");
+        assert_eq!(super::error_line(&err), "outer: inner");
     }
 }

@@ -1,6 +1,7 @@
 //! `bettimill plan`: the strata table, counts per split and shard, size and time estimates.
 
 use bettimill_manifest::Manifest;
+use bettimill_plan::memory::{self, WorkerMemory};
 use bettimill_plan::Plan;
 
 /// Rough single-core cost of making and verifying one sample, in nanoseconds per voxel, by
@@ -8,16 +9,72 @@ use bettimill_plan::Plan;
 /// estimate for planning, not a promise.
 const NS_PER_VOXEL: [f64; 3] = [400.0, 300.0, 250.0];
 
-/// Prints the plan of `manifest` (text, or JSON with `json`).
-pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
+/// The share of /proc/meminfo's MemAvailable that the default `--max-memory` hands out.
+pub(crate) const DEFAULT_MEMORY_SHARE: f64 = 0.8;
+
+/// The memory one worker may use: `--max-memory` if given, else
+/// [`DEFAULT_MEMORY_SHARE`] of MemAvailable divided among `workers`; `None` when neither
+/// is known (no /proc/meminfo: nothing is refused). With the words saying where it came
+/// from, for messages.
+pub(crate) fn memory_limit(max_memory: Option<u64>, workers: u64) -> Option<(u64, String)> {
+    if let Some(limit) = max_memory {
+        return Some((
+            limit,
+            format!("--max-memory {}", memory::human_bytes(limit)),
+        ));
+    }
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let available_kib: u64 = meminfo
+        .lines()
+        .find_map(|l| l.strip_prefix("MemAvailable:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    let workers = workers.max(1);
+    let limit = (available_kib as f64 * 1024.0 * DEFAULT_MEMORY_SHARE / workers as f64) as u64;
+    Some((
+        limit,
+        format!(
+            "the default: {:.0}% of MemAvailable {}{}; set --max-memory to change it",
+            DEFAULT_MEMORY_SHARE * 100.0,
+            memory::human_bytes(available_kib * 1024),
+            if workers == 1 {
+                String::new()
+            } else {
+                format!(" / {workers} workers")
+            }
+        ),
+    ))
+}
+
+/// Refuses `plan` when one worker running `threads` samples at once would need more than
+/// the memory limit (see [`memory_limit`]).
+pub(crate) fn check_memory(
+    plan: &Plan,
+    max_memory: Option<u64>,
+    workers: u64,
+    threads: u64,
+) -> anyhow::Result<()> {
+    if let Some((limit, origin)) = memory_limit(max_memory, workers) {
+        memory::check(plan, threads, limit, &origin)?;
+    }
+    Ok(())
+}
+
+/// Prints the plan of `manifest` (text, or JSON with `json`). A plan whose worker would not
+/// fit the memory limit (`max_memory`, or the machine's default for one worker) is printed
+/// and then refused.
+pub fn show(manifest: &Manifest, json: bool, max_memory: Option<u64>) -> anyhow::Result<()> {
     let plan = Plan::new(manifest)?;
+    let worker_memory = WorkerMemory::of(&plan);
     let voxels = (plan.side as f64).powi(plan.dimension.get() as i32);
-    let bytes = plan.sample_bytes * plan.samples;
+    let bytes = plan.sample_bytes.saturating_mul(plan.samples);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
     let seconds =
         plan.samples as f64 * voxels * NS_PER_VOXEL[plan.dimension.get() - 2] / 1e9 / cores;
     let totals = plan.total_counts();
-    let per_shard: Vec<Vec<u64>> = plan.shards().map(|s| plan.shard_counts(&s)).collect();
     if json {
         let strata: Vec<serde_json::Value> = plan
             .strata
@@ -35,16 +92,6 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
                 })
             })
             .collect();
-        let shards: Vec<serde_json::Value> = plan
-            .shards()
-            .zip(&per_shard)
-            .map(|(s, counts)| {
-                serde_json::json!({
-                    "name": s.name, "split": s.split, "first_sample": s.first_sample,
-                    "samples": s.samples, "strata_counts": counts,
-                })
-            })
-            .collect();
         let value = serde_json::json!({
             "name": plan.name,
             "dimension": plan.dimension.get(),
@@ -56,11 +103,28 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
             "splits": plan.splits,
             "strata": strata,
             "infeasible": plan.infeasible,
-            "shards": shards,
             "estimated_bytes": bytes,
             "estimated_seconds": seconds,
+            "worker_memory_bytes": worker_memory.total(1),
+            "sample_memory_bytes": worker_memory.sample_bytes,
         });
-        outln!("{}", serde_json::to_string_pretty(&value)?);
+        // The shard list is streamed, one shard at a time: a plan of 10^8 shards prints
+        // gigabytes but holds one shard in memory.
+        let head = serde_json::to_string_pretty(&value)?;
+        let head = head
+            .strip_suffix("\n}")
+            .expect("a pretty-printed JSON object ends with a closing brace on its own line");
+        crate::stats::write_stdout(format!("{head},\n  \"shards\": [").as_bytes())?;
+        for shard in plan.shards() {
+            let entry = serde_json::json!({
+                "name": shard.name, "split": shard.split, "first_sample": shard.first_sample,
+                "samples": shard.samples, "strata_counts": plan.shard_counts(&shard),
+            });
+            let comma = if shard.index == 0 { "" } else { "," };
+            crate::stats::write_stdout(format!("{comma}\n    {entry}").as_bytes())?;
+        }
+        outln!("\n  ]\n}}");
+        check_memory(&plan, max_memory, 1, 1)?;
         return Ok(());
     }
     outln!(
@@ -125,15 +189,26 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
         outln!(
             "split {split}: {} in {} of up to {}",
             count(*size, "sample"),
-            count(plan.split_shards(split).count() as u64, "shard"),
+            count(size.div_ceil(plan.shard_size), "shard"),
             count(plan.shard_size, "sample")
         );
     }
-    let spread = per_shard
-        .iter()
-        .map(|c| c.iter().max().unwrap_or(&0) - c.iter().min().unwrap_or(&0))
-        .max()
-        .unwrap_or(0);
+    // Shards are contiguous ranges dealt cyclically, so a shard's spread depends only on
+    // its length: the counts of the first and last shard of each split (every length there
+    // is) give the spread of all of them without walking 10^8 shards.
+    let mut first_shard = 0;
+    let mut spread = 0;
+    for (_, size) in &plan.splits {
+        let shards = size.div_ceil(plan.shard_size);
+        for index in [first_shard, first_shard + shards.saturating_sub(1)] {
+            if shards > 0 {
+                let counts = plan.shard_counts(&plan.shard(index));
+                let max = counts.iter().max().unwrap_or(&0);
+                spread = spread.max(max - counts.iter().min().unwrap_or(&0));
+            }
+        }
+        first_shard += shards;
+    }
     outln!("per-shard balance: stratum counts differ by at most {spread} within any shard");
     outln!(
         "estimated output at most {} uncompressed ({} a sample), build time {} on {}",
@@ -142,6 +217,14 @@ pub fn show(manifest: &Manifest, json: bool) -> anyhow::Result<()> {
         human_duration(seconds),
         count(cores as u64, "core")
     );
+    outln!(
+        "worker memory: about {} a worker ({} for one sample of {} voxels in flight + {} for the shard being written)",
+        memory::human_bytes(worker_memory.total(1)),
+        memory::human_bytes(worker_memory.sample_bytes),
+        worker_memory.voxels,
+        memory::human_bytes(worker_memory.shard_bytes),
+    );
+    check_memory(&plan, max_memory, 1, 1)?;
     Ok(())
 }
 
@@ -156,18 +239,7 @@ fn count(n: u64, noun: &str) -> String {
 
 /// Bytes in binary units: `512 B`, `5.6 MiB`, `3.2 TiB`.
 fn human_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 6] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB"];
-    let mut value = bytes as f64;
-    let mut unit = 0;
-    while value >= 1024.0 && unit + 1 < UNITS.len() {
-        value /= 1024.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{value:.1} {}", UNITS[unit])
-    }
+    memory::human_bytes(bytes)
 }
 
 fn human_duration(seconds: f64) -> String {

@@ -8,7 +8,9 @@
 //!
 //! Faults: a worker that dies (killed, crashed, out of memory) or reports `Failed` counts
 //! one failure against its shard, which goes back to the front of the queue; the dead
-//! worker is replaced. A shard that fails `max_shard_failures` times is given up, the
+//! worker is replaced. A worker that sends nothing, not even its heartbeat
+//! ([`protocol::HEARTBEAT_INTERVAL`]), for [`BuildOptions::worker_timeout`] is frozen
+//! (SIGSTOP, swapped out, deadlocked): it is killed and counts as a death. A shard that fails `max_shard_failures` times is given up, the
 //! other shards still finish, and the report lists it. A failed handshake (different
 //! binary, different plan) stops the whole build: it would fail the same way every time.
 //! On [`BuildControl::Interrupt`] (Ctrl-C, SIGTERM) every worker is killed; every write
@@ -31,6 +33,10 @@ use tokio::sync::{mpsc, watch};
 /// The default number of failures after which a shard is given up.
 pub const DEFAULT_MAX_SHARD_FAILURES: u32 = 3;
 
+/// The default time after which a worker that sent nothing (no heartbeat, no progress) is
+/// killed and its shard re-queued.
+pub const DEFAULT_WORKER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(120);
+
 /// How to run a build.
 #[derive(Clone, Debug)]
 pub struct BuildOptions {
@@ -42,6 +48,10 @@ pub struct BuildOptions {
     pub worker_program: PathBuf,
     /// Its arguments (normally `worker --dir DIR`).
     pub worker_args: Vec<OsString>,
+    /// A worker silent for this long (no frame at all, heartbeats included) is killed and
+    /// its shard re-queued; [`DEFAULT_WORKER_TIMEOUT`] normally. Keep it well above
+    /// [`protocol::HEARTBEAT_INTERVAL`].
+    pub worker_timeout: std::time::Duration,
 }
 
 /// Something that happened during a build, for progress displays.
@@ -176,27 +186,81 @@ pub enum CoordinatorError {
     #[error("worker handshake failed: {0}")]
     Handshake(ProtocolError),
     /// A worker exited before its handshake.
-    #[error(
-        "worker process {pid} exited before its handshake ({status}); its error is printed above"
-    )]
+    #[error("worker process {pid} exited before its handshake ({status}){note}")]
     WorkerDiedEarly {
         /// The process id.
         pid: u32,
         /// How it ended.
         status: String,
+        /// Where to look: `; its error is printed above` when it exited with an error
+        /// code (it printed one), or why nothing was printed when a signal killed it.
+        note: &'static str,
+    },
+    /// A worker sent no handshake within the worker timeout (retried like a death).
+    #[error("worker process {pid} sent no handshake within {seconds} s (--worker-timeout) and was killed")]
+    WorkerSilent {
+        /// The process id.
+        pid: u32,
+        /// The timeout.
+        seconds: f64,
     },
     /// The async runtime could not start.
     #[error("cannot start the coordinator's runtime: {0}")]
     Runtime(std::io::Error),
 }
 
+/// The shards still to hand out: retried shards first (most recent first), then the
+/// untried ones as ranges of plan indexes, in plan order. Its memory grows with the
+/// complete shards that interrupt the ranges and with retries, not with the shards.
+#[derive(Debug, Default, PartialEq, Eq)]
+struct ShardQueue {
+    retries: VecDeque<usize>,
+    ranges: VecDeque<std::ops::Range<u64>>,
+}
+
+impl ShardQueue {
+    /// Every shard below `shards` but those in `complete` (sorted).
+    fn without(shards: u64, complete: &[u64]) -> ShardQueue {
+        let mut ranges = VecDeque::new();
+        let mut start = 0;
+        for &done in complete {
+            if done > start {
+                ranges.push_back(start..done);
+            }
+            start = done + 1;
+        }
+        if start < shards {
+            ranges.push_back(start..shards);
+        }
+        ShardQueue {
+            retries: VecDeque::new(),
+            ranges,
+        }
+    }
+
+    fn pop_front(&mut self) -> Option<usize> {
+        if let Some(retry) = self.retries.pop_front() {
+            return Some(retry);
+        }
+        let range = self.ranges.front_mut()?;
+        let next = range.start;
+        range.start += 1;
+        if range.is_empty() {
+            self.ranges.pop_front();
+        }
+        Some(next as usize)
+    }
+
+    fn push_front(&mut self, shard: usize) {
+        self.retries.push_front(shard);
+    }
+}
+
 struct Scheduler {
-    queue: VecDeque<usize>,
+    queue: ShardQueue,
     failures: BTreeMap<usize, Vec<String>>,
     given_up: Vec<FailedShard>,
     built: u64,
-    /// Plan indexes of the shards built in this run.
-    built_indexes: Vec<usize>,
     samples: u64,
     regenerations: u64,
     retries: u64,
@@ -226,42 +290,47 @@ pub fn run(
 ) -> Result<BuildReport, CoordinatorError> {
     let _lock = DirLock::acquire(&dataset.dir)?;
     dataset.remove_temporaries()?;
-    let mut missing = Vec::new();
-    // Shards hashed here, or by the worker that writes them below: finalize need not read
-    // them back. Only shards with a record are opened (one listing of records/ says which),
-    // so a new build starts its workers without touching a file per shard.
+    // Only shards with a record are opened (one listing of records/ says which), and the
+    // shards to build are kept as ranges, so a new build of 10^8 shards starts its workers
+    // without a file, or a word of memory, per shard.
     let recorded = dataset.record_names()?;
-    let mut checked = vec![false; dataset.plan.shard_count() as usize];
-    for (i, shard) in dataset.plan.shards().enumerate() {
-        if dataset.completed_among(&shard, &recorded).is_some() {
-            checked[i] = true;
-        } else {
-            missing.push(i);
-        }
-    }
+    let mut complete: Vec<u64> = recorded
+        .iter()
+        .filter_map(|name| dataset.plan.shard_named(name))
+        .filter(|shard| dataset.completed(shard).is_some())
+        .map(|shard| shard.index)
+        .collect();
     drop(recorded);
+    complete.sort_unstable();
+    complete.dedup();
     let shards = dataset.plan.shard_count();
+    let queue = ShardQueue::without(shards, &complete);
+    let complete_samples: u64 = complete
+        .iter()
+        .map(|&i| dataset.plan.shard(i).samples)
+        .sum();
     let mut report = BuildReport {
-        skipped: shards - missing.len() as u64,
+        skipped: complete.len() as u64,
         shards,
         ..BuildReport::default()
     };
-    let workers = options.workers.max(1).min(missing.len());
+    drop(complete);
+    let missing = shards - report.skipped;
+    let workers = options
+        .workers
+        .max(1)
+        .min(usize::try_from(missing).unwrap_or(usize::MAX));
     events(BuildEvent::Started {
         shards,
         skipped: report.skipped,
-        samples: missing
-            .iter()
-            .map(|&i| dataset.plan.shard(i as u64).samples)
-            .sum(),
+        samples: dataset.plan.samples - complete_samples,
         workers,
     });
     let scheduler = Arc::new(Mutex::new(Scheduler {
-        queue: missing.into_iter().collect(),
+        queue,
         failures: BTreeMap::new(),
         given_up: Vec::new(),
         built: 0,
-        built_indexes: Vec::new(),
         samples: 0,
         regenerations: 0,
         retries: 0,
@@ -292,11 +361,10 @@ pub fn run(
     report.retries = scheduler.retries;
     report.failed = scheduler.given_up.clone();
     report.complete = report.skipped + report.built;
-    for &i in &scheduler.built_indexes {
-        checked[i] = true;
-    }
     if report.complete == shards && !report.interrupted {
-        dataset.finalize_checked(&|shard| checked[shard.index as usize])?;
+        // Every shard was hashed above (complete at the start) or by the worker that wrote
+        // it in this run: finalize need not read them back.
+        dataset.finalize_checked(&|_| true)?;
         report.finalized = true;
     }
     Ok(report)
@@ -407,19 +475,34 @@ async fn start_worker(context: &SlotContext) -> Result<Worker, CoordinatorError>
     let mut stdout = child.stdout.take().expect("stdout is piped");
     // Both sides send first, so neither waits for the other.
     let sent = protocol::write_frame_async(&mut stdin, &context.handshake, "worker").await;
-    let theirs = protocol::read_frame_async::<Handshake>(&mut stdout, "worker").await;
+    let timeout = context.options.worker_timeout;
+    let theirs = match tokio::time::timeout(
+        timeout,
+        protocol::read_frame_async::<Handshake>(&mut stdout, "worker"),
+    )
+    .await
+    {
+        Ok(theirs) => theirs,
+        Err(_) => {
+            let _ = child.start_kill();
+            let _ = child.wait().await;
+            return Err(CoordinatorError::WorkerSilent {
+                pid,
+                seconds: timeout.as_secs_f64(),
+            });
+        }
+    };
     let theirs = match (sent, theirs) {
         (Ok(()), Ok(Some(theirs))) => theirs,
         (_, Err(err @ (ProtocolError::Decode { .. } | ProtocolError::BadLength { .. }))) => {
             return Err(CoordinatorError::Handshake(err))
         }
         _ => {
-            let status = child
-                .wait()
-                .await
-                .map(|s| s.to_string())
-                .unwrap_or_else(|e| e.to_string());
-            return Err(CoordinatorError::WorkerDiedEarly { pid, status });
+            let (status, note) = match child.wait().await {
+                Ok(status) => (describe_exit(status), early_death_note(status)),
+                Err(err) => (err.to_string(), ""),
+            };
+            return Err(CoordinatorError::WorkerDiedEarly { pid, status, note });
         }
     };
     protocol::check_handshake(&context.handshake, &theirs, Peer::Worker)
@@ -457,7 +540,7 @@ async fn run_slot(
                     let _ = events.send(BuildEvent::WorkerStarted { slot, pid: w.pid });
                     worker = Some(w);
                 }
-                Err(CoordinatorError::WorkerDiedEarly { pid, status })
+                Err(CoordinatorError::WorkerDiedEarly { pid, status, .. })
                     if context
                         .any_handshake
                         .load(std::sync::atomic::Ordering::Relaxed) =>
@@ -465,6 +548,9 @@ async fn run_slot(
                     early_death = Some(format!(
                         "worker process {pid} exited before its handshake ({status})"
                     ));
+                }
+                Err(silent @ CoordinatorError::WorkerSilent { .. }) => {
+                    early_death = Some(silent.to_string());
                 }
                 Err(err) => {
                     context.lock().queue.push_front(shard_index);
@@ -482,7 +568,7 @@ async fn run_slot(
                     samples,
                 });
                 tokio::select! {
-                    attempt = attempt_shard(current, shard_index as u64, slot, &events, &mut samples_reported) => attempt,
+                    attempt = attempt_shard(current, shard_index as u64, slot, &events, &mut samples_reported, context.options.worker_timeout) => attempt,
                     _ = stop.wait_for(|stopped| *stopped) => Attempt::Interrupted,
                 }
             }
@@ -493,7 +579,6 @@ async fn run_slot(
             Attempt::Done { regenerations } => {
                 let mut scheduler = context.lock();
                 scheduler.built += 1;
-                scheduler.built_indexes.push(shard_index);
                 scheduler.samples += samples;
                 scheduler.regenerations += regenerations;
                 drop(scheduler);
@@ -567,6 +652,19 @@ async fn worker_is_dead(worker: &mut Worker) -> Option<String> {
     }
 }
 
+/// What to tell about a worker that ended before its handshake: a worker that exits with an
+/// error code has printed its error (its stderr is the build's), one killed by a signal
+/// printed nothing.
+fn early_death_note(status: std::process::ExitStatus) -> &'static str {
+    if status.code().is_some_and(|code| code != 0) {
+        "; its error is printed above"
+    } else if status.code().is_none() {
+        "; it printed nothing (killed from outside, or by the kernel for lack of memory)"
+    } else {
+        ""
+    }
+}
+
 fn describe_exit(status: std::process::ExitStatus) -> String {
     #[cfg(unix)]
     {
@@ -584,13 +682,30 @@ async fn attempt_shard(
     slot: usize,
     events: &mpsc::UnboundedSender<BuildEvent>,
     samples_reported: &mut u64,
+    timeout: std::time::Duration,
 ) -> Attempt {
     let request = ToWorker::Build { shard_index };
     if let Err(err) = protocol::write_frame_async(&mut worker.stdin, &request, "worker").await {
         return Attempt::Died(format!("worker process {} is gone: {err}", worker.pid));
     }
     loop {
-        match protocol::read_frame_async::<FromWorker>(&mut worker.stdout, "worker").await {
+        // Any frame, heartbeats included, proves the worker alive; a timed-out read is
+        // abandoned with the worker, which the caller kills.
+        let Ok(frame) = tokio::time::timeout(
+            timeout,
+            protocol::read_frame_async::<FromWorker>(&mut worker.stdout, "worker"),
+        )
+        .await
+        else {
+            return Attempt::Died(format!(
+                "worker process {} sent nothing, not even a heartbeat, for {} s (--worker-timeout); \
+                 it is frozen or stopped and was killed",
+                worker.pid,
+                timeout.as_secs_f64()
+            ));
+        };
+        match frame {
+            Ok(Some(FromWorker::Heartbeat)) => {}
             Ok(Some(FromWorker::Progress { regenerations, .. })) => {
                 *samples_reported += 1;
                 let _ = events.send(BuildEvent::Sample {
@@ -627,5 +742,55 @@ async fn attempt_shard(
                 return Attempt::Died(format!("worker process {}: {err}", worker.pid));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn an_early_death_says_its_error_is_above_only_when_it_printed_one() {
+        use std::os::unix::process::ExitStatusExt;
+        let exited = std::process::ExitStatus::from_raw(2 << 8);
+        let killed = std::process::ExitStatus::from_raw(9);
+        let message = |status| {
+            CoordinatorError::WorkerDiedEarly {
+                pid: 7,
+                status: describe_exit(status),
+                note: early_death_note(status),
+            }
+            .to_string()
+        };
+        assert!(
+            message(exited).ends_with("its error is printed above"),
+            "{}",
+            message(exited)
+        );
+        let text = message(killed);
+        assert!(text.contains("(killed by signal 9)"), "{text}");
+        assert!(!text.contains("printed above"), "{text}");
+        assert!(text.contains("it printed nothing"), "{text}");
+    }
+
+    fn drain(mut queue: ShardQueue) -> Vec<usize> {
+        std::iter::from_fn(|| queue.pop_front()).collect()
+    }
+
+    #[test]
+    fn the_queue_hands_out_every_missing_shard_in_order_without_a_word_per_shard() {
+        assert_eq!(drain(ShardQueue::without(6, &[])), vec![0, 1, 2, 3, 4, 5]);
+        assert_eq!(drain(ShardQueue::without(6, &[0, 2, 3, 5])), vec![1, 4]);
+        assert_eq!(
+            drain(ShardQueue::without(3, &[0, 1, 2])),
+            Vec::<usize>::new()
+        );
+        let huge = ShardQueue::without(100_000_000, &[]);
+        assert_eq!(huge.ranges.len(), 1);
+        let mut queue = ShardQueue::without(4, &[1]);
+        assert_eq!(queue.pop_front(), Some(0));
+        queue.push_front(0);
+        assert_eq!(drain(queue), vec![0, 2, 3]);
     }
 }

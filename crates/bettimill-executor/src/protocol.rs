@@ -21,6 +21,13 @@
 //! and then exactly one `Done` or `Failed` for that shard. The worker writes the shard to
 //! the dataset directory itself (atomically), so the coordinator never handles sample bytes.
 //!
+//! Liveness: from its handshake on, a worker also sends a `Heartbeat` every
+//! [`HEARTBEAT_INTERVAL`] from a thread of its own, whatever it is doing, so a sample that
+//! takes minutes (a 128^4 sample) still shows a live worker. The coordinator treats a worker
+//! that sends no frame at all for its `--worker-timeout` as frozen (stopped, swapped out,
+//! deadlocked): it kills it and re-queues its shard. Heartbeats may arrive between any two
+//! other frames and carry nothing else.
+//!
 //! Recovery rules: end of file at a frame boundary means the peer closed the session
 //! ([`read_frame`] returns `None`); end of file inside a frame, a length of zero or above
 //! [`MAX_FRAME_LEN`], or a payload that does not decode is [`ProtocolError`]. A worker
@@ -34,7 +41,10 @@ use std::io::{Read, Write};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 
 /// The version of the frame payloads after the handshake.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
+
+/// How often a worker sends [`FromWorker::Heartbeat`] (protocol 2 on).
+pub const HEARTBEAT_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// The largest payload either side accepts (messages are small; this bounds memory when the
 /// peer is not a bettimill of this protocol).
@@ -89,6 +99,8 @@ pub enum FromWorker {
         /// Why, in words for the user.
         reason: String,
     },
+    /// The worker is alive (sent every [`HEARTBEAT_INTERVAL`], independently of its work).
+    Heartbeat,
 }
 
 /// Which side of the session a handshake came from.
@@ -335,6 +347,7 @@ mod tests {
                 shard_index: u64::MAX,
                 reason: "é".repeat(100),
             },
+            FromWorker::Heartbeat,
         ];
         let mut bytes = Vec::new();
         for m in &messages {
@@ -356,11 +369,26 @@ mod tests {
 
     #[test]
     fn the_handshake_layout_is_frozen() {
-        // protocol_version varint, then two length-prefixed strings.
+        // protocol_version varint (one byte below 128), then two length-prefixed strings.
         let frame = encode_frame(&hello("0.1.0", "ab"));
         assert_eq!(
             frame,
-            [10, 0, 0, 0, 1, 5, b'0', b'.', b'1', b'.', b'0', 2, b'a', b'b']
+            [
+                10,
+                0,
+                0,
+                0,
+                PROTOCOL_VERSION as u8,
+                5,
+                b'0',
+                b'.',
+                b'1',
+                b'.',
+                b'0',
+                2,
+                b'a',
+                b'b'
+            ]
         );
     }
 

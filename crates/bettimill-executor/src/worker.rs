@@ -180,6 +180,33 @@ pub fn serve(
         .num_threads(1)
         .build()
         .map_err(|e| WorkerError::Pool(e.to_string()))?;
+    // The heartbeat runs on its own thread, so it keeps coming while a sample takes
+    // minutes; it stops when serving ends (or when the pipe breaks: the coordinator is gone).
+    let (stop_heartbeat, heartbeat_stopped) = std::sync::mpsc::channel::<()>();
+    std::thread::scope(|scope| {
+        let send = &send;
+        scope.spawn(move || {
+            while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) =
+                heartbeat_stopped.recv_timeout(protocol::HEARTBEAT_INTERVAL)
+            {
+                if send(&FromWorker::Heartbeat).is_err() {
+                    break;
+                }
+            }
+        });
+        let served = serve_requests(dataset, &pool, &received, &send);
+        drop(stop_heartbeat);
+        served
+    })
+}
+
+/// The request loop of [`serve`].
+fn serve_requests(
+    dataset: &Dataset,
+    pool: &rayon::ThreadPool,
+    received: &std::sync::mpsc::Receiver<Result<ToWorker, ProtocolError>>,
+    send: &(dyn Fn(&FromWorker) -> Result<(), ProtocolError> + Sync),
+) -> Result<(), WorkerError> {
     while let Ok(request) = received.recv() {
         let shard_index = match request? {
             ToWorker::Shutdown => break,

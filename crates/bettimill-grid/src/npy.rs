@@ -344,6 +344,19 @@ fn split_header(bytes: &[u8]) -> Result<(&str, usize), NpyError> {
 fn dict_value<'a>(header: &'a str, key: &str) -> Result<&'a str, NpyError> {
     let needle_single = format!("'{key}'");
     let needle_double = format!("\"{key}\"");
+    // A key given twice is ambiguous (numpy's dict literal keeps the last, a reader that
+    // takes the first sees another array): refuse it.
+    let as_key = |needle: &String| {
+        header
+            .match_indices(needle.as_str())
+            .filter(|(i, _)| header[i + needle.len()..].trim_start().starts_with(':'))
+            .count()
+    };
+    if as_key(&needle_single) + as_key(&needle_double) > 1 {
+        return Err(NpyError::Format(format!(
+            "header gives '{key}' more than once (numpy would use the last one); refusing an ambiguous header"
+        )));
+    }
     let pos = header
         .find(&needle_single)
         .or_else(|| header.find(&needle_double))
@@ -613,6 +626,27 @@ mod tests {
             read_bytes(&text, false),
             Err(NpyError::Truncated { .. })
         ));
+    }
+
+    #[test]
+    fn a_header_with_a_key_twice_is_refused() {
+        let img = BinaryImage::zeros(&[2, 3]).unwrap();
+        let good = write_bytes(&img, Dtype::U8);
+        // Same length, so the header stays aligned: the second descr replaces padding.
+        let (old, new) = (
+            b"'shape': (2, 3), }".as_slice(),
+            b"'shape': (2, 3), 'descr': '<i8', }".as_slice(),
+        );
+        let at = good.windows(old.len()).position(|w| w == old).unwrap();
+        let mut twice = good[..at].to_vec();
+        twice.extend_from_slice(new);
+        let rest = &good[at + old.len()..];
+        twice.extend_from_slice(&rest[new.len() - old.len()..]);
+        assert_eq!(twice.len(), good.len());
+        let err = read_bytes(&twice, false).unwrap_err().to_string();
+        assert!(err.contains("'descr' more than once"), "{err}");
+        assert!(err.contains("numpy would use the last"), "{err}");
+        read_bytes(&good, false).unwrap();
     }
 
     #[test]

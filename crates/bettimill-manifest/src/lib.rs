@@ -388,16 +388,47 @@ impl Manifest {
     pub fn parse(text: &str, path: &Path) -> Result<Manifest, ManifestError> {
         let source = Source { path, text };
         let mut manifest: Manifest = toml::from_str(text).map_err(|err| {
-            let (line, field) = match err.span() {
+            let (mut line, mut field) = match err.span() {
                 Some(span) => (source.line_at(span.start), source.key_at(span.start)),
                 None => (0, String::from("(file)")),
             };
-            let field = unknown_field_name(err.message()).unwrap_or(field);
+            let mut reason = err.message().trim().to_string();
+            if let Some(name) = unknown_field_name(&reason) {
+                field = name;
+            }
+            if let Some(missing) = missing_field_name(&reason) {
+                // serde points a missing field at the table that lacks it: the whole file
+                // for a top-level field (an empty file included), else the table's header.
+                let top_level = err.span().is_none_or(|span| span.start == 0);
+                field = if top_level || field.is_empty() {
+                    line = 0;
+                    missing
+                } else {
+                    format!("{field}.{missing}")
+                };
+            }
+            let written = err
+                .span()
+                .and_then(|span| text.get(span))
+                .unwrap_or("")
+                .trim();
+            if reason.starts_with("invalid type: map")
+                && written.parse::<toml::value::Datetime>().is_ok()
+            {
+                // TOML date-times reach serde as a private map; say what was written.
+                reason = reason.replacen("invalid type: map", "invalid type: date-time", 1);
+            }
+            if reason.contains("untagged enum Modes") {
+                reason = format!(
+                    "{} is not a mode: write \"embed\", \"carve\" or a list of them such as [\"embed\", \"carve\"]",
+                    truncate(written, 60)
+                );
+            }
             ManifestError::Invalid {
                 path: path.to_path_buf(),
                 line,
-                field,
-                reason: err.message().trim().to_string(),
+                field: truncate(&field, 80),
+                reason: truncate(&reason, MAX_REASON_CHARS),
             }
         })?;
         manifest.validate(&source)?;
@@ -629,6 +660,25 @@ impl Manifest {
         copy.classes.clear();
         serde_json::to_string(&copy).expect("a manifest always serialises")
     }
+}
+
+/// The longest reason a parse error prints: serde's messages quote what they saw, and a
+/// table of 100,000 keys would otherwise make one error line of hundreds of kilobytes.
+pub const MAX_REASON_CHARS: usize = 400;
+
+/// `text` cut to `max` characters, saying how much was left out.
+fn truncate(text: &str, max: usize) -> String {
+    let count = text.chars().count();
+    if count <= max {
+        return text.to_string();
+    }
+    let kept: String = text.chars().take(max).collect();
+    format!("{kept}... ({} more characters)", count - max)
+}
+
+fn missing_field_name(message: &str) -> Option<String> {
+    let rest = message.strip_prefix("missing field `")?;
+    Some(rest.split('`').next()?.to_string())
 }
 
 fn unknown_field_name(message: &str) -> Option<String> {

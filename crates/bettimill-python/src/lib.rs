@@ -429,6 +429,7 @@ fn build<'py>(
                     OsString::from("--dir"),
                     out.as_os_str().to_owned(),
                 ],
+                worker_timeout: coordinator::DEFAULT_WORKER_TIMEOUT,
             };
             // Ctrl-C in Python: the interpreter's handler only sets a flag, so the build
             // asks for it every 100 ms and stops its workers (resumable, like the CLI's).

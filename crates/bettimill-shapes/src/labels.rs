@@ -293,7 +293,22 @@ pub(crate) fn expected(family: &Family, dim: Dim, mode: Mode) -> Result<Betti, S
             Mode::Embed => embed_betti(family, dim),
         };
     }
-    let (z2, q) = embed_betti(family, dim)?;
+    // A carved family is refused in the mode the manifest asked for, not in the embed
+    // mode its numbers are derived from.
+    let (z2, q) = embed_betti(family, dim).map_err(|err| match err {
+        ShapeError::Unsupported {
+            family,
+            dim,
+            reason,
+            ..
+        } => ShapeError::Unsupported {
+            family,
+            dim,
+            mode,
+            reason,
+        },
+        other => other,
+    })?;
     Ok(match mode {
         Mode::Embed => (z2, q),
         Mode::Carve => (dual(&z2), q.map(|q| dual(&q))),

@@ -1,0 +1,263 @@
+//! How much memory a worker needs for a plan, and the refusal of a plan whose samples
+//! cannot fit.
+//!
+//! The estimate is a pure function of the plan (nothing here reads the machine: the caller
+//! passes the limit, see `--max-memory` in the CLI):
+//!
+//! ```text
+//! worker bytes = threads x (PEAK_BYTES_PER_VOXEL[d] x voxels + FIXED_BYTES)   one sample per thread
+//!              + SHARD_COPIES x shard_size x sample_bytes                      the shard being written
+//!                (uncompressed members; with gzip or zstd members: 1 x sample_bytes)
+//! ```
+//!
+//! `PEAK_BYTES_PER_VOXEL` is the peak stage's memory per voxel of the sample's side^d grid
+//! (the image, the homology's padded copy and complex, the deformation's buffers, the
+//! serialised arrays), measured with `/usr/bin/time -v` (maximum resident set) on
+//! one-sample builds of 3D and 4D samples of several sides (docs/reliability.md, "Memory
+//! per sample": 2-18 bytes per voxel without deformation, 10-21 with deformation or
+//! hypervolume targeting), rounded up with room to spare. `sample_bytes` is the plan's upper
+//! bound of one sample's uncompressed bytes in a shard; a worker holds a shard's members and
+//! then its tar, so two copies of an uncompressed shard. With compressed members the shard's
+//! size depends on the data, not the plan: the estimate counts the one sample being
+//! compressed, and the compressed members (a few percent of it for these images) are not
+//! counted.
+//!
+//! Estimates are upper bounds for planning, not promises: a worker that needs more than the
+//! limit is refused before it starts rather than killed by the kernel after minutes.
+
+use crate::Plan;
+
+/// Peak bytes per voxel of one sample, for 2D, 3D and 4D (see the module documentation).
+pub const PEAK_BYTES_PER_VOXEL: [u64; 3] = [24, 24, 16];
+
+/// Memory of a worker process before any sample: the binary, the plan, thread stacks,
+/// allocator arenas.
+pub const FIXED_BYTES: u64 = 32 << 20;
+
+/// Copies of a shard's bytes a worker holds at once while writing it (members, then tar).
+pub const SHARD_COPIES: u64 = 2;
+
+/// A plan whose worker needs more memory than allowed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "one worker of dataset {name} ({dim}D, side {side}: {voxels} voxels a sample, {shard_size} \
+     samples a shard) needs about {need} (estimate: {per_voxel} bytes per voxel + {fixed} a sample, \
+     + {shard} for the shard being written), more than the {limit} allowed per worker \
+     ({limit_origin}); lower `side` or `shard_size` in the manifest, use fewer workers, or raise \
+     --max-memory if the machine really has the memory"
+)]
+pub struct MemoryError {
+    /// The dataset name.
+    pub name: String,
+    /// Number of axes.
+    pub dim: usize,
+    /// Voxels per axis.
+    pub side: u32,
+    /// Voxels of one sample.
+    pub voxels: u64,
+    /// Samples per shard.
+    pub shard_size: u64,
+    /// The estimate, in words (`5.3 GiB`).
+    pub need: String,
+    /// The per-voxel factor used.
+    pub per_voxel: u64,
+    /// The fixed part, in words.
+    pub fixed: String,
+    /// The shard part, in words.
+    pub shard: String,
+    /// The limit, in words.
+    pub limit: String,
+    /// Where the limit came from (`--max-memory 8 GiB`, `80% of MemAvailable ...`).
+    pub limit_origin: String,
+    /// The estimate in bytes.
+    pub need_bytes: u64,
+    /// The limit in bytes.
+    pub limit_bytes: u64,
+}
+
+/// One worker's estimated memory for `plan`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WorkerMemory {
+    /// Voxels of one sample (side^d).
+    pub voxels: u64,
+    /// One sample in flight: `PEAK_BYTES_PER_VOXEL[d] x voxels + FIXED_BYTES`.
+    pub sample_bytes: u64,
+    /// The shard being written: `SHARD_COPIES x shard_size x sample_bytes` uncompressed,
+    /// `sample_bytes` with compressed members.
+    pub shard_bytes: u64,
+}
+
+impl WorkerMemory {
+    /// The estimate of `plan` (saturating: a 4D side 65535 does not overflow).
+    pub fn of(plan: &Plan) -> WorkerMemory {
+        let d = plan.dimension.get();
+        let voxels = (plan.side as u64).saturating_pow(d as u32);
+        WorkerMemory {
+            voxels,
+            sample_bytes: PEAK_BYTES_PER_VOXEL[d - 2]
+                .saturating_mul(voxels)
+                .saturating_add(FIXED_BYTES),
+            shard_bytes: if plan.compression == bettimill_shard::Compression::None {
+                SHARD_COPIES
+                    .saturating_mul(plan.shard_size)
+                    .saturating_mul(plan.sample_bytes)
+            } else {
+                plan.sample_bytes
+            },
+        }
+    }
+
+    /// Bytes of a worker running `threads` samples at once.
+    pub fn total(&self, threads: u64) -> u64 {
+        self.sample_bytes
+            .saturating_mul(threads.max(1))
+            .saturating_add(self.shard_bytes)
+    }
+}
+
+/// Refuses `plan` when one worker running `threads` samples at once needs more than
+/// `limit` bytes; `limit_origin` says where the limit came from, for the message.
+pub fn check(
+    plan: &Plan,
+    threads: u64,
+    limit: u64,
+    limit_origin: &str,
+) -> Result<(), Box<MemoryError>> {
+    let estimate = WorkerMemory::of(plan);
+    let need = estimate.total(threads);
+    if need <= limit {
+        return Ok(());
+    }
+    Err(Box::new(MemoryError {
+        name: plan.name.clone(),
+        dim: plan.dimension.get(),
+        side: plan.side,
+        voxels: estimate.voxels,
+        shard_size: plan.shard_size,
+        need: human_bytes(need),
+        per_voxel: PEAK_BYTES_PER_VOXEL[plan.dimension.get() - 2],
+        fixed: human_bytes(FIXED_BYTES),
+        shard: human_bytes(estimate.shard_bytes),
+        limit: human_bytes(limit),
+        limit_origin: limit_origin.to_string(),
+        need_bytes: need,
+        limit_bytes: limit,
+    }))
+}
+
+/// Bytes in binary units: `512 B`, `5.6 MiB`, `3.2 TiB`.
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 7] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{value:.1} {}", UNITS[unit])
+    }
+}
+
+/// Parses a memory size as written on a command line: a number of bytes, or a number with a
+/// unit `K`, `M`, `G`, `T` (powers of 1024; `KiB`, `MB`, `GB` ... are read the same way).
+pub fn parse_bytes(text: &str) -> Result<u64, String> {
+    let trimmed = text.trim();
+    let split = trimmed
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(trimmed.len());
+    let (number, unit) = trimmed.split_at(split);
+    let value: f64 = number.parse().map_err(|_| {
+        format!("{text:?} is not a memory size (write e.g. 8G, 512M or 1073741824)")
+    })?;
+    let unit = unit.trim().to_ascii_uppercase();
+    let unit = unit.trim_end_matches('B').trim_end_matches('I');
+    let scale: u64 = match unit {
+        "" => 1,
+        "K" => 1 << 10,
+        "M" => 1 << 20,
+        "G" => 1 << 30,
+        "T" => 1 << 40,
+        _ => {
+            return Err(format!(
+                "{text:?} has an unknown unit (use K, M, G or T, powers of 1024)"
+            ))
+        }
+    };
+    let bytes = value * scale as f64;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("{text:?} is not a memory size of at least 1 byte"));
+    }
+    Ok(bytes as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bettimill_manifest::Manifest;
+    use std::path::Path;
+
+    fn plan(dimension: u32, side: u32, shard_size: u64) -> Plan {
+        plan_compressed(dimension, side, shard_size, "none")
+    }
+
+    fn plan_compressed(dimension: u32, side: u32, shard_size: u64, compression: &str) -> Plan {
+        let text = format!(
+            "schema_version = 1\nname = \"m\"\ndimension = {dimension}\nside = {side}\n\
+             mode = \"embed\"\nsamples = 10\nshard_size = {shard_size}\nseed = 1\n\
+             compression = \"{compression}\"\n[[classes]]\nfamily = \"ball\"\n"
+        );
+        Plan::new(&Manifest::parse(&text, Path::new("m.toml")).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn the_estimate_follows_the_documented_formula() {
+        let p = plan(4, 32, 4);
+        let m = WorkerMemory::of(&p);
+        assert_eq!(m.voxels, 1 << 20);
+        assert_eq!(
+            m.sample_bytes,
+            PEAK_BYTES_PER_VOXEL[2] * (1 << 20) + FIXED_BYTES
+        );
+        assert_eq!(m.shard_bytes, SHARD_COPIES * 4 * p.sample_bytes);
+        assert_eq!(m.total(2), 2 * m.sample_bytes + m.shard_bytes);
+        // Compressed members: the one sample being compressed.
+        let zstd = plan_compressed(4, 32, 4, "zstd");
+        assert_eq!(WorkerMemory::of(&zstd).shard_bytes, zstd.sample_bytes);
+        // 4D side 256 is 2^32 voxels: far beyond any workstation.
+        let huge = WorkerMemory::of(&plan(4, 256, 1));
+        assert_eq!(huge.voxels, 1 << 32);
+        assert!(huge.total(1) > 64 << 30);
+    }
+
+    #[test]
+    fn a_sample_above_the_limit_is_refused_with_the_numbers() {
+        let p = plan(4, 256, 1);
+        let err = check(&p, 1, 8 << 30, "--max-memory 8G").unwrap_err();
+        let text = err.to_string();
+        for needle in [
+            "side 256",
+            "4294967296 voxels",
+            "8.0 GiB allowed per worker (--max-memory 8G)",
+            "raise --max-memory",
+        ] {
+            assert!(text.contains(needle), "{needle:?} not in {text}");
+        }
+        assert!(err.need_bytes > err.limit_bytes);
+        check(&plan(3, 24, 4), 1, 8 << 30, "x").unwrap();
+    }
+
+    #[test]
+    fn sizes_parse_as_written() {
+        assert_eq!(parse_bytes("1073741824"), Ok(1 << 30));
+        assert_eq!(parse_bytes("8G"), Ok(8 << 30));
+        assert_eq!(parse_bytes("8GiB"), Ok(8 << 30));
+        assert_eq!(parse_bytes("512 MB"), Ok(512 << 20));
+        assert_eq!(parse_bytes("1.5k"), Ok(1536));
+        assert!(parse_bytes("lots").is_err());
+        assert!(parse_bytes("8X").is_err());
+        assert!(parse_bytes("0").is_err());
+    }
+}

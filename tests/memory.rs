@@ -1,0 +1,248 @@
+//! Memory bounds (issue 16, item 3): huge but valid manifests plan and start building in
+//! bounded memory, checked under `ulimit -v` (a process over the limit gets allocation
+//! failures, not swap); a sample too big for a worker's memory limit is refused with the
+//! numbers before anything is written or any worker starts.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+mod common;
+use common::{assert_exit, kill, run, stderr, stdout, text, wait_until, Dir, BETTIMILL};
+
+/// Address space a huge plan or build may use (KiB). The two huge manifests below aborted
+/// allocating 4 GiB and 7 GiB before; a bounded plan needs a few MiB of it (threads and
+/// allocator arenas reserve most of the rest).
+const ULIMIT_KIB: u64 = 1_000_000;
+
+/// The 4D demo with `samples` and `shard_size` replaced.
+fn huge(dir: &Path, samples: u64, shard_size: u64) -> PathBuf {
+    let text = std::fs::read_to_string(common::repo_root().join("manifests/demo-4d.toml"))
+        .unwrap()
+        .replace("samples = 64", &format!("samples = {samples}"))
+        .replace("shard_size = 16", &format!("shard_size = {shard_size}"));
+    let path = dir.join(format!("huge-{samples}-{shard_size}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `bettimill ARGS` under `ulimit -v ULIMIT_KIB` (the shell execs it, so the pid is
+/// bettimill's).
+fn limited(args: &[&str]) -> Command {
+    let mut command = Command::new("sh");
+    command
+        .arg("-c")
+        .arg(format!("ulimit -v {ULIMIT_KIB} && exec \"$0\" \"$@\""))
+        .arg(BETTIMILL)
+        .args(args);
+    command
+}
+
+fn tars(dir: &Path) -> usize {
+    std::fs::read_dir(dir.join("shards"))
+        .map(|entries| {
+            entries
+                .filter_map(Result::ok)
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".tar"))
+                .count()
+        })
+        .unwrap_or(0)
+}
+
+#[test]
+fn huge_manifests_plan_under_ulimit() {
+    let tmp = Dir::new();
+    for (samples, shard_size, shards) in [
+        (1_000_000_000u64, 40u64, "25000000 shards"),
+        (100_000_000, 1, "100000000 shards"),
+    ] {
+        let m = huge(tmp.path(), samples, shard_size);
+        let out: Output = limited(&["plan", m.to_str().unwrap()]).output().unwrap();
+        assert_exit(&out, 0);
+        assert!(stdout(&out).contains(shards), "{}", stdout(&out));
+        assert!(
+            stdout(&out).contains("worker memory: about"),
+            "{}",
+            stdout(&out)
+        );
+    }
+}
+
+#[test]
+fn huge_manifests_build_and_resume_under_ulimit() {
+    let tmp = Dir::new();
+    for (samples, shard_size) in [(1_000_000_000u64, 40u64), (100_000_000, 1)] {
+        let m = huge(tmp.path(), samples, shard_size);
+        let out = tmp.path().join(format!("out-{samples}-{shard_size}"));
+        // Twice: a new build, then a resume of it; each writes shards, then is interrupted.
+        for round in 1..=2 {
+            let before = tars(&out);
+            let mut child = limited(&[
+                "build",
+                m.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--workers",
+                "1",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+            wait_until(
+                "a shard of the huge build",
+                Duration::from_secs(120),
+                || tars(&out) > before || child.try_wait().unwrap().is_some(),
+            );
+            kill("-INT", child.id());
+            let result = child.wait_with_output().unwrap();
+            let err = text(&result.stderr);
+            assert_eq!(
+                result.status.code(),
+                Some(130),
+                "{samples}/{shard_size} round {round}: {err}"
+            );
+            assert!(err.contains("interrupted:"), "{err}");
+            assert!(!err.contains("memory allocation"), "{err}");
+        }
+    }
+}
+
+fn with_side(dir: &Path, side: u32) -> PathBuf {
+    let text = std::fs::read_to_string(common::repo_root().join("manifests/demo-4d.toml"))
+        .unwrap()
+        .replace("side = 32", &format!("side = {side}"));
+    let path = dir.join(format!("side-{side}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn a_4d_side_256_sample_is_refused_with_the_numbers_before_any_worker_starts() {
+    let tmp = Dir::new();
+    let m = with_side(tmp.path(), 256);
+    let m = m.to_str().unwrap();
+    let expected = [
+        "4D, side 256: 4294967296 voxels a sample",
+        "needs about 68.0 GiB",
+        "16.0 GiB allowed per worker (--max-memory 16.0 GiB)",
+    ];
+    let out = run(&["plan", m, "--max-memory", "16G"]);
+    assert_exit(&out, 2);
+    // The plan is printed, then refused.
+    assert!(stdout(&out).contains("worker memory: about 68.0 GiB"));
+    for needle in expected {
+        assert!(
+            stderr(&out).contains(needle),
+            "{needle:?}: {}",
+            stderr(&out)
+        );
+    }
+    let dir = tmp.path().join("out");
+    let out = run(&[
+        "build",
+        m,
+        "--out",
+        dir.to_str().unwrap(),
+        "--max-memory",
+        "16G",
+    ]);
+    assert_exit(&out, 2);
+    for needle in expected {
+        assert!(
+            stderr(&out).contains(needle),
+            "{needle:?}: {}",
+            stderr(&out)
+        );
+    }
+    assert!(!dir.exists(), "a refused build wrote {}", dir.display());
+    // The same plan with the memory it needs is accepted by plan.
+    let out = run(&["plan", m, "--max-memory", "80G"]);
+    assert_exit(&out, 0);
+}
+
+#[test]
+fn the_memory_limit_is_shared_by_the_workers_and_checked_by_each_worker() {
+    let tmp = Dir::new();
+    let m = with_side(tmp.path(), 32);
+    let m = m.to_str().unwrap();
+    // One 32^4 worker: 16 B x 2^20 voxels + 32 MiB + one sample's bytes (gzip) = 49 MiB.
+    let out = run(&["plan", m, "--max-memory", "40M"]);
+    assert_exit(&out, 2);
+    assert!(
+        stderr(&out).contains("needs about 49.0 MiB"),
+        "{}",
+        stderr(&out)
+    );
+    let dir = tmp.path().join("out");
+    let out = run(&[
+        "build",
+        m,
+        "--out",
+        dir.to_str().unwrap(),
+        "--max-memory",
+        "1G",
+        "--workers",
+        "2",
+    ]);
+    assert_exit(&out, 0);
+    // A worker (an array task with 2 threads) refuses a limit its two samples exceed.
+    let out = run(&[
+        "worker",
+        "--dir",
+        dir.to_str().unwrap(),
+        "--task-index",
+        "0",
+        "--task-count",
+        "1",
+        "--threads",
+        "2",
+        "--max-memory",
+        "60M",
+    ]);
+    assert_exit(&out, 2);
+    assert!(
+        stderr(&out).contains("needs about 97.0 MiB"),
+        "{}",
+        stderr(&out)
+    );
+    // Sizes that are not sizes are refused by name.
+    let out = run(&["plan", m, "--max-memory", "lots"]);
+    assert_exit(&out, 2);
+    assert!(
+        stderr(&out).contains("is not a memory size"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn slurm_checks_one_array_task_and_asks_for_its_memory() {
+    let tmp = Dir::new();
+    let m = with_side(tmp.path(), 32);
+    let m = m.to_str().unwrap();
+    let dir = tmp.path().join("cluster");
+    let d = dir.to_str().unwrap();
+    // Two CPUs a task: two 32^4 samples at once need about 97 MiB.
+    let out = run(&[
+        "slurm",
+        m,
+        "--out",
+        d,
+        "--cpus-per-task",
+        "2",
+        "--max-memory",
+        "60M",
+    ]);
+    assert_exit(&out, 2);
+    assert!(
+        stderr(&out).contains("needs about 97.0 MiB"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!dir.exists(), "a refused slurm wrote {d}");
+    let out = run(&["slurm", m, "--out", d, "--max-memory", "1G"]);
+    assert_exit(&out, 0);
+    let script = std::fs::read_to_string(dir.join("slurm/build.sbatch")).unwrap();
+    assert!(script.contains("#SBATCH --mem=1024M"), "{script}");
+}
