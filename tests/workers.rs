@@ -293,7 +293,18 @@ fn a_worker_of_another_version_is_refused_with_what_to_do() {
 /// `bettimill build MANIFEST --out OUT --workers 1 --worker-timeout SECONDS` in the
 /// background; stdout discarded, stderr captured.
 fn spawn_build_with_timeout(manifest: &Path, out: &Path, seconds: u32) -> Child {
+    spawn_build_with_timeout_env(manifest, out, seconds, &[])
+}
+
+/// [`spawn_build_with_timeout`] with extra environment variables.
+fn spawn_build_with_timeout_env(
+    manifest: &Path,
+    out: &Path,
+    seconds: u32,
+    env: &[(&str, &str)],
+) -> Child {
     common::bettimill()
+        .envs(env.iter().copied())
         .args(["build", manifest.to_str().unwrap(), "--out"])
         .arg(out)
         .args(["--workers", "1", "--worker-timeout", &seconds.to_string()])
@@ -338,19 +349,20 @@ fn a_frozen_worker_is_killed_after_the_worker_timeout_and_the_build_is_identical
 #[test]
 fn a_worker_busy_with_one_long_sample_is_kept_alive_by_its_heartbeat() {
     let tmp = Dir::new();
-    // One 4D sample of side 96 (85 M voxels) takes several seconds (10 s on the 2-core
-    // build machine), longer than the 3 s timeout: only the heartbeat, not progress, shows
-    // the worker alive meanwhile.
-    let m = manifest(tmp.path(), 4, 96, 1, 1);
+    // The worker is held for 6 s inside its shard, between writing the tar and renaming it
+    // (the documented test hook), sending nothing but heartbeats: twice the 3 s timeout,
+    // whatever the machine's speed (a real sample's time would depend on it).
+    let m = manifest(tmp.path(), 2, 16, 2, 2);
     let out = tmp.path().join("slow");
     let started = std::time::Instant::now();
-    let (code, stderr) = finish(spawn_build_with_timeout(&m, &out, 3));
+    let (code, stderr) = finish(spawn_build_with_timeout_env(
+        &m,
+        &out,
+        3,
+        &[("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "6")],
+    ));
     assert_eq!(code, Some(0), "{stderr}");
-    assert!(
-        started.elapsed() > Duration::from_secs(4),
-        "the sample took {:?}; the test needs a sample slower than the timeout",
-        started.elapsed()
-    );
+    assert!(started.elapsed() > Duration::from_secs(6));
     assert!(stderr.contains("0 retried shard attempts"), "{stderr}");
     assert!(!stderr.contains("heartbeat"), "{stderr}");
 }
