@@ -279,6 +279,22 @@ fn every_file_a_build_writes_is_listed_in_the_index_and_checked_by_verify() {
         std::fs::write(&path, &original).unwrap();
     }
     assert!(bettimill(&["verify", o]).status.success());
+    // The index's own identity is checked against build.json.
+    let index_path = out.join("index.json");
+    let text = std::fs::read_to_string(&index_path).unwrap();
+    let wrong = text.replace(
+        &format!("\"manifest_hash\": \"{}\"", index.header.manifest_hash),
+        &format!("\"manifest_hash\": \"{}\"", "0".repeat(64)),
+    );
+    assert_ne!(wrong, text);
+    std::fs::write(&index_path, wrong).unwrap();
+    let found = bettimill(&["verify", o]);
+    let stdout = String::from_utf8_lossy(&found.stdout);
+    assert_eq!(found.status.code(), Some(1), "{stdout}");
+    assert!(
+        stdout.contains("index.json: manifest_hash is 000") && stdout.contains("build.json says"),
+        "{stdout}"
+    );
 }
 
 #[test]

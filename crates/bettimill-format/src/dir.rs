@@ -504,12 +504,33 @@ impl DatasetDir {
                 Err(err) => Err(err.to_string()),
             }
         };
-        Ok(shard::verify_with_progress(
-            &self.root,
-            REQUIRED_FILES,
-            &mut records,
-            progress,
-        )?)
+        let mut report =
+            shard::verify_with_progress(&self.root, REQUIRED_FILES, &mut records, progress)?;
+        // The index's identity must be the directory's: build.json is itself covered by the
+        // index's `files`, so an edit of either is found.
+        if let Some(header) = report.header.clone() {
+            match self.read_build_info() {
+                Ok(info) => {
+                    for (field, indexed, built) in [
+                        ("tool_version", &header.tool_version, &info.tool_version),
+                        ("manifest_hash", &header.manifest_hash, &info.manifest_hash),
+                        ("plan_hash", &header.plan_hash, &info.plan_hash),
+                    ] {
+                        if indexed != built {
+                            report.problems.push(shard::Problem::File {
+                                path: INDEX_FILE.into(),
+                                reason: format!("{field} is {indexed}, build.json says {built}"),
+                            });
+                        }
+                    }
+                }
+                Err(err) => report.problems.push(shard::Problem::File {
+                    path: BUILD_INFO_FILE.into(),
+                    reason: err.to_string(),
+                }),
+            }
+        }
+        Ok(report)
     }
 
     /// Reads `index.json` through once, if it exists, and says why it cannot be used (such

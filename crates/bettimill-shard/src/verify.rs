@@ -268,6 +268,9 @@ pub struct VerifyReport {
     pub files_checked: u64,
     /// Every problem, in index order, then extra files in path order.
     pub problems: Vec<Problem>,
+    /// The index's header, for checks of the caller's own (not in the JSON report).
+    #[serde(skip)]
+    pub header: Option<crate::IndexHeader>,
 }
 
 impl VerifyReport {
@@ -359,6 +362,7 @@ pub fn verify_with_progress(
             });
         }
     }
+    report.header = Some(header);
     let mut found = Vec::new();
     list_files(dir, Path::new("shards"), &mut found, &mut report.problems);
     found.sort();
