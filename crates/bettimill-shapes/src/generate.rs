@@ -116,37 +116,15 @@ fn object_minima(
         .collect()
 }
 
-/// One random instance with its label ([`crate::generate`]).
-pub(crate) fn generate(
-    family: &Family,
-    dim: Dim,
-    side: usize,
-    mode: Mode,
-    rng: &mut ChaCha8Rng,
-) -> Result<Generated, ShapeError> {
-    generate_sized(family, dim, side, mode, rng, true)
-}
-
-/// [`generate`], with the size checks (`check`) or without them, for a request
-/// [`check_fits`] has accepted ([`crate::generate_planned`]). The checks draw nothing from
-/// `rng`, so both give the same voxels.
-pub(crate) fn generate_sized(
-    family: &Family,
-    dim: Dim,
-    side: usize,
-    mode: Mode,
-    rng: &mut ChaCha8Rng,
-    check: bool,
-) -> Result<Generated, ShapeError> {
-    generate_for(family, dim, side, mode, rng, check, None)
-}
-
 /// The smallest and largest share of the image the cavities of a sample sized for a
 /// hypervolume take (carve mode); the solid box is sized around them. The same range for
 /// every family, so neither the cavities' volume nor the box's size tells the class.
 pub(crate) const CAVITY_SHARE: (f64, f64) = (0.002, 0.01);
 
-/// [`generate_sized`], and with `foreground` the construction sized so that its
+/// One random instance with its label ([`crate::generate`]), with the size checks
+/// (`check`) or without them, for a request [`check_fits`] has accepted
+/// ([`crate::generate_planned`]; the checks draw nothing from `rng`, so both give the same
+/// voxels); and with `foreground` the construction sized so that its
 /// foreground count lands near that many voxels: in carve mode a solid box of nearly
 /// equal sides (instead of the full cube) sized around cavities of a random share
 /// [`CAVITY_SHARE`] of the image, the cavities sized by bisection for the rest; in embed
@@ -490,5 +468,13 @@ pub fn paper_scene_family() -> Family {
 
 /// One random instance of [`paper_scene_family`] in a 3D image of side `side`, embed mode.
 pub fn paper_scene_3d(side: usize, rng: &mut ChaCha8Rng) -> Result<Generated, ShapeError> {
-    generate(&paper_scene_family(), Dim::Three, side, Mode::Embed, rng)
+    generate_for(
+        &paper_scene_family(),
+        Dim::Three,
+        side,
+        Mode::Embed,
+        rng,
+        true,
+        None,
+    )
 }

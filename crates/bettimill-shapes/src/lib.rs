@@ -279,6 +279,16 @@ impl Family {
         labels::expected(self, dim, mode).map(|(z2, _)| z2)
     }
 
+    /// Analytic Betti numbers over Z/2 and, where they differ (the Klein bottle), over Q:
+    /// what every sample of this family records in `betti` and `betti_rational`.
+    pub fn expected_label(
+        &self,
+        dim: Dim,
+        mode: Mode,
+    ) -> Result<(Vec<u64>, Option<Vec<u64>>), ShapeError> {
+        labels::expected(self, dim, mode)
+    }
+
     /// Analytic Betti numbers over Q (differ from Z/2 only for the Klein bottle).
     pub fn expected_betti_rational(&self, dim: Dim, mode: Mode) -> Result<Vec<u64>, ShapeError> {
         labels::expected(self, dim, mode).map(|(z2, q)| q.unwrap_or(z2))
@@ -371,7 +381,7 @@ pub fn generate(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate(family, dim, side, mode, rng)
+    generate::generate_for(family, dim, side, mode, rng, true, None)
 }
 
 /// [`generate`] for a request that [`Family::check_fits`] has accepted, as the plan does for
@@ -385,7 +395,7 @@ pub fn generate_planned(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_sized(family, dim, side, mode, rng, false)
+    generate::generate_for(family, dim, side, mode, rng, false, None)
 }
 
 /// [`generate_planned`] sized for a hypervolume: the construction's sizes are chosen so
