@@ -52,6 +52,15 @@ pub struct Stratum {
     pub hypervolume: Option<(u64, u64)>,
     /// Analytic Betti numbers over Z/2.
     pub betti: Vec<u64>,
+    /// Analytic Betti numbers over Q where they differ from [`Stratum::betti`] (the Klein
+    /// bottle), else `None`. Like [`Stratum::knot_type`] it is a function of the family,
+    /// dimension and mode, which the plan hash covers, so it is left out of the hash (and
+    /// of the serialised plan).
+    #[serde(skip)]
+    pub betti_rational: Option<Vec<u64>>,
+    /// The `knot_type` every sample of the stratum records (`"trefoil"`, `"none"`, ...).
+    #[serde(skip)]
+    pub knot_type: String,
     /// A short human-readable name.
     pub label: String,
 }
@@ -332,7 +341,7 @@ impl Plan {
                     components: stratum.components,
                     hypervolume_bin: stratum.hypervolume,
                     betti: stratum.betti.clone(),
-                    knot_type: stratum.family.knot_type(self.dimension, stratum.mode),
+                    knot_type: stratum.knot_type.clone(),
                     topology_class: 0,
                     samples,
                 })
@@ -569,13 +578,10 @@ fn strata(
             for &copies in &components {
                 let family = class_with_copies(class, copies);
                 // Whether a combination can be built does not depend on the bin.
+                let dim = manifest.dimension;
                 let checked = family
-                    .expected_betti(manifest.dimension, mode)
-                    .and_then(|betti| {
-                        family
-                            .check_fits(manifest.dimension, side, mode)
-                            .map(|_| betti)
-                    })
+                    .expected_label(dim, mode)
+                    .and_then(|label| family.check_fits(dim, side, mode).map(|_| label))
                     .map_err(|err| err.to_string());
                 for &bin in &bins {
                     let mut label = format!("{}/{}", class.label(), mode_name(mode));
@@ -586,7 +592,7 @@ fn strata(
                         label.push_str(&format!("/hv{lo}-{hi}"));
                     }
                     match &checked {
-                        Ok(betti) => strata.push(Stratum {
+                        Ok((betti, rational)) => strata.push(Stratum {
                             index: strata.len(),
                             manifest_class,
                             label,
@@ -595,6 +601,8 @@ fn strata(
                             components: copies,
                             hypervolume: bin,
                             betti: betti.clone(),
+                            betti_rational: rational.clone(),
+                            knot_type: family.knot_type(dim, mode),
                         }),
                         Err(reason) => {
                             if !reasons.contains(reason) {
@@ -882,6 +890,47 @@ family = "ball"
             .map(|s| (s.betti.clone(), s.knot_type.clone()))
             .collect();
         assert_eq!(table.topology_classes, distinct.len());
+    }
+
+    #[test]
+    fn the_plan_decides_every_analytic_label_field_once() {
+        let text = r#"
+schema_version = 1
+name = "klein"
+dimension = 4
+side = 32
+mode = ["embed", "carve"]
+samples = 4
+shard_size = 4
+seed = 1
+
+[[classes]]
+family = ["klein_bottle", "handle"]
+"#;
+        let plan = plan(text).unwrap();
+        let labels: Vec<_> = plan
+            .strata
+            .iter()
+            .map(|s| {
+                (
+                    s.label.as_str(),
+                    s.betti_rational.clone(),
+                    s.knot_type.as_str(),
+                )
+            })
+            .collect();
+        assert_eq!(
+            labels,
+            [
+                ("klein_bottle/embed", Some(vec![1, 1, 0, 0]), "none"),
+                ("klein_bottle/carve", Some(vec![1, 0, 1, 1]), "none"),
+                ("handle/embed", None, "none"),
+                ("handle/carve", None, "none"),
+            ]
+        );
+        // Derived from what the hash covers, so not in it: the serialised plan has neither.
+        let json = serde_json::to_string(&plan).unwrap();
+        assert!(!json.contains("betti_rational") && !json.contains("knot_type"));
     }
 
     proptest::proptest! {

@@ -236,9 +236,15 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
                 continue;
             }
         }
-        // The label is the plan's: the stratum's analytic numbers, decided once.
+        // The label is the plan's: the stratum's analytic numbers and knot type, decided
+        // once. The construction's own claim is only a cross-check.
         debug_assert_eq!(
-            generated.betti, stratum.betti,
+            (
+                &generated.betti,
+                &generated.betti_rational,
+                &generated.knot_type
+            ),
+            (&stratum.betti, &stratum.betti_rational, &stratum.knot_type),
             "the construction and the plan disagree on {}",
             stratum.label
         );
@@ -269,7 +275,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
         let label = Label {
             key: task.key.clone(),
             betti: topology.betti,
-            betti_rational: generated.betti_rational,
+            betti_rational: stratum.betti_rational.clone(),
             field: "Z/2".to_string(),
             euler: topology.euler,
             hypervolume: image.count_foreground(),
@@ -278,7 +284,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
             dim: plan.dimension.get(),
             mode: mode_name(stratum.mode).to_string(),
             family: stratum.family.label(),
-            knot_type: generated.knot_type,
+            knot_type: stratum.knot_type.clone(),
             stratum: stratum.index,
             class_label: stratum.label.clone(),
             seed: hex(&task.seed),
