@@ -616,6 +616,53 @@ impl<'de> serde::de::Visitor<'de> for FilesSeed {
     }
 }
 
+/// The most splits an index may list shards of (the plan refuses a manifest with more).
+pub const MAX_INDEX_SPLITS: usize = 1024;
+
+/// The order the index lists its shards in: the plan's, i.e. each split's shards in one
+/// run, their names increasing (a shorter name first, so `NAME-999999` comes before
+/// `NAME-1000000`). Checking it needs the previous name and the splits already passed,
+/// not every name: a shard listed twice is found in memory that does not grow with the
+/// index.
+#[derive(Default)]
+struct ShardOrder {
+    passed: BTreeSet<String>,
+    previous: Option<(String, String)>,
+}
+
+impl ShardOrder {
+    fn next(&mut self, shard: &IndexShard) -> Result<(), String> {
+        let name = &shard.name;
+        if let Some((split, previous)) = &self.previous {
+            if *split == shard.split {
+                if previous == name {
+                    return Err(format!("shard {name:?} is listed twice"));
+                }
+                if (previous.len(), previous) > (name.len(), name) {
+                    return Err(format!(
+                        "shard {name:?} is listed after {previous:?}: a split's shards are listed in increasing order"
+                    ));
+                }
+            } else {
+                self.passed.insert(split.clone());
+                if self.passed.len() >= MAX_INDEX_SPLITS {
+                    return Err(format!(
+                        "shards of more than {MAX_INDEX_SPLITS} splits are listed"
+                    ));
+                }
+                if self.passed.contains(&shard.split) {
+                    return Err(format!(
+                        "shard {name:?} of split {:?} is listed after another split's: each split's shards are listed together",
+                        shard.split
+                    ));
+                }
+            }
+        }
+        self.previous = Some((shard.split.clone(), name.clone()));
+        Ok(())
+    }
+}
+
 struct ShardsSeed<'a> {
     header: &'a IndexHeader,
     each: &'a mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
@@ -639,7 +686,7 @@ impl<'de> serde::de::Visitor<'de> for ShardsSeed<'_> {
 
     fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
         use serde::de::Error;
-        let mut seen = BTreeSet::new();
+        let mut order = ShardOrder::default();
         let (mut shards, mut samples) = (0u64, 0u64);
         let mut refuse = |reason: String| {
             *self.refusal = Some(reason.clone());
@@ -647,9 +694,7 @@ impl<'de> serde::de::Visitor<'de> for ShardsSeed<'_> {
         };
         while let Some(shard) = seq.next_element::<IndexShard>()? {
             check_shard_name(&shard.name).map_err(&mut refuse)?;
-            if !seen.insert(shard.name.clone()) {
-                return Err(refuse(format!("shard {:?} is listed twice", shard.name)));
-            }
+            order.next(&shard).map_err(&mut refuse)?;
             shards += 1;
             samples = samples.saturating_add(shard.samples);
             (self.each)(self.header, shard).map_err(&mut refuse)?;
@@ -923,6 +968,53 @@ mod tests {
     }
 
     #[test]
+    fn shards_are_checked_in_plan_order_holding_one_name() {
+        let shard = |split: &str, name: &str| IndexShard {
+            name: name.into(),
+            split: split.into(),
+            samples: 1,
+            bytes: 0,
+            blake3: String::new(),
+            first_key: String::new(),
+            last_key: String::new(),
+            record_blake3: String::new(),
+        };
+        let mut order = ShardOrder::default();
+        for (split, name) in [
+            ("train", "shards/d-train-999999.tar"),
+            ("train", "shards/d-train-1000000.tar"),
+            ("val", "shards/d-val-000000.tar"),
+            ("test", "shards/d-test-000000.tar"),
+        ] {
+            order.next(&shard(split, name)).unwrap();
+        }
+        let err = order
+            .next(&shard("val", "shards/d-val-000001.tar"))
+            .unwrap_err();
+        assert!(err.contains("listed together"), "{err}");
+        let mut order = ShardOrder::default();
+        order.next(&shard("train", "shards/d-000002.tar")).unwrap();
+        let err = order
+            .next(&shard("train", "shards/d-000001.tar"))
+            .unwrap_err();
+        assert!(err.contains("increasing order"), "{err}");
+        let err = order
+            .next(&shard("train", "shards/d-000002.tar"))
+            .unwrap_err();
+        assert!(err.contains("listed twice"), "{err}");
+        let mut order = ShardOrder::default();
+        let too_many: Result<Vec<()>, String> = (0..=MAX_INDEX_SPLITS)
+            .map(|i| {
+                order.next(&shard(
+                    &format!("s{i}"),
+                    &format!("shards/d-s{i}-000000.tar"),
+                ))
+            })
+            .collect();
+        assert!(too_many.unwrap_err().contains("splits"));
+    }
+
+    #[test]
     fn index_round_trips_and_validates() {
         let (_, record) = build_shard(
             "shards/t-000000.tar",
@@ -986,12 +1078,19 @@ mod tests {
         let mut evil = index.clone();
         evil.shards[0].name = "shards/../../etc/passwd".into();
         assert!(Index::from_json_bytes(&evil.to_json_bytes(), path).is_err());
+        // A shard listed twice is caught next to itself, or as out of plan order.
         let mut twice = index.clone();
-        twice.shards.push(entry.clone());
+        twice.shards.insert(1, twice.shards[0].clone());
         twice.header.shard_count += 1;
-        twice.header.samples += 1;
+        twice.header.samples += twice.shards[0].samples;
         let err = Index::from_json_bytes(&twice.to_json_bytes(), path).unwrap_err();
         assert!(err.to_string().contains("listed twice"), "{err}");
+        let mut later = index.clone();
+        later.shards.push(entry.clone());
+        later.header.shard_count += 1;
+        later.header.samples += 1;
+        let err = Index::from_json_bytes(&later.to_json_bytes(), path).unwrap_err();
+        assert!(err.to_string().contains("listed together"), "{err}");
         let mut lying = index.clone();
         lying.header.samples += 1;
         let err = Index::from_json_bytes(&lying.to_json_bytes(), path).unwrap_err();

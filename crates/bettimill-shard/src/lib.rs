@@ -31,7 +31,7 @@ pub use error::ShardError;
 pub use index::{
     blake3_hex, build_shard, count_samples, read_index, read_index_from, wids_index, Index,
     IndexFile, IndexHeader, IndexShard, IndexWriter, MemberRecord, ShardRecord, WidsWriter,
-    INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES,
+    INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES, MAX_INDEX_SPLITS,
 };
 pub use ustar::{
     read_tar, read_tar_with_limit, split_key, tar_bytes, tar_entries, Member, TarEntry,

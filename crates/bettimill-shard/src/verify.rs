@@ -15,8 +15,11 @@
 //! every problem reported; only an unreadable or invalid `index.json` is an error. The
 //! index is read one shard at a time, and a shard is first compared with its record by
 //! size and a blake3 streamed through a fixed buffer ([`file_matches`]); only a shard that
-//! differs is read whole, to localise the damage. So memory does not grow with samples or
-//! shards (apart from the set of shard names, kept to report extra files).
+//! differs is read whole, to localise the damage. Extra files under `shards/` are found by
+//! counting: the index lists each name once (in plan order, checked holding one name), so
+//! if `shards/` holds as many files as the listed shards that exist, none is extra; only
+//! when the counts differ are the names found there kept, to say which. So memory does not
+//! grow with samples or shards.
 
 use crate::index::{blake3_hex, count_samples, read_index, IndexShard, ShardRecord};
 use crate::ustar::{self, BLOCK};
@@ -328,7 +331,9 @@ pub fn verify_with_progress(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<VerifyReport, ShardError> {
     let mut report = VerifyReport::default();
-    let mut listed = BTreeSet::new();
+    // Listed shards that are files: if `shards/` holds as many files, none is extra (the
+    // index lists every name once), so no list of names is kept.
+    let mut listed_files = 0u64;
     let mut started = false;
     let header = read_index(&dir.join("index.json"), &mut |header, entry| {
         if !started {
@@ -338,7 +343,7 @@ pub fn verify_with_progress(
         report.shards_checked += 1;
         report.samples_checked += entry.samples;
         check_entry(dir, &entry, records, &mut report);
-        listed.insert(entry.name);
+        listed_files += u64::from(dir.join(&entry.name).is_file());
         progress(report.shards_checked, header.shard_count);
         Ok(())
     })?;
@@ -363,12 +368,31 @@ pub fn verify_with_progress(
         }
     }
     report.header = Some(header);
-    let mut found = Vec::new();
-    list_files(dir, Path::new("shards"), &mut found, &mut report.problems);
-    found.sort();
-    for relative in found {
-        if !listed.contains(relative.as_str()) {
-            report.problems.push(Problem::ExtraFile { path: relative });
+    let mut on_disk = 0u64;
+    walk_files(
+        dir,
+        Path::new("shards"),
+        &mut |_| on_disk += 1,
+        &mut report.problems,
+    );
+    if on_disk != listed_files {
+        // Something is extra: only now are names kept, those of the files found (the
+        // index is read a second time to strike out the listed ones).
+        let mut found = BTreeSet::new();
+        walk_files(
+            dir,
+            Path::new("shards"),
+            &mut |name| {
+                found.insert(name);
+            },
+            &mut Vec::new(),
+        );
+        read_index(&dir.join("index.json"), &mut |_, entry| {
+            found.remove(&entry.name);
+            Ok(())
+        })?;
+        for path in found {
+            report.problems.push(Problem::ExtraFile { path });
         }
     }
     Ok(report)
@@ -584,8 +608,14 @@ fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Prob
     }
 }
 
-/// Collects the files under `dir/relative`, as `/`-separated paths relative to `dir`.
-fn list_files(dir: &Path, relative: &Path, found: &mut Vec<String>, problems: &mut Vec<Problem>) {
+/// Calls `found` with every file under `dir/relative`, as a `/`-separated path relative to
+/// `dir`, in directory order (nothing is collected).
+fn walk_files(
+    dir: &Path,
+    relative: &Path,
+    found: &mut dyn FnMut(String),
+    problems: &mut Vec<Problem>,
+) {
     let full: PathBuf = dir.join(relative);
     let entries = match std::fs::read_dir(&full) {
         Ok(entries) => entries,
@@ -598,28 +628,27 @@ fn list_files(dir: &Path, relative: &Path, found: &mut Vec<String>, problems: &m
             return;
         }
     };
-    let mut children = Vec::new();
     for entry in entries {
-        match entry {
-            Ok(entry) => children.push(entry),
-            Err(e) => problems.push(Problem::Unreadable {
-                path: full.display().to_string(),
-                error: e.to_string(),
-            }),
-        }
-    }
-    children.sort_by_key(|e| e.file_name());
-    for entry in children {
+        let entry = match entry {
+            Ok(entry) => entry,
+            Err(e) => {
+                problems.push(Problem::Unreadable {
+                    path: full.display().to_string(),
+                    error: e.to_string(),
+                });
+                continue;
+            }
+        };
         let child = relative.join(entry.file_name());
         let is_dir = entry.file_type().map(|t| t.is_dir()).unwrap_or(false);
         if is_dir {
-            list_files(dir, &child, found, problems);
+            walk_files(dir, &child, found, problems);
         } else {
             let text: Vec<String> = child
                 .components()
                 .map(|c| c.as_os_str().to_string_lossy().into_owned())
                 .collect();
-            found.push(text.join("/"));
+            found(text.join("/"));
         }
     }
 }
