@@ -139,17 +139,21 @@ fn readers_depend_on_the_format_crate() {
     }
 }
 
-/// A 2D dataset of 4 balls in two shards, built in `dir`: the manifest's path and the
-/// output directory.
+/// A 2D dataset of 4 balls in two shards ([`SMALL`]), built in `dir`: the manifest's path
+/// and the output directory.
 fn built_dataset(dir: &Path) -> (PathBuf, PathBuf) {
+    built_from(dir, SMALL, "out")
+}
+
+const SMALL: &str =
+    "schema_version = 1\nname = \"v\"\ndimension = 2\nside = 16\nmode = [\"embed\"]\n\
+     samples = 4\nshard_size = 2\nseed = 1\n\n[[classes]]\nfamily = \"ball\"\n";
+
+/// Writes `text` as `DIR/m.toml` and builds it into `DIR/out_name` with one worker.
+fn built_from(dir: &Path, text: &str, out_name: &str) -> (PathBuf, PathBuf) {
     let manifest = dir.join("m.toml");
-    std::fs::write(
-        &manifest,
-        "schema_version = 1\nname = \"v\"\ndimension = 2\nside = 16\nmode = [\"embed\"]\n\
-         samples = 4\nshard_size = 2\nseed = 1\n\n[[classes]]\nfamily = \"ball\"\n",
-    )
-    .unwrap();
-    let out = dir.join("out");
+    std::fs::write(&manifest, text).unwrap();
+    let out = dir.join(out_name);
     let built = bettimill(&[
         "build",
         manifest.to_str().unwrap(),
@@ -300,29 +304,14 @@ fn every_file_a_build_writes_is_listed_in_the_index_and_checked_by_verify() {
 #[test]
 fn classes_json_says_what_every_cls_of_the_dataset_means() {
     let tmp = tempfile::tempdir().unwrap();
-    let (manifest, _) = built_dataset(tmp.path());
     // Two modes and two classes of equal Betti numbers in 2D (a handle embedded, a ball
     // carved: both [1, 1]), so strata outnumber topology classes.
-    let text = std::fs::read_to_string(&manifest)
-        .unwrap()
+    let text = SMALL
         .replace("mode = [\"embed\"]", "mode = [\"embed\", \"carve\"]")
         .replace("samples = 4", "samples = 8")
         .replace("side = 16", "side = 24")
         + "\n[[classes]]\nfamily = \"handle\"\n";
-    std::fs::write(&manifest, text).unwrap();
-    let out = tmp.path().join("classes");
-    let built = bettimill(&[
-        "build",
-        manifest.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(
-        built.status.success(),
-        "{}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    let (_, out) = built_from(tmp.path(), &text, "classes");
     let table = bettimill_format::DatasetDir::new(&out)
         .read_class_table()
         .unwrap();
