@@ -502,7 +502,7 @@ mod tests {
     #[test]
     fn targeting_matches_the_reference_loop_on_any_thread_count() {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let pools: Vec<rayon::ThreadPool> = [1, 2]
+        let pools: Vec<rayon::ThreadPool> = [1, 2, 4]
             .iter()
             .map(|&n| {
                 rayon::ThreadPoolBuilder::new()
