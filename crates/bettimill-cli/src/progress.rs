@@ -63,7 +63,7 @@ pub fn thousandths_style(unit: &str) -> ProgressStyle {
 pub fn thousandths(count: u64) -> String {
     // Rounded down: a sample 99.9% done is not shown as done.
     let tenths = count / 100;
-    if tenths % 10 == 0 {
+    if tenths.is_multiple_of(10) {
         format!("{}", tenths / 10)
     } else {
         format!("{}.{}", tenths / 10, tenths % 10)
