@@ -21,9 +21,11 @@
 //! and then exactly one `Done` or `Failed` for that shard. Between them (protocol 3 on), a
 //! `Stage` frame says which stage of which sample the worker has started (generate, deform,
 //! hypervolume targeting, verify, each downscaled copy, encode) and where that leaves the
-//! sample, in thousandths; a worker sends at most one per [`STAGE_INTERVAL`], dropping the
-//! stages that start in between (a small sample's stages are mostly dropped), so the frames
-//! cost nothing next to the work. They are for display only: nothing depends on them. The worker writes the shard to
+//! sample, in thousandths; a worker sends at most one per [`STAGE_INTERVAL`]: of the stages
+//! that start in between it keeps the latest and sends it when the interval has passed,
+//! unless its sample is done by then (a small sample's stages are mostly never sent), so
+//! the frames cost nothing next to the work and never follow their sample's `Progress`.
+//! They are for display only: nothing depends on them. The worker writes the shard to
 //! the dataset directory itself (atomically), so the coordinator never handles sample bytes.
 //!
 //! Liveness: from its handshake on, a worker also sends a `Heartbeat` every

@@ -182,19 +182,29 @@ pub fn serve(
         .map_err(|e| WorkerError::Pool(e.to_string()))?;
     // The heartbeat runs on its own thread, so it keeps coming while a sample takes
     // minutes; it stops when serving ends (or when the pipe breaks: the coordinator is gone).
+    // The same thread sends the stage frames the rate limit held back (see StageFrames).
     let (stop_heartbeat, heartbeat_stopped) = std::sync::mpsc::channel::<()>();
+    let stages = StageFrames::new();
     std::thread::scope(|scope| {
         let send = &send;
+        let stages = &stages;
         scope.spawn(move || {
+            let mut last_heartbeat = std::time::Instant::now();
             while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) =
-                heartbeat_stopped.recv_timeout(protocol::HEARTBEAT_INTERVAL)
+                heartbeat_stopped.recv_timeout(protocol::STAGE_INTERVAL)
             {
-                if send(&FromWorker::Heartbeat).is_err() {
+                if stages.flush(send, std::time::Instant::now()).is_err() {
                     break;
+                }
+                if last_heartbeat.elapsed() >= protocol::HEARTBEAT_INTERVAL {
+                    last_heartbeat = std::time::Instant::now();
+                    if send(&FromWorker::Heartbeat).is_err() {
+                        break;
+                    }
                 }
             }
         });
-        let served = serve_requests(dataset, &pool, &received, &send);
+        let served = serve_requests(dataset, &pool, &received, send, stages);
         drop(stop_heartbeat);
         served
     })
@@ -205,11 +215,9 @@ fn serve_requests(
     dataset: &Dataset,
     pool: &rayon::ThreadPool,
     received: &std::sync::mpsc::Receiver<Result<ToWorker, ProtocolError>>,
-    send: &(dyn Fn(&FromWorker) -> Result<(), ProtocolError> + Sync),
+    send: &SendFrame<'_>,
+    stages: &StageFrames,
 ) -> Result<(), WorkerError> {
-    // One limit for the whole session, so a worker sends at most one stage frame per
-    // interval however small its samples and however many of them run at once.
-    let limiter = RateLimit::new(protocol::STAGE_INTERVAL);
     while let Ok(request) = received.recv() {
         let shard_index = match request? {
             ToWorker::Shutdown => break,
@@ -239,26 +247,32 @@ fn serve_requests(
             // process, so the errors need no handling of their own.
             match event {
                 SampleEvent::Done { regenerations, .. } => {
-                    let _ = send(&FromWorker::Progress {
-                        shard_index,
-                        regenerations,
-                    });
+                    let _ = stages.sample_done(
+                        send,
+                        &FromWorker::Progress {
+                            shard_index,
+                            regenerations,
+                        },
+                    );
                 }
                 SampleEvent::Stage { task, progress } => {
-                    if limiter.allow(std::time::Instant::now()) {
-                        let _ = send(&FromWorker::Stage {
+                    let _ = stages.stage(
+                        send,
+                        FromWorker::Stage {
                             shard_index,
                             sample: task.index,
                             attempt: progress.attempt,
                             stage: progress.stage,
                             thousandths: (progress.fraction * 1000.0).round().clamp(0.0, 1000.0)
                                 as u16,
-                        });
-                    }
+                        },
+                        std::time::Instant::now(),
+                    );
                 }
             }
         };
         let result = pool.install(|| dataset.write_shard_observed(&shard, &observe));
+        stages.discard();
         match result {
             Ok(record) => send(&FromWorker::Done {
                 shard_index,
@@ -272,6 +286,77 @@ fn serve_requests(
         }
     }
     Ok(())
+}
+
+/// How the worker sends a frame.
+type SendFrame<'a> = dyn Fn(&FromWorker) -> Result<(), ProtocolError> + Sync + 'a;
+
+/// The stage frames of a served session: at most one per [`protocol::STAGE_INTERVAL`]
+/// whatever the samples' size. A stage that starts too soon after the last frame is kept
+/// (the latest one only) and sent by the heartbeat thread once the interval has passed, so a
+/// long stage that follows a short one is shown as itself, not as the short one; it is
+/// dropped if its sample finishes first. A worker makes one sample at a time (one thread).
+struct StageFrames {
+    limit: RateLimit,
+    pending: Mutex<Option<FromWorker>>,
+}
+
+impl StageFrames {
+    fn new() -> StageFrames {
+        StageFrames {
+            limit: RateLimit::new(protocol::STAGE_INTERVAL),
+            pending: Mutex::new(None),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<FromWorker>> {
+        self.pending.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// A stage starts: sent now if the limit allows, else kept for [`StageFrames::flush`].
+    fn stage(
+        &self,
+        send: &SendFrame<'_>,
+        frame: FromWorker,
+        now: std::time::Instant,
+    ) -> Result<(), ProtocolError> {
+        let mut pending = self.lock();
+        if self.limit.allow(now) {
+            *pending = None;
+            send(&frame)
+        } else {
+            *pending = Some(frame);
+            Ok(())
+        }
+    }
+
+    /// Sends the kept stage, if any and if the limit allows. The lock is held while it is
+    /// sent, so it never follows its sample's `Progress`.
+    fn flush(&self, send: &SendFrame<'_>, now: std::time::Instant) -> Result<(), ProtocolError> {
+        let mut pending = self.lock();
+        if pending.is_some() && self.limit.allow(now) {
+            if let Some(frame) = pending.take() {
+                return send(&frame);
+            }
+        }
+        Ok(())
+    }
+
+    /// The sample is done: its kept stage is stale; `progress` is sent.
+    fn sample_done(
+        &self,
+        send: &SendFrame<'_>,
+        progress: &FromWorker,
+    ) -> Result<(), ProtocolError> {
+        let mut pending = self.lock();
+        *pending = None;
+        send(progress)
+    }
+
+    /// The shard is over (written or failed): nothing kept is sent after it.
+    fn discard(&self) {
+        *self.lock() = None;
+    }
 }
 
 /// At most one event per interval: [`RateLimit::allow`] says yes to the first event and
@@ -376,6 +461,7 @@ pub fn run_task(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::protocol::Stage;
 
     fn check(vars: &[(&str, &str)], count: u64) -> Result<(u64, &'static str), String> {
         let lookup = |name: &str| {
@@ -498,6 +584,52 @@ mod tests {
             assert!((shard.first_sample..shard.first_sample + shard.samples).contains(sample));
             assert!(*thousandths <= 1000);
         }
+    }
+
+    #[test]
+    fn a_held_back_stage_is_sent_later_unless_its_sample_is_done() {
+        let sent = Mutex::new(Vec::new());
+        let send = |frame: &FromWorker| {
+            sent.lock().unwrap().push(frame.clone());
+            Ok(())
+        };
+        let stage = |stage| FromWorker::Stage {
+            shard_index: 0,
+            sample: 0,
+            attempt: 0,
+            stage,
+            thousandths: 0,
+        };
+        let start = std::time::Instant::now();
+        let at = |ms: u64| start + std::time::Duration::from_millis(ms);
+        let frames = StageFrames::new();
+        frames.stage(&send, stage(Stage::Generate), at(0)).unwrap();
+        frames
+            .stage(&send, stage(Stage::Hypervolume), at(10))
+            .unwrap();
+        frames.stage(&send, stage(Stage::Verify), at(20)).unwrap();
+        frames.flush(&send, at(100)).unwrap();
+        assert_eq!(*sent.lock().unwrap(), [stage(Stage::Generate)]);
+        // The latest held stage goes out once the interval has passed, once.
+        frames.flush(&send, at(300)).unwrap();
+        frames.flush(&send, at(400)).unwrap();
+        assert_eq!(
+            *sent.lock().unwrap(),
+            [stage(Stage::Generate), stage(Stage::Verify)]
+        );
+        // A stage held when its sample finishes is never sent after the sample.
+        // The last frame went out at 300 ms, so a stage at 450 ms is held.
+        frames.stage(&send, stage(Stage::Encode), at(450)).unwrap();
+        let progress = FromWorker::Progress {
+            shard_index: 0,
+            regenerations: 0,
+        };
+        frames.sample_done(&send, &progress).unwrap();
+        frames.flush(&send, at(2000)).unwrap();
+        assert_eq!(
+            *sent.lock().unwrap(),
+            [stage(Stage::Generate), stage(Stage::Verify), progress]
+        );
     }
 
     #[test]
