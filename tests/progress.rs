@@ -1,7 +1,8 @@
 //! What `bettimill build` tells a researcher on stderr when nobody watches a terminal (a
 //! Slurm log, `nohup`, CI): plain progress lines at a steady interval, strata the plan left
-//! out said at the start, and silence with `--quiet`. The tests' stderr is a pipe, as in
-//! those places.
+//! out said at the start, and silence with `--quiet`; the lines advance within a sample that
+//! takes seconds (its stage, as a fraction), and an array task's log has a line per sample
+//! and the stage of a long one. The tests' stderr is a pipe, as in those places.
 
 mod common;
 use common::{assert_exit, repo_root, stderr, Dir};
