@@ -142,6 +142,15 @@ fn slurm_array_builds_resubmits_and_matches_a_local_build() {
     assert_same(&local, &a);
     let logs = std::fs::read_dir(a.join("slurm/logs")).unwrap().count();
     assert_eq!(logs, 3, "one log per array task");
+    // Each task's log says each of its samples as it is done (2 shards of 3 samples each).
+    for log in std::fs::read_dir(a.join("slurm/logs")).unwrap() {
+        let log = std::fs::read_to_string(log.unwrap().path()).unwrap();
+        let samples = log
+            .lines()
+            .filter(|l| l.starts_with("sample ") && l.contains(" done (shard s2d-"))
+            .count();
+        assert_eq!(samples, 6, "{log}");
+    }
 
     // 2. Task 1 fails before doing any work: its shards (1 and 4) stay missing.
     let b = tmp.path().join("b");

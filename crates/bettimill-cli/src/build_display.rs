@@ -5,9 +5,15 @@
 //! so a plain line is written at a steady interval instead, from a thread of its own so that
 //! it keeps coming while one big sample takes minutes: samples and shards done of the total,
 //! the rate, the time left and the regenerations so far. `--quiet` silences both.
+//!
+//! Both advance within a sample: workers report the stage each sample reaches (generate,
+//! deform, hypervolume targeting, verify, each downscaled copy, encode; a few times a second
+//! at most), which counts as a fraction of a sample (`3.4/8 samples`, an estimate from the
+//! stage), and each worker's line, or the plain line's end, says what it is doing.
 
 use bettimill_executor::coordinator::BuildEvent;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -21,7 +27,41 @@ struct Counts {
     shards_total: u64,
     regenerations: u64,
     failures: u64,
+    /// What each busy worker slot is doing.
+    working: BTreeMap<usize, Activity>,
     finished: bool,
+}
+
+/// The sample a worker slot is making and the stage it last reported.
+#[derive(Clone, Debug)]
+struct Activity {
+    key: String,
+    stage: String,
+    attempt: u32,
+    thousandths: u16,
+}
+
+impl Activity {
+    /// `s000003 verify`, `s000003 generate (attempt 2)`.
+    fn describe(&self) -> String {
+        if self.attempt == 0 {
+            format!("{} {}", self.key, self.stage)
+        } else {
+            format!("{} {} (attempt {})", self.key, self.stage, self.attempt + 1)
+        }
+    }
+}
+
+impl Counts {
+    /// Samples done, in thousandths, with the in-flight fractions.
+    fn thousandths(&self) -> u64 {
+        self.samples_done * 1000
+            + self
+                .working
+                .values()
+                .map(|a| u64::from(a.thousandths))
+                .sum::<u64>()
+    }
 }
 
 /// The thread that writes a plain progress line every interval until the build ends.
@@ -70,22 +110,28 @@ impl Drop for PlainLines {
     }
 }
 
-/// `progress: 120/9600 samples, 3/1371 shards, 1.2 samples/s, about 2.2 h left, 0
-/// regenerations, 0 failed attempts, 1 min 40 s elapsed`.
+/// `progress: 120.4/9600 samples, 3/1371 shards, 1.2 samples/s, about 2.2 h left, 0
+/// regenerations, 0 failed attempts, 1 min 40 s elapsed; worker 0: s000120 verify`.
 fn progress_line(c: &Counts, elapsed: Duration) -> String {
     let seconds = elapsed.as_secs_f64();
-    let left = if c.samples_done > 0 && c.samples_total > c.samples_done {
-        let per_sample = seconds / c.samples_done as f64;
+    let done = c.thousandths() as f64 / 1000.0;
+    let left = if done > 0.0 && (c.samples_total as f64) > done {
+        let per_sample = seconds / done;
         format!(
             ", about {} left",
-            human_seconds(per_sample * (c.samples_total - c.samples_done) as f64)
+            human_seconds(per_sample * (c.samples_total as f64 - done))
         )
     } else {
         String::new()
     };
+    let working: String = c
+        .working
+        .iter()
+        .map(|(slot, activity)| format!("; worker {slot}: {}", activity.describe()))
+        .collect();
     format!(
-        "progress: {}/{} samples, {}/{} shards, {}{left}, {} regenerations, {} failed attempts, {} elapsed",
-        c.samples_done,
+        "progress: {}/{} samples, {}/{} shards, {}{left}, {} regenerations, {} failed attempts, {} elapsed{working}",
+        crate::progress::thousandths(c.thousandths()),
         c.samples_total,
         c.shards_done,
         c.shards_total,
@@ -102,7 +148,14 @@ pub(crate) fn rate(samples: u64, seconds: f64) -> String {
     if samples == 0 || seconds <= 0.0 {
         return "no sample built yet".to_string();
     }
-    let per_second = samples as f64 / seconds;
+    rate_per_second(samples as f64 / seconds)
+}
+
+/// [`rate`] from samples per second (`no sample built yet` when not positive).
+pub(crate) fn rate_per_second(per_second: f64) -> String {
+    if !(per_second.is_finite() && per_second > 0.0) {
+        return "no sample built yet".to_string();
+    }
     if per_second >= 100.0 {
         format!("{per_second:.0} samples/s")
     } else if per_second >= 1.0 {
@@ -132,8 +185,13 @@ pub(crate) fn human_seconds(seconds: f64) -> String {
 /// Progress bars for a build.
 pub(crate) struct Display {
     multi: MultiProgress,
+    /// Counts thousandths of samples.
     overall: Option<ProgressBar>,
     slots: Vec<ProgressBar>,
+    /// Each slot's current shard, and what it is doing in it.
+    shards: Vec<String>,
+    working: Vec<Option<Activity>>,
+    samples_done: u64,
     regenerations: u64,
     failures: u64,
     quiet: bool,
@@ -154,6 +212,9 @@ impl Display {
             multi: MultiProgress::with_draw_target(crate::progress::target(quiet)),
             overall: None,
             slots: Vec::new(),
+            shards: Vec::new(),
+            working: Vec::new(),
+            samples_done: 0,
             regenerations: 0,
             failures: 0,
             quiet,
@@ -193,8 +254,8 @@ impl Display {
                         .multi
                         .println(format!("{skipped} of {shards} shards already complete"));
                 }
-                let overall = self.multi.add(ProgressBar::new(samples));
-                overall.set_style(crate::progress::style("samples"));
+                let overall = self.multi.add(ProgressBar::new(samples * 1000));
+                overall.set_style(crate::progress::thousandths_style("samples"));
                 overall.set_message(self.message());
                 self.overall = Some(overall);
                 for slot in 0..workers {
@@ -206,6 +267,8 @@ impl Display {
                     bar.set_prefix(slot.to_string());
                     bar.set_message("starting");
                     self.slots.push(bar);
+                    self.shards.push(String::new());
+                    self.working.push(None);
                 }
             }
             BuildEvent::WorkerStarted { slot, pid } => {
@@ -221,23 +284,60 @@ impl Display {
                 if let Some(bar) = self.slots.get(slot) {
                     bar.set_length(samples);
                     bar.set_position(0);
-                    bar.set_message(shard);
+                    bar.set_message(shard.clone());
                 }
+                if let Some(current) = self.shards.get_mut(slot) {
+                    *current = shard;
+                }
+            }
+            BuildEvent::Stage {
+                slot,
+                key,
+                attempt,
+                stage,
+                thousandths,
+            } => {
+                let activity = Activity {
+                    key,
+                    stage: stage.to_string(),
+                    attempt,
+                    thousandths,
+                };
+                if let Some(bar) = self.slots.get(slot) {
+                    bar.set_message(format!(
+                        "{} {}",
+                        self.shards.get(slot).map_or("", String::as_str),
+                        activity.describe()
+                    ));
+                }
+                self.count(|c| {
+                    c.working.insert(slot, activity.clone());
+                });
+                if let Some(working) = self.working.get_mut(slot) {
+                    *working = Some(activity);
+                }
+                self.advance();
             }
             BuildEvent::Sample {
                 slot,
                 regenerations,
             } => {
                 self.regenerations += u64::from(regenerations);
+                self.samples_done += 1;
                 self.count(|c| {
                     c.samples_done += 1;
                     c.regenerations += u64::from(regenerations);
+                    c.working.remove(&slot);
                 });
+                if let Some(working) = self.working.get_mut(slot) {
+                    *working = None;
+                }
                 if let Some(bar) = self.slots.get(slot) {
                     bar.inc(1);
+                    bar.set_message(self.shards.get(slot).cloned().unwrap_or_default());
                 }
+                self.advance();
                 if let Some(overall) = &self.overall {
-                    overall.inc(1);
                     overall.set_message(self.message());
                 }
             }
@@ -248,20 +348,25 @@ impl Display {
                 }
             }
             BuildEvent::ShardFailed {
+                slot,
                 shard,
                 samples_lost,
                 reason,
                 failures,
                 given_up,
-                ..
             } => {
                 self.failures += 1;
+                self.samples_done = self.samples_done.saturating_sub(samples_lost);
                 self.count(|c| {
                     c.failures += 1;
                     c.samples_done = c.samples_done.saturating_sub(samples_lost);
+                    c.working.remove(&slot);
                 });
+                if let Some(working) = self.working.get_mut(slot) {
+                    *working = None;
+                }
+                self.advance();
                 if let Some(overall) = &self.overall {
-                    overall.set_position(overall.position().saturating_sub(samples_lost));
                     overall.set_message(self.message());
                 }
                 let what = if given_up { "given up" } else { "re-queued" };
@@ -274,6 +379,19 @@ impl Display {
                     "worker {slot} (pid {pid}) ended: {status}; starting a new one"
                 ));
             }
+        }
+    }
+
+    /// Puts the overall bar at the samples done and the in-flight fractions.
+    fn advance(&self) {
+        if let Some(overall) = &self.overall {
+            let in_flight: u64 = self
+                .working
+                .iter()
+                .flatten()
+                .map(|a| u64::from(a.thousandths))
+                .sum();
+            overall.set_position(self.samples_done * 1000 + in_flight);
         }
     }
 
@@ -328,5 +446,87 @@ mod tests {
             line,
             "progress: 10/40 samples, 1/4 shards, 0.50 samples/s, about 1 min 0 s left, 0 regenerations, 0 failed attempts, 20 s elapsed"
         );
+    }
+
+    #[test]
+    fn in_flight_samples_count_as_fractions_and_say_their_stage() {
+        let activity = |key: &str, stage: &str, attempt, thousandths| Activity {
+            key: key.to_string(),
+            stage: stage.to_string(),
+            attempt,
+            thousandths,
+        };
+        let counts = Counts {
+            samples_done: 3,
+            samples_total: 8,
+            working: BTreeMap::from([
+                (0, activity("s000003", "verify", 0, 300)),
+                (1, activity("s000004", "generate", 2, 150)),
+            ]),
+            ..Counts::default()
+        };
+        assert_eq!(counts.thousandths(), 3450);
+        let line = progress_line(&counts, Duration::from_secs(30));
+        assert!(
+            line.starts_with(
+                "progress: 3.4/8 samples, 0/0 shards, 0.10 samples/s, about 40 s left, "
+            ),
+            "{line}"
+        );
+        assert!(
+            line.ends_with(
+                " elapsed; worker 0: s000003 verify; worker 1: s000004 generate (attempt 3)"
+            ),
+            "{line}"
+        );
+        // A sample 99.9% done is not shown as done.
+        assert_eq!(crate::progress::thousandths(999), "0.9");
+        assert_eq!(crate::progress::thousandths(1000), "1");
+        assert_eq!(crate::progress::thousandths(12_340), "12.3");
+    }
+
+    #[test]
+    fn the_bar_advances_within_a_sample() {
+        use bettimill_executor::protocol::Stage;
+        let mut display = Display::new(true, Duration::from_secs(60));
+        display.event(BuildEvent::Started {
+            shards: 1,
+            skipped: 0,
+            samples: 2,
+            workers: 1,
+        });
+        let position = |d: &Display| d.overall.as_ref().unwrap().position();
+        assert_eq!(position(&display), 0);
+        display.event(BuildEvent::Stage {
+            slot: 0,
+            key: "s000000".into(),
+            attempt: 0,
+            stage: Stage::Verify,
+            thousandths: 300,
+        });
+        assert_eq!(position(&display), 300);
+        display.event(BuildEvent::Sample {
+            slot: 0,
+            regenerations: 0,
+        });
+        assert_eq!(position(&display), 1000);
+        display.event(BuildEvent::Stage {
+            slot: 0,
+            key: "s000001".into(),
+            attempt: 0,
+            stage: Stage::Encode,
+            thousandths: 900,
+        });
+        assert_eq!(position(&display), 1900);
+        // A failed attempt takes back its samples and its in-flight fraction.
+        display.event(BuildEvent::ShardFailed {
+            slot: 0,
+            shard: "x-000000".into(),
+            samples_lost: 1,
+            reason: "test".into(),
+            failures: 1,
+            given_up: false,
+        });
+        assert_eq!(position(&display), 0);
     }
 }

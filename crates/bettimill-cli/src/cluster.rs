@@ -7,8 +7,11 @@ use crate::commands::{load_manifest, ExitStatus};
 use anyhow::{bail, Context};
 use bettimill_executor::cluster::{self, KubernetesOptions, SlurmOptions};
 use bettimill_executor::worker::{self, WorkerError};
-use bettimill_executor::Dataset;
+use bettimill_executor::{Dataset, SampleEvent};
+use std::collections::BTreeMap;
 use std::path::PathBuf;
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
 
 /// Arguments of the hidden `bettimill worker` subcommand.
 #[derive(clap::Args, Debug)]
@@ -33,6 +36,121 @@ pub struct WorkerArgs {
     /// samples (one per thread) need more is refused before any work.
     #[arg(long, value_name = "SIZE", value_parser = crate::commands::parse_memory)]
     max_memory: Option<u64>,
+    /// Array tasks: seconds between the lines that say which stage each sample still in
+    /// progress has reached (a line per finished sample comes at once).
+    #[arg(long, default_value_t = 10.0)]
+    progress_interval: f64,
+}
+
+/// What an array task is doing, for its log lines (see [`TaskLines`]).
+#[derive(Default)]
+struct TaskState {
+    /// Samples in progress by index: key, shard, stage, attempt, started.
+    working: BTreeMap<u64, (String, String, String, u32, Instant)>,
+    samples_done: u64,
+    finished: bool,
+}
+
+/// An array task's sample-level log lines on stderr (a Slurm job's log): one per finished
+/// sample at once, and every interval one per sample still in progress, with its stage.
+struct TaskLines {
+    state: Arc<(Mutex<TaskState>, Condvar)>,
+    started: Instant,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl TaskLines {
+    fn start(interval: Duration) -> TaskLines {
+        let state = Arc::new((Mutex::new(TaskState::default()), Condvar::new()));
+        let shared = state.clone();
+        let thread = std::thread::spawn(move || {
+            let (lock, wake) = &*shared;
+            let mut state = lock.lock().unwrap_or_else(|e| e.into_inner());
+            loop {
+                let (next, _) = wake
+                    .wait_timeout(state, interval)
+                    .unwrap_or_else(|e| e.into_inner());
+                state = next;
+                if state.finished {
+                    return;
+                }
+                for (key, shard, stage, attempt, since) in state.working.values() {
+                    eprintln!(
+                        "working: {key} (shard {shard}) {stage}{}, {} in",
+                        attempt_note(*attempt),
+                        crate::build_display::human_seconds(since.elapsed().as_secs_f64())
+                    );
+                }
+            }
+        });
+        TaskLines {
+            state,
+            started: Instant::now(),
+            thread: Some(thread),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, TaskState> {
+        self.state.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn event(&self, shard: &str, event: SampleEvent<'_>) {
+        match event {
+            SampleEvent::Stage { task, progress } => {
+                let mut state = self.lock();
+                let entry = state.working.entry(task.index).or_insert_with(|| {
+                    (
+                        task.key.clone(),
+                        shard.to_string(),
+                        String::new(),
+                        0,
+                        Instant::now(),
+                    )
+                });
+                entry.2 = progress.stage.to_string();
+                entry.3 = progress.attempt;
+            }
+            SampleEvent::Done {
+                task,
+                regenerations,
+            } => {
+                let mut state = self.lock();
+                let took = state
+                    .working
+                    .remove(&task.index)
+                    .map(|w| w.4.elapsed().as_secs_f64())
+                    .unwrap_or(0.0);
+                state.samples_done += 1;
+                // Printed under the lock, so two threads' lines never interleave.
+                eprintln!(
+                    "sample {} done (shard {shard}) in {}, {regenerations} regenerations; {} samples by this task, {} elapsed",
+                    task.key,
+                    crate::build_display::human_seconds(took),
+                    state.samples_done,
+                    crate::build_display::human_seconds(self.started.elapsed().as_secs_f64()),
+                );
+            }
+        }
+    }
+}
+
+impl Drop for TaskLines {
+    fn drop(&mut self) {
+        self.lock().finished = true;
+        self.state.1.notify_all();
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+/// ` (attempt 2)` after a regeneration, nothing for the first attempt.
+fn attempt_note(attempt: u32) -> String {
+    if attempt == 0 {
+        String::new()
+    } else {
+        format!(" (attempt {})", attempt + 1)
+    }
 }
 
 /// `bettimill worker`.
@@ -70,17 +188,35 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
         pool = pool.num_threads(threads.max(1));
     }
     let pool = pool.build().context("cannot start the thread pool")?;
+    if !(args.progress_interval.is_finite() && args.progress_interval > 0.0) {
+        bail!(
+            "--progress-interval must be a positive number of seconds, got {}",
+            args.progress_interval
+        );
+    }
+    let lines = (!quiet).then(|| TaskLines::start(Duration::from_secs_f64(args.progress_interval)));
     let report = pool.install(|| {
-        worker::run_task(&dataset, index, count, |shard, result| {
-            if quiet {
-                return;
-            }
-            match result {
-                Ok(()) => eprintln!("built {shard}"),
-                Err(reason) => eprintln!("error: {shard}: {reason}"),
-            }
-        })
+        worker::run_task(
+            &dataset,
+            index,
+            count,
+            |shard, result| {
+                if quiet {
+                    return;
+                }
+                match result {
+                    Ok(()) => eprintln!("built {shard}"),
+                    Err(reason) => eprintln!("error: {shard}: {reason}"),
+                }
+            },
+            &|shard, event| {
+                if let Some(lines) = &lines {
+                    lines.event(shard, event);
+                }
+            },
+        )
     });
+    drop(lines);
     let report = match report {
         Ok(report) => report,
         Err(err @ WorkerError::InjectedTaskFailure { .. }) => {

@@ -16,6 +16,11 @@
 //! On [`BuildControl::Interrupt`] (Ctrl-C, SIGTERM) every worker is killed; every write
 //! is atomic, so the directory is consistent and the same command resumes.
 //!
+//! Progress: besides the shard events, the coordinator passes on each worker's sample
+//! completions ([`BuildEvent::Sample`]) and the stages its samples reach
+//! ([`BuildEvent::Stage`], rate-limited by the worker), so a display can advance within a
+//! sample that takes minutes.
+//!
 //! Only when every shard is complete is index.json written.
 
 use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
@@ -90,6 +95,20 @@ pub enum BuildEvent {
         slot: usize,
         /// Regenerations the sample needed.
         regenerations: u32,
+    },
+    /// A worker started a stage of a sample (at most a few a second per worker; see
+    /// [`protocol::STAGE_INTERVAL`]).
+    Stage {
+        /// The slot.
+        slot: usize,
+        /// The sample's key.
+        key: String,
+        /// Its attempt (0 first).
+        attempt: u32,
+        /// The stage starting.
+        stage: protocol::Stage,
+        /// Where the sample is, in thousandths (an estimate from the stage).
+        thousandths: u16,
     },
     /// A shard is written.
     ShardDone {
@@ -568,7 +587,7 @@ async fn run_slot(
                     samples,
                 });
                 tokio::select! {
-                    attempt = attempt_shard(current, shard_index as u64, slot, &events, &mut samples_reported, context.options.worker_timeout) => attempt,
+                    attempt = attempt_shard(current, shard_index as u64, slot, &events, &mut samples_reported, &context) => attempt,
                     _ = stop.wait_for(|stopped| *stopped) => Attempt::Interrupted,
                 }
             }
@@ -682,8 +701,9 @@ async fn attempt_shard(
     slot: usize,
     events: &mpsc::UnboundedSender<BuildEvent>,
     samples_reported: &mut u64,
-    timeout: std::time::Duration,
+    context: &SlotContext,
 ) -> Attempt {
+    let timeout = context.options.worker_timeout;
     let request = ToWorker::Build { shard_index };
     if let Err(err) = protocol::write_frame_async(&mut worker.stdin, &request, "worker").await {
         return Attempt::Died(format!("worker process {} is gone: {err}", worker.pid));
@@ -706,6 +726,25 @@ async fn attempt_shard(
         };
         match frame {
             Ok(Some(FromWorker::Heartbeat)) => {}
+            Ok(Some(FromWorker::Stage {
+                shard_index: of,
+                sample,
+                attempt,
+                stage,
+                thousandths,
+            })) if of == shard_index => {
+                let key = context
+                    .plan
+                    .task(sample)
+                    .map_or_else(|| format!("sample {sample}"), |task| task.key);
+                let _ = events.send(BuildEvent::Stage {
+                    slot,
+                    key,
+                    attempt,
+                    stage,
+                    thousandths: thousandths.min(1000),
+                });
+            }
             Ok(Some(FromWorker::Progress { regenerations, .. })) => {
                 *samples_reported += 1;
                 let _ = events.send(BuildEvent::Sample {

@@ -5,14 +5,33 @@ use bettimill_format::TarCheck;
 use bettimill_format::{member_name, DatasetDir, FormatError, TOOL_VERSION};
 pub use bettimill_format::{BuildInfo, CompletionRecord, ShardState};
 use bettimill_manifest::{Manifest, ManifestError};
-use bettimill_plan::{Plan, ShardPlan};
-use bettimill_sample::{make_sample, SampleError};
+use bettimill_plan::{Plan, SampleTask, ShardPlan};
+use bettimill_sample::{make_sample_observed, SampleError, Stage, StageProgress};
 use bettimill_shard::{
     self as shard, AtomicFile, IndexFile, IndexHeader, IndexWriter, Member, ShardError, WidsWriter,
 };
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// What happens to one sample while its shard is written ([`Dataset::write_shard_observed`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SampleEvent<'a> {
+    /// A stage of the sample starts.
+    Stage {
+        /// The sample.
+        task: &'a SampleTask,
+        /// The stage and where the sample is.
+        progress: StageProgress,
+    },
+    /// The sample is verified and encoded.
+    Done {
+        /// The sample.
+        task: &'a SampleTask,
+        /// Rejected attempts it needed.
+        regenerations: u32,
+    },
+}
 
 /// Why a build step failed.
 #[derive(Debug, thiserror::Error)]
@@ -180,7 +199,7 @@ impl Dataset {
 
     /// Generates, verifies and writes one shard (tar first, then its record).
     pub fn write_shard(&self, shard: &ShardPlan) -> Result<CompletionRecord, BuildError> {
-        self.write_shard_with_progress(shard, &|_| {})
+        self.write_shard_observed(shard, &|_| {})
     }
 
     /// [`Dataset::write_shard`], calling `progress` with each sample's regenerations
@@ -192,6 +211,23 @@ impl Dataset {
         shard: &ShardPlan,
         progress: &(dyn Fn(u32) + Sync),
     ) -> Result<CompletionRecord, BuildError> {
+        self.write_shard_observed(shard, &|event| {
+            if let SampleEvent::Done { regenerations, .. } = event {
+                progress(regenerations);
+            }
+        })
+    }
+
+    /// [`Dataset::write_shard`], telling `observe` as each sample's stages start
+    /// ([`SampleEvent::Stage`], from `bettimill_sample::make_sample_observed`, then
+    /// [`Stage::Encode`] here) and when it is verified ([`SampleEvent::Done`]). Samples run
+    /// on the current rayon pool, so the calls come from its threads, each sample's in
+    /// order, different samples interleaved; the bytes written do not depend on that.
+    pub fn write_shard_observed(
+        &self,
+        shard: &ShardPlan,
+        observe: &(dyn Fn(SampleEvent<'_>) + Sync),
+    ) -> Result<CompletionRecord, BuildError> {
         let started = std::time::SystemTime::now();
         let clock = std::time::Instant::now();
         let tasks = self.plan.shard_tasks(shard);
@@ -202,8 +238,17 @@ impl Dataset {
         let samples: Vec<(Vec<Member>, String, u32)> = tasks
             .par_iter()
             .map(|task| {
-                let sample = make_sample(&self.plan, task)?;
-                progress(sample.label.attempt);
+                let sample = make_sample_observed(&self.plan, task, &mut |progress| {
+                    observe(SampleEvent::Stage { task, progress })
+                })?;
+                observe(SampleEvent::Stage {
+                    task,
+                    progress: StageProgress {
+                        attempt: sample.label.attempt,
+                        stage: Stage::Encode,
+                        fraction: Stage::Encode.sample_fraction(0.0),
+                    },
+                });
                 let key = &sample.label.key;
                 let mut fields = Vec::new();
                 for (field, bytes) in sample.fields() {
@@ -218,6 +263,10 @@ impl Dataset {
                     };
                     fields.push(Member { name, data });
                 }
+                observe(SampleEvent::Done {
+                    task,
+                    regenerations: sample.label.attempt,
+                });
                 Ok((
                     fields,
                     sample.label.class_label.clone(),

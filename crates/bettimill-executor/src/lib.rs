@@ -36,7 +36,7 @@ pub mod protocol;
 pub mod worker;
 
 pub use dataset::{
-    BuildError, BuildInfo, BuildSummary, CompletionRecord, Dataset, ShardOutcome, ShardState,
-    PAUSE_BEFORE_RENAME_ENV,
+    BuildError, BuildInfo, BuildSummary, CompletionRecord, Dataset, SampleEvent, ShardOutcome,
+    ShardState, PAUSE_BEFORE_RENAME_ENV,
 };
 pub use lock::{DirLock, LockError};

@@ -18,7 +18,14 @@
 //!
 //! After the handshake, the coordinator sends [`ToWorker`] frames and the worker answers
 //! with [`FromWorker`] frames: for each `Build` request, one `Progress` per finished sample
-//! and then exactly one `Done` or `Failed` for that shard. The worker writes the shard to
+//! and then exactly one `Done` or `Failed` for that shard. Between them (protocol 3 on), a
+//! `Stage` frame says which stage of which sample the worker has started (generate, deform,
+//! hypervolume targeting, verify, each downscaled copy, encode) and where that leaves the
+//! sample, in thousandths; a worker sends at most one per [`STAGE_INTERVAL`]: of the stages
+//! that start in between it keeps the latest and sends it when the interval has passed,
+//! unless its sample is done by then (a small sample's stages are mostly never sent), so
+//! the frames cost nothing next to the work and never follow their sample's `Progress`.
+//! They are for display only: nothing depends on them. The worker writes the shard to
 //! the dataset directory itself (atomically), so the coordinator never handles sample bytes.
 //!
 //! Liveness: from its handshake on, a worker also sends a `Heartbeat` every
@@ -35,13 +42,17 @@
 //! its coordinator died. Any change to [`ToWorker`] or [`FromWorker`] must bump
 //! [`PROTOCOL_VERSION`].
 
+pub use bettimill_sample::Stage;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::io::{Read, Write};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 
 /// The version of the frame payloads after the handshake.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
+
+/// A worker sends at most one [`FromWorker::Stage`] per this interval (protocol 3 on).
+pub const STAGE_INTERVAL: std::time::Duration = std::time::Duration::from_millis(250);
 
 /// How often a worker sends [`FromWorker::Heartbeat`] (protocol 2 on).
 pub const HEARTBEAT_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
@@ -101,6 +112,21 @@ pub enum FromWorker {
     },
     /// The worker is alive (sent every [`HEARTBEAT_INTERVAL`], independently of its work).
     Heartbeat,
+    /// A stage of a sample of the shard starts (protocol 3 on; at most one per
+    /// [`STAGE_INTERVAL`]).
+    Stage {
+        /// The shard's index in the plan.
+        shard_index: u64,
+        /// The sample's index in the dataset.
+        sample: u64,
+        /// Its attempt (0 first).
+        attempt: u32,
+        /// The stage starting.
+        stage: Stage,
+        /// Where the sample is, in thousandths of the whole (0 to 1000; an estimate, see
+        /// `bettimill_sample::Stage::span`).
+        thousandths: u16,
+    },
 }
 
 /// Which side of the session a handshake came from.
@@ -348,6 +374,20 @@ mod tests {
                 reason: "é".repeat(100),
             },
             FromWorker::Heartbeat,
+            FromWorker::Stage {
+                shard_index: 3,
+                sample: 1 << 35,
+                attempt: 2,
+                stage: Stage::Downscale { side: 64 },
+                thousandths: 1000,
+            },
+            FromWorker::Stage {
+                shard_index: 0,
+                sample: 0,
+                attempt: 0,
+                stage: Stage::Verify,
+                thousandths: 300,
+            },
         ];
         let mut bytes = Vec::new();
         for m in &messages {
@@ -365,6 +405,32 @@ mod tests {
         assert!(read_frame::<FromWorker>(&mut input, "test")
             .unwrap()
             .is_none());
+    }
+
+    #[test]
+    fn every_stage_round_trips_in_a_stage_frame() {
+        for stage in [
+            Stage::Generate,
+            Stage::Deform,
+            Stage::Hypervolume,
+            Stage::Verify,
+            Stage::Downscale { side: 0 },
+            Stage::Downscale { side: u32::MAX },
+            Stage::Encode,
+        ] {
+            let frame = FromWorker::Stage {
+                shard_index: 7,
+                sample: 12,
+                attempt: 15,
+                stage,
+                thousandths: 999,
+            };
+            let bytes = encode_frame(&frame);
+            assert_eq!(
+                read_frame::<FromWorker>(&mut &bytes[..], "test").unwrap(),
+                Some(frame)
+            );
+        }
     }
 
     #[test]

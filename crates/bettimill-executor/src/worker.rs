@@ -17,7 +17,7 @@
 //! temporary file and its rename.
 
 use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
-use crate::{BuildError, Dataset};
+use crate::{BuildError, Dataset, SampleEvent};
 use bettimill_sample::TOOL_VERSION;
 use std::io::{Read, Write};
 use std::sync::Mutex;
@@ -182,19 +182,29 @@ pub fn serve(
         .map_err(|e| WorkerError::Pool(e.to_string()))?;
     // The heartbeat runs on its own thread, so it keeps coming while a sample takes
     // minutes; it stops when serving ends (or when the pipe breaks: the coordinator is gone).
+    // The same thread sends the stage frames the rate limit held back (see StageFrames).
     let (stop_heartbeat, heartbeat_stopped) = std::sync::mpsc::channel::<()>();
+    let stages = StageFrames::new();
     std::thread::scope(|scope| {
         let send = &send;
+        let stages = &stages;
         scope.spawn(move || {
+            let mut last_heartbeat = std::time::Instant::now();
             while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) =
-                heartbeat_stopped.recv_timeout(protocol::HEARTBEAT_INTERVAL)
+                heartbeat_stopped.recv_timeout(protocol::STAGE_INTERVAL)
             {
-                if send(&FromWorker::Heartbeat).is_err() {
+                if stages.flush(send, std::time::Instant::now()).is_err() {
                     break;
+                }
+                if last_heartbeat.elapsed() >= protocol::HEARTBEAT_INTERVAL {
+                    last_heartbeat = std::time::Instant::now();
+                    if send(&FromWorker::Heartbeat).is_err() {
+                        break;
+                    }
                 }
             }
         });
-        let served = serve_requests(dataset, &pool, &received, &send);
+        let served = serve_requests(dataset, &pool, &received, send, stages);
         drop(stop_heartbeat);
         served
     })
@@ -205,7 +215,8 @@ fn serve_requests(
     dataset: &Dataset,
     pool: &rayon::ThreadPool,
     received: &std::sync::mpsc::Receiver<Result<ToWorker, ProtocolError>>,
-    send: &(dyn Fn(&FromWorker) -> Result<(), ProtocolError> + Sync),
+    send: &SendFrame<'_>,
+    stages: &StageFrames,
 ) -> Result<(), WorkerError> {
     while let Ok(request) = received.recv() {
         let shard_index = match request? {
@@ -231,15 +242,37 @@ fn serve_requests(
             })?;
             continue;
         }
-        let progress = |regenerations: u32| {
+        let observe = |event: SampleEvent<'_>| {
             // A broken pipe here means the coordinator is gone; the reader thread ends the
-            // process, so the error needs no handling of its own.
-            let _ = send(&FromWorker::Progress {
-                shard_index,
-                regenerations,
-            });
+            // process, so the errors need no handling of their own.
+            match event {
+                SampleEvent::Done { regenerations, .. } => {
+                    let _ = stages.sample_done(
+                        send,
+                        &FromWorker::Progress {
+                            shard_index,
+                            regenerations,
+                        },
+                    );
+                }
+                SampleEvent::Stage { task, progress } => {
+                    let _ = stages.stage(
+                        send,
+                        FromWorker::Stage {
+                            shard_index,
+                            sample: task.index,
+                            attempt: progress.attempt,
+                            stage: progress.stage,
+                            thousandths: (progress.fraction * 1000.0).round().clamp(0.0, 1000.0)
+                                as u16,
+                        },
+                        std::time::Instant::now(),
+                    );
+                }
+            }
         };
-        let result = pool.install(|| dataset.write_shard_with_progress(&shard, &progress));
+        let result = pool.install(|| dataset.write_shard_observed(&shard, &observe));
+        stages.discard();
         match result {
             Ok(record) => send(&FromWorker::Done {
                 shard_index,
@@ -255,6 +288,107 @@ fn serve_requests(
     Ok(())
 }
 
+/// How the worker sends a frame.
+type SendFrame<'a> = dyn Fn(&FromWorker) -> Result<(), ProtocolError> + Sync + 'a;
+
+/// The stage frames of a served session: at most one per [`protocol::STAGE_INTERVAL`]
+/// whatever the samples' size. A stage that starts too soon after the last frame is kept
+/// (the latest one only) and sent by the heartbeat thread once the interval has passed, so a
+/// long stage that follows a short one is shown as itself, not as the short one; it is
+/// dropped if its sample finishes first. A worker makes one sample at a time (one thread).
+struct StageFrames {
+    limit: RateLimit,
+    pending: Mutex<Option<FromWorker>>,
+}
+
+impl StageFrames {
+    fn new() -> StageFrames {
+        StageFrames {
+            limit: RateLimit::new(protocol::STAGE_INTERVAL),
+            pending: Mutex::new(None),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<FromWorker>> {
+        self.pending.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// A stage starts: sent now if the limit allows, else kept for [`StageFrames::flush`].
+    fn stage(
+        &self,
+        send: &SendFrame<'_>,
+        frame: FromWorker,
+        now: std::time::Instant,
+    ) -> Result<(), ProtocolError> {
+        let mut pending = self.lock();
+        if self.limit.allow(now) {
+            *pending = None;
+            send(&frame)
+        } else {
+            *pending = Some(frame);
+            Ok(())
+        }
+    }
+
+    /// Sends the kept stage, if any and if the limit allows. The lock is held while it is
+    /// sent, so it never follows its sample's `Progress`.
+    fn flush(&self, send: &SendFrame<'_>, now: std::time::Instant) -> Result<(), ProtocolError> {
+        let mut pending = self.lock();
+        if pending.is_some() && self.limit.allow(now) {
+            if let Some(frame) = pending.take() {
+                return send(&frame);
+            }
+        }
+        Ok(())
+    }
+
+    /// The sample is done: its kept stage is stale; `progress` is sent.
+    fn sample_done(
+        &self,
+        send: &SendFrame<'_>,
+        progress: &FromWorker,
+    ) -> Result<(), ProtocolError> {
+        let mut pending = self.lock();
+        *pending = None;
+        send(progress)
+    }
+
+    /// The shard is over (written or failed): nothing kept is sent after it.
+    fn discard(&self) {
+        *self.lock() = None;
+    }
+}
+
+/// At most one event per interval: [`RateLimit::allow`] says yes to the first event and
+/// then to the first one at least `interval` after the last it allowed.
+#[derive(Debug)]
+pub struct RateLimit {
+    interval: std::time::Duration,
+    last: Mutex<Option<std::time::Instant>>,
+}
+
+impl RateLimit {
+    /// A limit of one event per `interval`.
+    pub fn new(interval: std::time::Duration) -> RateLimit {
+        RateLimit {
+            interval,
+            last: Mutex::new(None),
+        }
+    }
+
+    /// Whether an event at `now` may pass (and if so, it counts as the last one).
+    pub fn allow(&self, now: std::time::Instant) -> bool {
+        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        match *last {
+            Some(previous) if now.saturating_duration_since(previous) < self.interval => false,
+            _ => {
+                *last = Some(now);
+                true
+            }
+        }
+    }
+}
+
 /// What one array task did.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct TaskReport {
@@ -268,12 +402,15 @@ pub struct TaskReport {
 
 /// Builds the incomplete shards of array task `task_index` of `task_count` (every shard `s`
 /// with `s % task_count == task_index`), on the current rayon pool. A failing shard is
-/// reported and the others are still built. `on_shard` is called after each shard.
+/// reported and the others are still built. `on_shard` is called after each shard, and
+/// `on_sample` with each of its samples' stages and completions (from the pool's threads;
+/// see [`Dataset::write_shard_observed`]), with the shard's name.
 pub fn run_task(
     dataset: &Dataset,
     task_index: u64,
     task_count: u64,
     mut on_shard: impl FnMut(&str, Result<(), &str>),
+    on_sample: &(dyn Fn(&str, SampleEvent<'_>) + Sync),
 ) -> Result<TaskReport, WorkerError> {
     if std::env::var(FAIL_TASK_ENV)
         .ok()
@@ -303,7 +440,7 @@ pub fn run_task(
             ))
         } else {
             dataset
-                .write_shard(shard)
+                .write_shard_observed(shard, &|event| on_sample(&shard.name, event))
                 .map(|_| ())
                 .map_err(|e| e.to_string())
         };
@@ -324,6 +461,7 @@ pub fn run_task(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::protocol::Stage;
 
     fn check(vars: &[(&str, &str)], count: u64) -> Result<(u64, &'static str), String> {
         let lookup = |name: &str| {
@@ -377,5 +515,133 @@ mod tests {
         assert!(err.contains("PBS_ARRAY_INDEX=x"), "{err}");
         let err = check(&[], 4).unwrap_err();
         assert!(err.contains("JOB_COMPLETION_INDEX"), "{err}");
+    }
+
+    /// Serves a whole session in this process (handshake, the shards, `Shutdown`) and
+    /// returns the worker's frames after its handshake.
+    fn serve_session(dataset: &Dataset, shards: u64) -> Vec<FromWorker> {
+        let mut input = protocol::encode_frame(&our_handshake(dataset));
+        for shard_index in 0..shards {
+            input.extend(protocol::encode_frame(&ToWorker::Build { shard_index }));
+        }
+        input.extend(protocol::encode_frame(&ToWorker::Shutdown));
+        let mut output = Vec::new();
+        serve(dataset, std::io::Cursor::new(input), &mut output, || {}).unwrap();
+        let mut reader = &output[..];
+        let theirs = protocol::read_frame::<Handshake>(&mut reader, "worker")
+            .unwrap()
+            .unwrap();
+        assert_eq!(theirs.protocol_version, protocol::PROTOCOL_VERSION);
+        std::iter::from_fn(|| protocol::read_frame::<FromWorker>(&mut reader, "worker").unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn a_served_small_sample_build_sends_few_stage_frames_and_every_sample() {
+        const MANIFEST: &str = "schema_version = 1\nname = \"w\"\ndimension = 2\nside = 20\n\
+            mode = [\"embed\", \"carve\"]\nsamples = 24\nshard_size = 8\nseed = 3\n\
+            resolutions = [10]\n[[classes]]\nfamily = [\"ball\", \"handle\"]\n";
+        let dir = tempfile::tempdir().unwrap();
+        let manifest =
+            bettimill_manifest::Manifest::parse(MANIFEST, std::path::Path::new("w.toml")).unwrap();
+        let dataset = Dataset::bind(dir.path(), MANIFEST, manifest).unwrap();
+        let started = std::time::Instant::now();
+        let frames = serve_session(&dataset, 3);
+        let elapsed = started.elapsed();
+        let stages: Vec<&FromWorker> = frames
+            .iter()
+            .filter(|f| matches!(f, FromWorker::Stage { .. }))
+            .collect();
+        let progress = frames
+            .iter()
+            .filter(|f| matches!(f, FromWorker::Progress { .. }))
+            .count();
+        let done = frames
+            .iter()
+            .filter(|f| matches!(f, FromWorker::Done { .. }))
+            .count();
+        assert_eq!((progress, done), (24, 3), "{frames:?}");
+        // Stages per sample here: generate, verify, downscale r10, encode.
+        assert!(stages.len() <= 24 * 4, "{} stage frames", stages.len());
+        // At most one per STAGE_INTERVAL of the session, and at least the first.
+        let allowed = elapsed.as_secs_f64() / protocol::STAGE_INTERVAL.as_secs_f64();
+        assert!(
+            !stages.is_empty() && stages.len() as f64 <= allowed.floor() + 1.0,
+            "{} stage frames in {elapsed:?}",
+            stages.len()
+        );
+        for stage in stages {
+            let FromWorker::Stage {
+                shard_index,
+                sample,
+                thousandths,
+                ..
+            } = stage
+            else {
+                unreachable!()
+            };
+            let shard = dataset.plan.shard(*shard_index);
+            assert!((shard.first_sample..shard.first_sample + shard.samples).contains(sample));
+            assert!(*thousandths <= 1000);
+        }
+    }
+
+    #[test]
+    fn a_held_back_stage_is_sent_later_unless_its_sample_is_done() {
+        let sent = Mutex::new(Vec::new());
+        let send = |frame: &FromWorker| {
+            sent.lock().unwrap().push(frame.clone());
+            Ok(())
+        };
+        let stage = |stage| FromWorker::Stage {
+            shard_index: 0,
+            sample: 0,
+            attempt: 0,
+            stage,
+            thousandths: 0,
+        };
+        let start = std::time::Instant::now();
+        let at = |ms: u64| start + std::time::Duration::from_millis(ms);
+        let frames = StageFrames::new();
+        frames.stage(&send, stage(Stage::Generate), at(0)).unwrap();
+        frames
+            .stage(&send, stage(Stage::Hypervolume), at(10))
+            .unwrap();
+        frames.stage(&send, stage(Stage::Verify), at(20)).unwrap();
+        frames.flush(&send, at(100)).unwrap();
+        assert_eq!(*sent.lock().unwrap(), [stage(Stage::Generate)]);
+        // The latest held stage goes out once the interval has passed, once.
+        frames.flush(&send, at(300)).unwrap();
+        frames.flush(&send, at(400)).unwrap();
+        assert_eq!(
+            *sent.lock().unwrap(),
+            [stage(Stage::Generate), stage(Stage::Verify)]
+        );
+        // A stage held when its sample finishes is never sent after the sample.
+        // The last frame went out at 300 ms, so a stage at 450 ms is held.
+        frames.stage(&send, stage(Stage::Encode), at(450)).unwrap();
+        let progress = FromWorker::Progress {
+            shard_index: 0,
+            regenerations: 0,
+        };
+        frames.sample_done(&send, &progress).unwrap();
+        frames.flush(&send, at(2000)).unwrap();
+        assert_eq!(
+            *sent.lock().unwrap(),
+            [stage(Stage::Generate), stage(Stage::Verify), progress]
+        );
+    }
+
+    #[test]
+    fn the_rate_limit_lets_one_event_through_per_interval() {
+        let limit = RateLimit::new(std::time::Duration::from_millis(250));
+        let start = std::time::Instant::now();
+        let at = |ms: u64| start + std::time::Duration::from_millis(ms);
+        // 1000 events over 1 s (one a millisecond): the first, then one per 250 ms.
+        let allowed: Vec<u64> = (0..1000).filter(|&ms| limit.allow(at(ms))).collect();
+        assert_eq!(allowed, vec![0, 250, 500, 750]);
+        // A clock that goes backwards (another thread's older instant) is held back too.
+        assert!(!limit.allow(at(700)));
+        assert!(limit.allow(at(1000)));
     }
 }

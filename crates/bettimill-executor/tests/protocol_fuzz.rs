@@ -12,7 +12,7 @@
 //! The test prints how many frames it decoded; `BETTIMILL_FUZZ_CASES=N` multiplies the cases.
 
 use bettimill_executor::protocol::{
-    encode_frame, read_frame, FromWorker, Handshake, ProtocolError, ToWorker, MAX_FRAME_LEN,
+    encode_frame, read_frame, FromWorker, Handshake, ProtocolError, Stage, ToWorker, MAX_FRAME_LEN,
 };
 use bettimill_testkit::{fuzz_scale, Xorshift};
 use serde::de::DeserializeOwned;
@@ -75,10 +75,26 @@ fn valid_session(rng: &mut Xorshift) -> (Vec<u8>, Vec<u8>) {
             }
         };
         to_worker.extend(encode_frame(&message));
-        let reply = match rng.below(3) {
+        let reply = match rng.below(4) {
             0 => FromWorker::Progress {
                 shard_index: rng.next_u64(),
                 regenerations: rng.next_u64() as u32,
+            },
+            3 => FromWorker::Stage {
+                shard_index: rng.next_u64(),
+                sample: rng.next_u64(),
+                attempt: rng.next_u64() as u32,
+                stage: match rng.below(6) {
+                    0 => Stage::Generate,
+                    1 => Stage::Deform,
+                    2 => Stage::Hypervolume,
+                    3 => Stage::Verify,
+                    4 => Stage::Downscale {
+                        side: rng.next_u64() as u32,
+                    },
+                    _ => Stage::Encode,
+                },
+                thousandths: rng.below(1001) as u16,
             },
             1 => FromWorker::Done {
                 shard_index: rng.next_u64(),

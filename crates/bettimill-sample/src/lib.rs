@@ -14,6 +14,7 @@ pub use bettimill_format::{Label, Pooling, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
 use bettimill_grid::{BinaryImage, Mode};
 use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask};
+use serde::{Deserialize, Serialize};
 
 /// How many attempts a sample gets before the build reports it as failed.
 pub const MAX_ATTEMPTS: u32 = 16;
@@ -195,12 +196,101 @@ pub enum SampleError {
     },
 }
 
+/// A stage of making one sample, in the order they run (see [`make_sample_observed`]).
+/// [`Stage::Encode`] is not made by this crate: the shard writer reports it when it turns
+/// the verified sample into its (compressed) members.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Stage {
+    /// The construction is rasterised.
+    Generate,
+    /// The manifest's topology-preserving deformation.
+    Deform,
+    /// Simple-point flips into the stratum's hypervolume bin.
+    Hypervolume,
+    /// The Betti numbers of the final voxels are computed and compared with the label.
+    Verify,
+    /// The downscaled copy of this side is pooled and its topology computed.
+    Downscale {
+        /// The copy's side.
+        side: u32,
+    },
+    /// The sample becomes its shard members (serialised, compressed).
+    Encode,
+}
+
+impl Stage {
+    /// The part of a sample's time spent before this stage and in it, as fractions of the
+    /// whole: typical shares of a 4D 128^4 sample (BENCHMARKS.md, issue 17's stage
+    /// breakdown: generate about 1 CPU-s, targeting 0.2, homology 3.5, copies 1, encoding
+    /// under 1), rounded. An estimate of where the sample is, not a voxel count.
+    pub fn span(self) -> (f64, f64) {
+        match self {
+            Stage::Generate => (0.0, 0.2),
+            Stage::Deform => (0.2, 0.05),
+            Stage::Hypervolume => (0.25, 0.05),
+            Stage::Verify => (0.3, 0.45),
+            Stage::Downscale { .. } => (0.75, 0.15),
+            Stage::Encode => (0.9, 0.1),
+        }
+    }
+
+    /// Where a sample is when this stage is `within` (0 to 1) done, as a fraction of the
+    /// whole sample (see [`Stage::span`]).
+    pub fn sample_fraction(self, within: f64) -> f64 {
+        let (start, width) = self.span();
+        (start + width * within.clamp(0.0, 1.0)).min(1.0)
+    }
+}
+
+impl std::fmt::Display for Stage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Stage::Generate => f.write_str("generate"),
+            Stage::Deform => f.write_str("deform"),
+            Stage::Hypervolume => f.write_str("hypervolume targeting"),
+            Stage::Verify => f.write_str("verify"),
+            Stage::Downscale { side } => write!(f, "downscale r{side}"),
+            Stage::Encode => f.write_str("encode"),
+        }
+    }
+}
+
+/// What [`make_sample_observed`] tells its observer when a stage starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StageProgress {
+    /// The attempt (0 first; a regeneration starts again at [`Stage::Generate`]).
+    pub attempt: u32,
+    /// The stage starting.
+    pub stage: Stage,
+    /// Where the sample is, as a fraction of the whole (see [`Stage::sample_fraction`]).
+    pub fraction: f64,
+}
+
 /// Makes and verifies one sample.
 pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError> {
+    make_sample_observed(plan, task, &mut |_| {})
+}
+
+/// [`make_sample`], telling `observe` as each stage starts (and, for the downscaled copies,
+/// each copy), from the calling thread. The observer sees the work, it cannot change it:
+/// the sample is the same with any observer.
+pub fn make_sample_observed(
+    plan: &Plan,
+    task: &SampleTask,
+    observe: &mut dyn FnMut(StageProgress),
+) -> Result<Sample, SampleError> {
     let stratum = &plan.strata[task.stratum];
     let side = plan.side as usize;
     let mut last = String::new();
     for attempt in 0..MAX_ATTEMPTS {
+        let mut report = |stage: Stage, within: f64| {
+            observe(StageProgress {
+                attempt,
+                stage,
+                fraction: stage.sample_fraction(within),
+            })
+        };
+        report(Stage::Generate, 0.0);
         let mut rng = attempt_rng(&task.seed, attempt);
         // Binned samples are built near a foreground count drawn inside the bin, so that
         // only a small remainder is left to topology-preserving flips.
@@ -223,6 +313,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
         };
         let mut image = generated.image;
         if let Some(settings) = &plan.deform {
+            report(Stage::Deform, 0.0);
             let seed = sub_seed("bettimill deform seed v1", &task.seed, attempt);
             if let Err(err) = bettimill_deform::deform(&mut image, settings, seed) {
                 last = format!("deformation failed: {err}");
@@ -230,6 +321,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
             }
         }
         if let Some((lo, hi)) = stratum.hypervolume {
+            report(Stage::Hypervolume, 0.0);
             let seed = sub_seed("bettimill hypervolume seed v1", &task.seed, attempt);
             if let Err(err) = bettimill_deform::target_hypervolume(&mut image, lo, hi, seed) {
                 last = format!("hypervolume targeting failed: {err}");
@@ -248,6 +340,7 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
             "the construction and the plan disagree on {}",
             stratum.label
         );
+        report(Stage::Verify, 0.0);
         let topology = bettimill_homology::topology(&foreground_window(&image));
         if topology.betti != stratum.betti {
             last = format!(
@@ -259,7 +352,11 @@ pub fn make_sample(plan: &Plan, task: &SampleTask) -> Result<Sample, SampleError
         let mut downscaled = Vec::new();
         let mut resolutions = Vec::new();
         let pooling = pooling_for(stratum.mode);
-        for &r in &plan.resolutions {
+        for (i, &r) in plan.resolutions.iter().enumerate() {
+            report(
+                Stage::Downscale { side: r },
+                i as f64 / plan.resolutions.len() as f64,
+            );
             let small = downscale(&image, side / r as usize, pooling);
             let t = bettimill_homology::topology(&small);
             resolutions.push(ResolutionLabel {
@@ -404,6 +501,56 @@ mod tests {
             bettimill_homology::topology(&image).betti
         );
         assert_eq!(bettimill_homology::topology(&window).betti, vec![1, 0, 1]);
+    }
+
+    #[test]
+    fn the_observer_sees_every_stage_in_order_and_changes_nothing() {
+        let text = "schema_version = 1\nname = \"obs\"\ndimension = 2\nside = 32\n\
+                    mode = \"carve\"\nsamples = 3\nshard_size = 3\nseed = 9\n\
+                    resolutions = [16, 8]\n\
+                    [deform]\nmethod = \"moves\"\nsteps = 20\n\
+                    [hypervolume]\nunit = \"fraction\"\nbins = [[0.55, 0.75]]\n\
+                    [[classes]]\nfamily = \"ball\"\n";
+        let plan = Plan::parse(text, std::path::Path::new("obs.toml")).unwrap();
+        for index in 0..plan.samples {
+            let task = plan.task(index).unwrap();
+            let mut seen = Vec::new();
+            let observed = make_sample_observed(&plan, &task, &mut |p| seen.push(p)).unwrap();
+            let plain = make_sample(&plan, &task).unwrap();
+            assert_eq!(observed.fields(), plain.fields(), "sample {index}");
+            // The last attempt's stages, in order, each once, and nothing after the copies.
+            let attempt = observed.label.attempt;
+            let last: Vec<Stage> = seen
+                .iter()
+                .filter(|p| p.attempt == attempt)
+                .map(|p| p.stage)
+                .collect();
+            assert_eq!(
+                last,
+                [
+                    Stage::Generate,
+                    Stage::Deform,
+                    Stage::Hypervolume,
+                    Stage::Verify,
+                    Stage::Downscale { side: 16 },
+                    Stage::Downscale { side: 8 },
+                ],
+                "sample {index}"
+            );
+            assert!(seen.iter().all(|p| p.attempt <= attempt));
+            let fractions: Vec<f64> = seen
+                .iter()
+                .filter(|p| p.attempt == attempt)
+                .map(|p| p.fraction)
+                .collect();
+            assert!(
+                fractions.windows(2).all(|w| w[0] < w[1]) && fractions[0] == 0.0,
+                "{fractions:?}"
+            );
+            assert!(*fractions.last().unwrap() < Stage::Encode.sample_fraction(0.0));
+        }
+        assert_eq!(Stage::Encode.sample_fraction(1.0), 1.0);
+        assert_eq!(Stage::Downscale { side: 64 }.to_string(), "downscale r64");
     }
 
     #[test]
