@@ -791,6 +791,77 @@ fn signals_in_the_first_milliseconds_exit_130_and_resume() {
     assert!(handled > 0);
 }
 
+// ---------------------------------------------------------------- inflated shards
+
+/// The readers' peak resident set allowed on a damaged shard: far below the 6 GiB the
+/// shard claims (each reader used to peak at the file's size, or run out of memory).
+const READER_PEAK_KIB: u64 = 200 * 1024;
+
+/// `verify`, `status`, `stats`, `preview` and `audit` each used to read a whole shard into
+/// memory: a shard sparse-truncated to 3 GB made each peak at 3.15 GB, and one that is a
+/// link to /dev/zero made them run out of memory. Now each checks the file against its
+/// completion record before reading and streams through a fixed buffer: each finishes
+/// with a finding that names the shard, in small memory.
+#[test]
+fn an_inflated_shard_or_a_link_to_dev_zero_is_a_finding_of_every_reader_in_small_memory() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 8, 4);
+    for case in ["sparse", "dev-zero"] {
+        let out = tmp.path().join(case);
+        assert_exit(&build(&m, &out, 1), 0);
+        let shard = out.join("shards").join("r2d-000000.tar");
+        match case {
+            "sparse" => std::fs::OpenOptions::new()
+                .write(true)
+                .open(&shard)
+                .unwrap()
+                .set_len(6 << 30)
+                .unwrap(),
+            _ => {
+                std::fs::remove_file(&shard).unwrap();
+                std::os::unix::fs::symlink("/dev/zero", &shard).unwrap();
+            }
+        }
+        let dir = out.to_str().unwrap();
+        let png = tmp.path().join(format!("{case}.png"));
+        let commands: [(&[&str], Option<i32>); 6] = [
+            (&["verify", dir], Some(1)),
+            (&["status", dir], Some(0)),
+            (&["stats", dir], Some(2)),
+            (&["preview", dir, "--out", png.to_str().unwrap()], Some(2)),
+            (&["audit", dir, "--relabel"], None),
+            (&["audit", dir, "--shards", "0"], None),
+        ];
+        for (args, code) in commands {
+            let Some((output, peak_kib)) = common::run_with_peak(args) else {
+                return;
+            };
+            let said = format!("{}{}", text(&output.stdout), text(&output.stderr));
+            eprintln!(
+                "{case}: {args:?}: exit {:?}, peak {peak_kib} KiB",
+                output.status.code()
+            );
+            match code {
+                Some(code) => assert_exit(&output, code),
+                // audit: 1 for "differs" (a finding), never 0.
+                None => assert!(
+                    matches!(output.status.code(), Some(c) if c != 0),
+                    "{case} {args:?}: {said}"
+                ),
+            }
+            assert!(said.contains("r2d-000000"), "{case} {args:?}: {said}");
+            assert!(
+                !said.contains("panicked") && !said.contains("memory allocation"),
+                "{case} {args:?}: {said}"
+            );
+            assert!(
+                peak_kib < READER_PEAK_KIB,
+                "{case} {args:?}: peak {peak_kib} KiB"
+            );
+        }
+    }
+}
+
 // ---------------------------------------------------------------- records, links, no-op builds
 
 /// Flips one character of the second member's blake3 in `record` (the JSON text stays
