@@ -1080,7 +1080,14 @@ fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     let before = file_identities(&out);
     std::thread::sleep(Duration::from_millis(50));
     assert_exit(&build(&m, &out, 2), 0);
-    assert_exit(&run(&["finalize", out.to_str().unwrap()]), 0);
+    let finalize = run(&["finalize", out.to_str().unwrap()]);
+    assert_exit(&finalize, 0);
+    // It used to say "wrote index.json" when it had written nothing.
+    assert!(
+        stderr(&finalize).contains("nothing changed") && !stderr(&finalize).contains("wrote"),
+        "{}",
+        stderr(&finalize)
+    );
     assert_eq!(
         file_identities(&out),
         before,
@@ -1090,6 +1097,16 @@ fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     // A damaged dataset card is rewritten (and only what differs changes).
     std::fs::write(out.join("README.md"), b"edited\n").unwrap();
     assert_exit(&build(&m, &out, 2), 0);
+    assert_ne!(std::fs::read(out.join("README.md")).unwrap(), b"edited\n");
+    // A finalize that does rewrite says so.
+    std::fs::write(out.join("README.md"), b"edited\n").unwrap();
+    let finalize = run(&["finalize", out.to_str().unwrap()]);
+    assert_exit(&finalize, 0);
+    assert!(
+        stderr(&finalize).contains("wrote") && !stderr(&finalize).contains("nothing changed"),
+        "{}",
+        stderr(&finalize)
+    );
     assert_ne!(std::fs::read(out.join("README.md")).unwrap(), b"edited\n");
 }
 
