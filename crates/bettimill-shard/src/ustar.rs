@@ -392,6 +392,10 @@ pub fn tar_entries(bytes: &[u8], max_member_bytes: u64) -> Result<Vec<TarEntry<'
     }
 }
 
+/// One member read by [`TarStream::next_entry`]: its name, the offset of its header and
+/// its data (borrowed from the stream's buffer until the next call).
+pub type StreamEntry<'a> = (&'a str, u64, &'a [u8]);
+
 /// A streaming [`tar_entries`]: walks an untrusted archive from a reader, member after
 /// member, holding one member's data at a time in a buffer that is reused. It refuses what
 /// [`tar_entries`] refuses; a member whose header claims more than `max_member_bytes` is
@@ -456,7 +460,7 @@ impl<R: std::io::Read> TarStream<R> {
 
     /// The next regular-file member as (name, header offset, data), or `None` after the
     /// end-of-archive marker (and nothing but zeros after it).
-    pub fn next_entry(&mut self) -> Result<Option<(&str, u64, &[u8])>, ShardError> {
+    pub fn next_entry(&mut self) -> Result<Option<StreamEntry<'_>>, ShardError> {
         if self.done {
             return Ok(None);
         }
@@ -753,7 +757,11 @@ mod tests {
         assert_eq!(streamed(&bytes, 203).unwrap().len(), 3);
         assert!(matches!(
             streamed(&bytes, 202),
-            Err(ShardError::MemberTooLarge { bytes: 203, limit: 202, .. })
+            Err(ShardError::MemberTooLarge {
+                bytes: 203,
+                limit: 202,
+                ..
+            })
         ));
         // A header claiming a huge member on a short input allocates nothing for it.
         let mut huge = header_block("big.npy", (1 << 33) - 1).unwrap().to_vec();
