@@ -293,7 +293,31 @@ pub fn run_with_peak(args: &[&str]) -> Option<(Output, u64)> {
     let kib = text
         .lines()
         .filter_map(|l| l.trim().parse::<u64>().ok())
-        .last()
+        .next_back()
         .unwrap_or_else(|| panic!("no peak in GNU time's report: {text:?}"));
     Some((output, kib))
+}
+
+/// Asserts that a finished command exited with `code` and that its stderr says `needle`.
+#[track_caller]
+pub fn assert_exit_saying(out: &Output, code: i32, needle: &str) {
+    assert_exit(out, code);
+    assert!(stderr(out).contains(needle), "{}", stderr(out));
+}
+
+/// Builds `manifest` into `parent/clean` with `workers` workers (it must succeed) and
+/// returns that directory: the reference the builds a test interrupts are compared with.
+#[track_caller]
+pub fn clean_build(manifest: &Path, parent: &Path, workers: u32) -> PathBuf {
+    let clean = parent.join("clean");
+    assert_exit(&build(manifest, &clean, workers), 0);
+    clean
+}
+
+/// Reruns the build of `manifest` into `out` (it must succeed) and asserts that `out` is
+/// then file for file the same as `clean` (see [`assert_same`]).
+#[track_caller]
+pub fn assert_rebuilds_identically(manifest: &Path, out: &Path, workers: u32, clean: &Path) {
+    assert_exit(&build(manifest, out, workers), 0);
+    assert_same(clean, out);
 }
