@@ -168,12 +168,7 @@ fn the_memory_limit_is_shared_by_the_workers_and_checked_by_each_worker() {
     let m = m.to_str().unwrap();
     // One 32^4 worker: 16 B x 2^20 voxels + 32 MiB + one sample's bytes (gzip) = 49 MiB.
     let out = run(&["plan", m, "--max-memory", "40M"]);
-    assert_exit(&out, 2);
-    assert!(
-        stderr(&out).contains("needs about 49.0 MiB"),
-        "{}",
-        stderr(&out)
-    );
+    common::assert_exit_saying(&out, 2, "needs about 49.0 MiB");
     let dir = tmp.path().join("out");
     let out = run(&[
         "build",
@@ -200,20 +195,10 @@ fn the_memory_limit_is_shared_by_the_workers_and_checked_by_each_worker() {
         "--max-memory",
         "60M",
     ]);
-    assert_exit(&out, 2);
-    assert!(
-        stderr(&out).contains("needs about 97.0 MiB"),
-        "{}",
-        stderr(&out)
-    );
+    common::assert_exit_saying(&out, 2, "needs about 97.0 MiB");
     // Sizes that are not sizes are refused by name.
     let out = run(&["plan", m, "--max-memory", "lots"]);
-    assert_exit(&out, 2);
-    assert!(
-        stderr(&out).contains("is not a memory size"),
-        "{}",
-        stderr(&out)
-    );
+    common::assert_exit_saying(&out, 2, "is not a memory size");
 }
 
 #[test]
@@ -234,15 +219,93 @@ fn slurm_checks_one_array_task_and_asks_for_its_memory() {
         "--max-memory",
         "60M",
     ]);
-    assert_exit(&out, 2);
-    assert!(
-        stderr(&out).contains("needs about 97.0 MiB"),
-        "{}",
-        stderr(&out)
-    );
+    common::assert_exit_saying(&out, 2, "needs about 97.0 MiB");
     assert!(!dir.exists(), "a refused slurm wrote {d}");
     let out = run(&["slurm", m, "--out", d, "--max-memory", "1G"]);
     assert_exit(&out, 0);
     let script = std::fs::read_to_string(dir.join("slurm/build.sbatch")).unwrap();
     assert!(script.contains("#SBATCH --mem=1024M"), "{script}");
+}
+
+/// `bettimill ARGS` with the Slurm variables `vars` set (and no other SLURM_* variable).
+fn in_slurm_job(args: &[&str], vars: &[(&str, &str)]) -> Output {
+    let mut command = common::bettimill();
+    for (name, _) in std::env::vars() {
+        if name.starts_with("SLURM_") {
+            command.env_remove(name);
+        }
+    }
+    command.args(args).envs(vars.iter().copied());
+    command.output().unwrap()
+}
+
+/// An array task on a shared node used to check the node's MemAvailable, not its job's
+/// allocation: inside a Slurm job the limit is `SLURM_MEM_PER_NODE`, or
+/// `SLURM_MEM_PER_CPU` x `SLURM_CPUS_ON_NODE`, and the message says which.
+#[test]
+fn inside_a_slurm_job_the_memory_limit_is_the_jobs_allocation_and_is_named() {
+    let tmp = Dir::new();
+    let m = with_side(tmp.path(), 32);
+    let m = m.to_str().unwrap();
+    let job = [("SLURM_JOB_ID", "7"), ("SLURM_MEM_PER_NODE", "16")];
+    let out = in_slurm_job(&["plan", m], &job);
+    common::assert_exit_saying(
+        &out,
+        2,
+        "the Slurm job's memory: SLURM_MEM_PER_NODE 16.0 MiB",
+    );
+    let per_cpu = [
+        ("SLURM_JOB_ID", "7"),
+        ("SLURM_MEM_PER_CPU", "8"),
+        ("SLURM_CPUS_ON_NODE", "2"),
+    ];
+    let out = in_slurm_job(&["plan", m], &per_cpu);
+    common::assert_exit_saying(&out, 2, "SLURM_MEM_PER_CPU 8.0 MiB x SLURM_CPUS_ON_NODE 2");
+    // The array task itself: bound by `slurm`, refused by the job's memory when it starts.
+    let dir = tmp.path().join("cluster");
+    let d = dir.to_str().unwrap();
+    assert_exit(&run(&["slurm", m, "--out", d, "--max-memory", "1G"]), 0);
+    let task = [
+        "worker",
+        "--dir",
+        d,
+        "--task-index",
+        "0",
+        "--task-count",
+        "1",
+    ];
+    let out = in_slurm_job(&task, &job);
+    common::assert_exit_saying(&out, 2, "SLURM_MEM_PER_NODE 16.0 MiB");
+    assert_eq!(tars(&dir), 0);
+    // A job with enough memory plans it; --max-memory still wins over the job.
+    let enough = [("SLURM_JOB_ID", "7"), ("SLURM_MEM_PER_NODE", "4096")];
+    assert_exit(&in_slurm_job(&["plan", m], &enough), 0);
+    assert_exit(&in_slurm_job(&["plan", m, "--max-memory", "1G"], &job), 0);
+}
+
+/// `bettimill k8s` had no memory setting: its pods ran with none asked for and each
+/// checked its node's MemAvailable.
+#[test]
+fn k8s_max_memory_is_checked_and_written_into_the_jobs_resources_and_command() {
+    let tmp = Dir::new();
+    let m = with_side(tmp.path(), 32);
+    let m = m.to_str().unwrap();
+    let dir = tmp.path().join("k8s");
+    let d = dir.to_str().unwrap();
+    let out = run(&["k8s", m, "--out", d, "--tasks", "2", "--max-memory", "20M"]);
+    common::assert_exit_saying(&out, 2, "--max-memory 20.0 MiB");
+    assert!(!dir.exists(), "a refused k8s wrote {d}");
+    let out = run(&["k8s", m, "--out", d, "--tasks", "2", "--max-memory", "1G"]);
+    assert_exit(&out, 0);
+    let yaml = stdout(&out);
+    assert!(
+        yaml.contains("\"--threads\", \"1\", \"--max-memory\", \"1024M\"]"),
+        "{yaml}"
+    );
+    let resources = "resources:\n            requests:\n              cpu: \"1\"\n              memory: \"1024Mi\"\n            limits:\n              memory: \"1024Mi\"\n";
+    assert!(yaml.contains(resources), "{yaml}");
+    // Without it, nothing is asked for.
+    let out = run(&["k8s", m, "--out", d, "--tasks", "2"]);
+    assert_exit(&out, 0);
+    assert!(!stdout(&out).contains("memory"), "{}", stdout(&out));
 }

@@ -415,8 +415,7 @@ fn a_build_over_the_file_size_limit_stops_cleanly_and_resumes_identically() {
     let tmp = Dir::new();
     // Shards of about 24 KiB; every other file is far below the 12 KiB limit.
     let m = manifest(tmp.path(), 2, 64, 12, 4);
-    let clean = tmp.path().join("clean");
-    assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
+    let clean = common::clean_build(&m, tmp.path(), 2);
     let out = tmp.path().join("limited");
     // SIGXFSZ is ignored so that writes past the limit fail with EFBIG instead of killing
     // the process (an ignored signal stays ignored across exec).
@@ -509,8 +508,7 @@ fn temporaries_in(dir: &Path) -> Vec<String> {
 fn a_creation_stopped_half_way_resumes_with_the_same_command() {
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 6, 2);
-    let clean = tmp.path().join("clean");
-    assert_exit(&build(&m, &clean, 2), 0);
+    let clean = common::clean_build(&m, tmp.path(), 2);
     let manifest_bytes = std::fs::read(&m).unwrap();
     let states: Vec<(&str, Files)> = vec![
         ("empty", vec![]),
@@ -624,8 +622,7 @@ fn only_a_really_foreign_directory_is_refused_and_it_is_left_untouched() {
 fn the_loser_of_two_builds_into_a_fresh_directory_is_told_about_the_lock() {
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 8, 2);
-    let clean = tmp.path().join("clean");
-    assert_exit(&build(&m, &clean, 1), 0);
+    let clean = common::clean_build(&m, tmp.path(), 1);
     for round in 0..4 {
         let out = tmp.path().join(format!("race{round}"));
         let first = spawn_build(&m, &out, 1, &[]);
@@ -656,8 +653,7 @@ fn a_disk_full_while_the_directory_is_created_resumes_once_space_is_back() {
     }
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 4, 2);
-    let clean = tmp.path().join("clean");
-    assert_exit(&build(&m, &clean, 2), 0);
+    let clean = common::clean_build(&m, tmp.path(), 2);
     let mount_point = tmp.path().join("tiny");
     std::fs::create_dir(&mount_point).unwrap();
     // One page: room for manifest.toml, not for build.json too.
@@ -670,12 +666,7 @@ fn a_disk_full_while_the_directory_is_created_resumes_once_space_is_back() {
     let _guard = Mount(mount_point.clone());
     let out = mount_point.join("ds");
     let full = build(&m, &out, 2);
-    assert_exit(&full, 2);
-    assert!(
-        stderr(&full).contains("No space left on device"),
-        "{}",
-        stderr(&full)
-    );
+    common::assert_exit_saying(&full, 2, "No space left on device");
     assert!(!out.join("build.json").exists());
     let grown = Command::new("mount")
         .args(["-o", "remount,size=64M"])
@@ -683,8 +674,7 @@ fn a_disk_full_while_the_directory_is_created_resumes_once_space_is_back() {
         .output()
         .unwrap();
     assert!(grown.status.success(), "remount: {}", text(&grown.stderr));
-    assert_exit(&build(&m, &out, 2), 0);
-    assert_same(&clean, &out);
+    common::assert_rebuilds_identically(&m, &out, 2, &clean);
 }
 
 // ---------------------------------------------------------------- signals
@@ -693,8 +683,7 @@ fn a_disk_full_while_the_directory_is_created_resumes_once_space_is_back() {
 fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 20, 12, 3);
-    let clean = tmp.path().join("clean");
-    assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
+    let clean = common::clean_build(&m, tmp.path(), 2);
     for signal in ["-INT", "-TERM"] {
         let out = tmp.path().join(format!("signal{signal}"));
         // The hook holds each worker between its temporary file and the rename, so the
@@ -715,9 +704,7 @@ fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
             "{signal}: workers remain"
         );
         assert_no_partial_shard_visible(&out);
-        let rerun = build(&m, &out, 2);
-        assert_exit(&rerun, 0);
-        assert_same(&clean, &out);
+        common::assert_rebuilds_identically(&m, &out, 2, &clean);
     }
 }
 
@@ -730,8 +717,7 @@ fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
 fn a_signal_during_start_up_exits_130_with_a_message_and_the_rerun_is_identical() {
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 6, 2);
-    let clean = tmp.path().join("clean");
-    assert_exit(&build(&m, &clean, 2), 0);
+    let clean = common::clean_build(&m, tmp.path(), 2);
     for signal in ["-INT", "-TERM"] {
         let out = tmp.path().join(format!("startup{signal}"));
         let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_PAUSE_AT_STARTUP", "120")]);
@@ -750,8 +736,7 @@ fn a_signal_during_start_up_exits_130_with_a_message_and_the_rerun_is_identical(
             "{message}"
         );
         assert!(workers_of(&out).is_empty());
-        assert_exit(&build(&m, &out, 2), 0);
-        assert_same(&clean, &out);
+        common::assert_rebuilds_identically(&m, &out, 2, &clean);
     }
 }
 
@@ -764,8 +749,7 @@ fn a_signal_during_start_up_exits_130_with_a_message_and_the_rerun_is_identical(
 fn signals_in_the_first_milliseconds_exit_130_and_resume() {
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 6, 2);
-    let clean = tmp.path().join("clean");
-    assert_exit(&build(&m, &clean, 2), 0);
+    let clean = common::clean_build(&m, tmp.path(), 2);
     let (mut handled, mut before_main) = (0, 0);
     for step in 0..16u64 {
         let signal = if step % 2 == 0 { "-INT" } else { "-TERM" };
@@ -784,11 +768,81 @@ fn signals_in_the_first_milliseconds_exit_130_and_resume() {
             other => panic!("{signal} after {step}: {other:?}: {}", text(&result.stderr)),
         }
         assert!(workers_of(&out).is_empty());
-        assert_exit(&build(&m, &out, 2), 0);
-        assert_same(&clean, &out);
+        common::assert_rebuilds_identically(&m, &out, 2, &clean);
     }
     eprintln!("early signals: {handled} handled (exit 130), {before_main} before main");
     assert!(handled > 0);
+}
+
+// ---------------------------------------------------------------- inflated shards
+
+/// The readers' peak resident set allowed on a damaged shard: far below the 6 GiB the
+/// shard claims (each reader used to peak at the file's size, or run out of memory).
+const READER_PEAK_KIB: u64 = 200 * 1024;
+
+/// `verify`, `status`, `stats`, `preview` and `audit` each used to read a whole shard into
+/// memory: a shard sparse-truncated to 3 GB made each peak at 3.15 GB, and one that is a
+/// link to /dev/zero made them run out of memory. Now each checks the file against its
+/// completion record before reading and streams through a fixed buffer: each finishes
+/// with a finding that names the shard, in small memory.
+#[test]
+fn an_inflated_shard_or_a_link_to_dev_zero_is_a_finding_of_every_reader_in_small_memory() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 8, 4);
+    for case in ["sparse", "dev-zero"] {
+        let out = tmp.path().join(case);
+        assert_exit(&build(&m, &out, 1), 0);
+        let shard = out.join("shards").join("r2d-000000.tar");
+        match case {
+            "sparse" => std::fs::OpenOptions::new()
+                .write(true)
+                .open(&shard)
+                .unwrap()
+                .set_len(6 << 30)
+                .unwrap(),
+            _ => {
+                std::fs::remove_file(&shard).unwrap();
+                std::os::unix::fs::symlink("/dev/zero", &shard).unwrap();
+            }
+        }
+        let dir = out.to_str().unwrap();
+        let png = tmp.path().join(format!("{case}.png"));
+        let commands: [(&[&str], Option<i32>); 6] = [
+            (&["verify", dir], Some(1)),
+            (&["status", dir], Some(0)),
+            (&["stats", dir], Some(2)),
+            (&["preview", dir, "--out", png.to_str().unwrap()], Some(2)),
+            (&["audit", dir, "--relabel"], None),
+            (&["audit", dir, "--shards", "0"], None),
+        ];
+        for (args, code) in commands {
+            let Some((output, peak_kib)) = common::run_with_peak(args) else {
+                return;
+            };
+            let said = format!("{}{}", text(&output.stdout), text(&output.stderr));
+            eprintln!(
+                "{case}: {args:?}: exit {:?}, peak {peak_kib} KiB",
+                output.status.code()
+            );
+            match code {
+                Some(code) => assert_exit(&output, code),
+                // audit: 1 for "differs" (a finding), never 0.
+                None => assert!(
+                    matches!(output.status.code(), Some(c) if c != 0),
+                    "{case} {args:?}: {said}"
+                ),
+            }
+            assert!(said.contains("r2d-000000"), "{case} {args:?}: {said}");
+            assert!(
+                !said.contains("panicked") && !said.contains("memory allocation"),
+                "{case} {args:?}: {said}"
+            );
+            assert!(
+                peak_kib < READER_PEAK_KIB,
+                "{case} {args:?}: peak {peak_kib} KiB"
+            );
+        }
+    }
 }
 
 // ---------------------------------------------------------------- records, links, no-op builds
@@ -818,8 +872,7 @@ fn flip_member_hash(record: &Path) {
 fn a_flipped_member_hash_in_a_record_makes_the_shard_incomplete_and_build_repairs_it() {
     let tmp = Dir::new();
     let m = manifest(tmp.path(), 2, 16, 6, 2);
-    let clean = tmp.path().join("clean");
-    assert_exit(&build(&m, &clean, 2), 0);
+    let clean = common::clean_build(&m, tmp.path(), 2);
     let out = tmp.path().join("flipped");
     assert_exit(&build(&m, &out, 2), 0);
     let record = out.join("records").join("r2d-000001.json");
@@ -833,16 +886,10 @@ fn a_flipped_member_hash_in_a_record_makes_the_shard_incomplete_and_build_repair
     // Without index.json: finalize refuses to write one from the bad record.
     std::fs::remove_file(out.join("index.json")).unwrap();
     let finalize = run(&["finalize", out.to_str().unwrap()]);
-    assert_exit(&finalize, 2);
-    assert!(
-        stderr(&finalize).contains("r2d-000001"),
-        "{}",
-        stderr(&finalize)
-    );
+    common::assert_exit_saying(&finalize, 2, "r2d-000001");
     assert!(!out.join("index.json").exists());
     // build regenerates the shard and its record, then writes the clean index.
-    assert_exit(&build(&m, &out, 2), 0);
-    assert_same(&clean, &out);
+    common::assert_rebuilds_identically(&m, &out, 2, &clean);
     assert_exit(&run(&["verify", out.to_str().unwrap()]), 0);
     // With index.json in place: build repairs the record and leaves the index as it was.
     let index = std::fs::read(out.join("index.json")).unwrap();
@@ -1009,7 +1056,14 @@ fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     let before = file_identities(&out);
     std::thread::sleep(Duration::from_millis(50));
     assert_exit(&build(&m, &out, 2), 0);
-    assert_exit(&run(&["finalize", out.to_str().unwrap()]), 0);
+    let finalize = run(&["finalize", out.to_str().unwrap()]);
+    assert_exit(&finalize, 0);
+    // It used to say "wrote index.json" when it had written nothing.
+    assert!(
+        stderr(&finalize).contains("nothing changed") && !stderr(&finalize).contains("wrote"),
+        "{}",
+        stderr(&finalize)
+    );
     assert_eq!(
         file_identities(&out),
         before,
@@ -1019,6 +1073,16 @@ fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     // A damaged dataset card is rewritten (and only what differs changes).
     std::fs::write(out.join("README.md"), b"edited\n").unwrap();
     assert_exit(&build(&m, &out, 2), 0);
+    assert_ne!(std::fs::read(out.join("README.md")).unwrap(), b"edited\n");
+    // A finalize that does rewrite says so.
+    std::fs::write(out.join("README.md"), b"edited\n").unwrap();
+    let finalize = run(&["finalize", out.to_str().unwrap()]);
+    common::assert_exit_saying(&finalize, 0, "wrote");
+    assert!(
+        !stderr(&finalize).contains("nothing changed"),
+        "{}",
+        stderr(&finalize)
+    );
     assert_ne!(std::fs::read(out.join("README.md")).unwrap(), b"edited\n");
 }
 

@@ -268,3 +268,56 @@ pub fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) 
         std::thread::sleep(Duration::from_millis(10));
     }
 }
+
+/// Runs `bettimill ARGS` to its end under GNU time and returns its output and peak
+/// resident set in KiB (getrusage of the child, `%M`); `None` (the test returns) when
+/// /usr/bin/time is missing outside CI.
+pub fn run_with_peak(args: &[&str]) -> Option<(Output, u64)> {
+    const TIME: &str = "/usr/bin/time";
+    if !Path::new(TIME).exists() {
+        bettimill_testkit::skip_unless_ci("GNU time", "/usr/bin/time is not installed");
+        return None;
+    }
+    let report = tempfile::NamedTempFile::new().expect("a temporary file");
+    let output = Command::new(TIME)
+        .arg("-f")
+        .arg("%M")
+        .arg("-o")
+        .arg(report.path())
+        .arg(BETTIMILL)
+        .args(args)
+        .output()
+        .expect("time runs bettimill");
+    let text = std::fs::read_to_string(report.path()).expect("time wrote its report");
+    // GNU time writes "Command exited with non-zero status N" before the figures.
+    let kib = text
+        .lines()
+        .filter_map(|l| l.trim().parse::<u64>().ok())
+        .next_back()
+        .unwrap_or_else(|| panic!("no peak in GNU time's report: {text:?}"));
+    Some((output, kib))
+}
+
+/// Asserts that a finished command exited with `code` and that its stderr says `needle`.
+#[track_caller]
+pub fn assert_exit_saying(out: &Output, code: i32, needle: &str) {
+    assert_exit(out, code);
+    assert!(stderr(out).contains(needle), "{}", stderr(out));
+}
+
+/// Builds `manifest` into `parent/clean` with `workers` workers (it must succeed) and
+/// returns that directory: the reference the builds a test interrupts are compared with.
+#[track_caller]
+pub fn clean_build(manifest: &Path, parent: &Path, workers: u32) -> PathBuf {
+    let clean = parent.join("clean");
+    assert_exit(&build(manifest, &clean, workers), 0);
+    clean
+}
+
+/// Reruns the build of `manifest` into `out` (it must succeed) and asserts that `out` is
+/// then file for file the same as `clean` (see [`assert_same`]).
+#[track_caller]
+pub fn assert_rebuilds_identically(manifest: &Path, out: &Path, workers: u32, clean: &Path) {
+    assert_exit(&build(manifest, out, workers), 0);
+    assert_same(clean, out);
+}

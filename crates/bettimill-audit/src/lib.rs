@@ -245,30 +245,56 @@ pub fn rebuild_with_progress(
         let mut report = AuditReport::default();
         for shard in shards {
             fresh.write_shard_with_progress(shard, &|_| progress())?;
-            let rebuilt =
-                std::fs::read(fresh.tar_path(shard)).map_err(|source| AuditError::Io {
-                    path: fresh.tar_path(shard),
-                    source,
-                })?;
             report.rebuilt.push(shard.name.clone());
-            let Ok(original) = std::fs::read(stored.tar_path(shard)) else {
-                report.findings.push(Finding::Missing {
-                    shard: shard.name.clone(),
-                });
-                continue;
+            let original = match std::fs::File::open(stored.tar_path(shard)) {
+                Ok(file) => file,
+                Err(_) => {
+                    report.findings.push(Finding::Missing {
+                        shard: shard.name.clone(),
+                    });
+                    continue;
+                }
             };
-            if let Some(offset) = first_difference(&original, &rebuilt) {
-                let member = bettimill_shard::tar_entries(&rebuilt, u64::MAX)
+            let rebuilt_path = fresh.tar_path(shard);
+            let rebuilt = std::fs::File::open(&rebuilt_path).map_err(|source| AuditError::Io {
+                path: rebuilt_path.clone(),
+                source,
+            })?;
+            let rebuilt_len = rebuilt
+                .metadata()
+                .map_err(|source| AuditError::Io {
+                    path: rebuilt_path.clone(),
+                    source,
+                })?
+                .len();
+            // Streamed through fixed buffers; the stored file is read no further than one
+            // byte past the rebuilt length (a shard inflated to gigabytes, or a link to
+            // /dev/zero, differs there at the latest).
+            let stored_path = stored.tar_path(shard);
+            let difference =
+                first_difference(std::io::Read::take(original, rebuilt_len + 1), rebuilt).map_err(
+                    |source| AuditError::Io {
+                        path: stored_path,
+                        source,
+                    },
+                )?;
+            if let Some(offset) = difference {
+                let member = fresh
+                    .layout()
+                    .read_record(&shard.name)
                     .ok()
-                    .and_then(|entries| {
-                        entries
+                    .flatten()
+                    .and_then(|record| {
+                        record
+                            .shard
+                            .members
                             .iter()
-                            .find(|e| {
-                                let start = e.header_offset;
-                                let end = start + 512 + (e.data.len() as u64).div_ceil(512) * 512;
+                            .find(|m| {
+                                let start = m.offset - 512;
+                                let end = m.offset + m.bytes.div_ceil(512) * 512;
                                 (start..end).contains(&offset)
                             })
-                            .map(|e| e.name.to_string())
+                            .map(|m| m.name.clone())
                     });
                 report.findings.push(Finding::RebuildDiffers {
                     shard: shard.name.clone(),
@@ -283,11 +309,26 @@ pub fn rebuild_with_progress(
     result
 }
 
-fn first_difference(a: &[u8], b: &[u8]) -> Option<u64> {
-    match a.iter().zip(b).position(|(x, y)| x != y) {
-        Some(i) => Some(i as u64),
-        None if a.len() != b.len() => Some(a.len().min(b.len()) as u64),
-        None => None,
+/// The offset of the first byte where two streams differ (or where the shorter ends).
+fn first_difference(a: impl std::io::Read, b: impl std::io::Read) -> std::io::Result<Option<u64>> {
+    let mut a = std::io::BufReader::with_capacity(1 << 16, a);
+    let mut b = std::io::BufReader::with_capacity(1 << 16, b);
+    let mut offset = 0u64;
+    loop {
+        let (x, y) = (
+            std::io::BufRead::fill_buf(&mut a)?,
+            std::io::BufRead::fill_buf(&mut b)?,
+        );
+        if x.is_empty() || y.is_empty() {
+            return Ok((x.len() != y.len()).then_some(offset));
+        }
+        let n = x.len().min(y.len());
+        if let Some(i) = x[..n].iter().zip(&y[..n]).position(|(p, q)| p != q) {
+            return Ok(Some(offset + i as u64));
+        }
+        std::io::BufRead::consume(&mut a, n);
+        std::io::BufRead::consume(&mut b, n);
+        offset += n as u64;
     }
 }
 
@@ -328,45 +369,66 @@ fn relabel_shard(
     shard: &ShardPlan,
     progress: &(dyn Fn() + Sync),
 ) -> Result<(u64, Vec<Finding>), AuditError> {
-    let path = dataset.tar_path(shard);
     let mut findings = Vec::new();
-    let Ok(bytes) = std::fs::read(&path) else {
-        return Ok((
-            0,
-            vec![Finding::Missing {
-                shard: shard.name.clone(),
-            }],
-        ));
-    };
     let undecodable = |member: &str, reason: String| Finding::Undecodable {
         shard: shard.name.clone(),
         member: member.to_string(),
         reason,
     };
-    let members = match bettimill_shard::read_tar(&bytes) {
-        Ok(m) => m,
+    // Checked against its record before reading, then read one member at a time: a shard
+    // inflated to gigabytes or replaced by a link to a device is a finding, not a read.
+    let mut stream = match dataset.layout().open_tar(
+        &shard.name,
+        bettimill_shard::ustar::DEFAULT_MAX_MEMBER_BYTES,
+    ) {
+        Ok(stream) => stream,
+        Err(bettimill_format::FormatError::Io { source, .. })
+            if source.kind() == std::io::ErrorKind::NotFound =>
+        {
+            return Ok((
+                0,
+                vec![Finding::Missing {
+                    shard: shard.name.clone(),
+                }],
+            ));
+        }
         Err(err) => return Ok((0, vec![undecodable("(tar)", err.to_string())])),
     };
-    // Group members by key, keeping the tar order.
-    let mut samples: Vec<(String, Fields)> = Vec::new();
-    for member in members {
-        let Some(parsed) = MemberName::parse(&member.name) else {
-            findings.push(undecodable(&member.name, "no field".into()));
+    // Members grouped by key in tar order; a sample is checked once its last member is
+    // read, so one sample's members are held at a time.
+    let mut samples = 0u64;
+    let mut current: Option<(String, Fields)> = None;
+    let mut finish = |sample: Option<(String, Fields)>, findings: &mut Vec<Finding>| {
+        if let Some((key, fields)) = sample {
+            progress();
+            samples += 1;
+            findings.extend(relabel_sample(dataset, &shard.name, &key, &fields));
+        }
+    };
+    loop {
+        let (name, data) = match stream.next_entry() {
+            Ok(Some((name, _, data))) => (name, data),
+            Ok(None) => break,
+            Err(err) => {
+                findings.push(undecodable("(tar)", err.to_string()));
+                break;
+            }
+        };
+        let Some(parsed) = MemberName::parse(name) else {
+            findings.push(undecodable(name, "no field".into()));
             continue;
         };
         let key = parsed.key;
-        if samples.last().map(|s| s.0.as_str()) != Some(key) {
-            samples.push((key.to_string(), Vec::new()));
+        if current.as_ref().map(|s| s.0.as_str()) != Some(key) {
+            finish(current.take(), &mut findings);
+            current = Some((key.to_string(), Vec::new()));
         }
-        let field = member.name[key.len() + 1..].to_string();
-        let last = samples.last_mut().expect("just pushed");
-        last.1.push((field, member.data));
+        let field = name[key.len() + 1..].to_string();
+        let last = current.as_mut().expect("just set");
+        last.1.push((field, data.to_vec()));
     }
-    for (key, fields) in &samples {
-        progress();
-        findings.extend(relabel_sample(dataset, &shard.name, key, fields));
-    }
-    Ok((samples.len() as u64, findings))
+    finish(current.take(), &mut findings);
+    Ok((samples, findings))
 }
 
 /// Decodes one array member (`KEY.npy`, `KEY.r10.npy.gz`, ...) into an image.

@@ -43,15 +43,37 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
     // so a standalone finalize reads every byte once, not twice.
     let checked: std::collections::BTreeSet<&str> =
         status.complete.iter().map(String::as_str).collect();
+    // A finalize that finds every file already as it would write it writes nothing (not
+    // even a temporary); otherwise every file is renamed into place, index.json last, so
+    // the identity of index.json tells the two apart.
+    let index_path = dataset.layout().index_path();
+    let before = file_identity(&index_path);
     dataset.finalize_checked(&|shard| checked.contains(shard.name.as_str()))?;
     if !quiet {
-        eprintln!(
-            "{} shards complete; wrote {}",
-            status.shards,
-            dataset.layout().index_path().display()
-        );
+        if before.is_some() && before == file_identity(&index_path) {
+            eprintln!(
+                "{} shards complete; index.json and the other files were already up to date, nothing changed",
+                status.shards
+            );
+        } else {
+            eprintln!(
+                "{} shards complete; wrote {}",
+                status.shards,
+                index_path.display()
+            );
+        }
     }
     Ok(ExitStatus::Success)
+}
+
+/// What changes when a file is replaced (a rename puts a new inode in place) or written.
+fn file_identity(path: &Path) -> Option<(u64, u64, Option<std::time::SystemTime>)> {
+    let meta = std::fs::metadata(path).ok()?;
+    #[cfg(unix)]
+    let inode = std::os::unix::fs::MetadataExt::ino(&meta);
+    #[cfg(not(unix))]
+    let inode = 0;
+    Some((inode, meta.len(), meta.modified().ok()))
 }
 
 /// `bettimill status DIR`.

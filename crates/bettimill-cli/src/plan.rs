@@ -12,7 +12,8 @@ const NS_PER_VOXEL: [f64; 3] = [400.0, 300.0, 250.0];
 /// The share of /proc/meminfo's MemAvailable that the default `--max-memory` hands out.
 pub(crate) const DEFAULT_MEMORY_SHARE: f64 = 0.8;
 
-/// The memory one worker may use: `--max-memory` if given, else
+/// The memory one worker may use: `--max-memory` if given, else inside a Slurm job its
+/// allocation (`crate::cluster::job_memory_limit`), else
 /// [`DEFAULT_MEMORY_SHARE`] of MemAvailable divided among `workers`; `None` when neither
 /// is known (no /proc/meminfo: nothing is refused). With the words saying where it came
 /// from, for messages.
@@ -22,6 +23,9 @@ pub(crate) fn memory_limit(max_memory: Option<u64>, workers: u64) -> Option<(u64
             limit,
             format!("--max-memory {}", memory::human_bytes(limit)),
         ));
+    }
+    if let Some(job) = crate::cluster::job_memory_limit(workers) {
+        return Some(job);
     }
     let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
     let available_kib: u64 = meminfo

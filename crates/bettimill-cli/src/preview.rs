@@ -3,10 +3,10 @@
 
 use crate::commands::ExitStatus;
 use anyhow::{bail, Context};
-use bettimill_format::DatasetDir;
+use bettimill_format::{DatasetDir, ShardStream};
 use bettimill_preview::{
-    caption, contact_sheet, guess_mode, label_mode, render_sample, samples_in_tar, short_caption,
-    Subject,
+    caption, contact_sheet, guess_mode, label_mode, render_sample, samples_in_stream,
+    short_caption, Subject,
 };
 use std::path::{Path, PathBuf};
 
@@ -26,15 +26,15 @@ pub struct Request<'a> {
 
 /// The shards of a dataset directory in build order, with their splits: from `index.json`
 /// when the build is finished, otherwise every `shards/*.tar` by name, its split taken from
-/// its completion record (`unknown` without one).
-pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)>> {
+/// its completion record (`unknown` without one). Each is (split, shard name).
+pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, String)>> {
     let layout = DatasetDir::new(dir);
     if layout.is_finalized() {
         let index = bettimill_shard::Index::read(&layout.index_path())?;
         return Ok(index
             .shards
             .iter()
-            .map(|s| (s.split.clone(), dir.join(&s.name)))
+            .map(|s| (s.split.clone(), DatasetDir::shard_stem(&s.name).to_string()))
             .collect());
     }
     let names = layout.shard_names()?;
@@ -45,19 +45,40 @@ pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)
         );
     }
     Ok(names
-        .iter()
+        .into_iter()
         .map(|name| {
-            let split = match layout.read_record(name) {
+            let split = match layout.read_record(&name) {
                 Ok(Some(record)) => record.shard.split,
                 _ => "unknown".to_string(),
             };
-            (split, layout.tar_path(name))
+            (split, name)
         })
         .collect())
 }
 
-fn read_shard(path: &Path) -> anyhow::Result<Vec<u8>> {
-    std::fs::read(path).with_context(|| format!("cannot read shard {}", path.display()))
+/// Where a shard to read is: one of a dataset directory, or a plain `.tar` file.
+pub(crate) enum ShardAt<'a> {
+    /// Shard `name` of the dataset directory.
+    InDataset(&'a DatasetDir, &'a str),
+    /// A `.tar` file given by itself.
+    File(&'a Path),
+}
+
+/// Opens a shard for reading member after member (see `DatasetDir::open_tar`: a dataset's
+/// shard is checked against its completion record first, so a shard inflated to gigabytes
+/// or replaced by a link to a device is refused by name before anything is read).
+pub(crate) fn open_shard(at: ShardAt) -> anyhow::Result<ShardStream> {
+    Ok(match at {
+        ShardAt::InDataset(layout, name) => {
+            layout.open_tar(name, bettimill_shard::ustar::DEFAULT_MAX_MEMBER_BYTES)?
+        }
+        ShardAt::File(path) => bettimill_format::open_tar_file(
+            path,
+            None,
+            bettimill_shard::ustar::DEFAULT_MAX_MEMBER_BYTES,
+        )
+        .with_context(|| format!("cannot read shard {}", path.display()))?,
+    })
 }
 
 /// What the picture of a sample read from a shard knows: its label's mode and Betti numbers.
@@ -106,13 +127,20 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
         };
         render_sample(&subject, &lines)?
     } else {
-        let shards: Vec<PathBuf> = if input.is_dir() {
-            dataset_shards(input)?.into_iter().map(|(_, p)| p).collect()
+        let layout = DatasetDir::new(input);
+        let shards: Vec<(String, PathBuf)> = if input.is_dir() {
+            dataset_shards(input)?
+                .into_iter()
+                .map(|(_, name)| {
+                    let path = layout.tar_path(&name);
+                    (name, path)
+                })
+                .collect()
         } else if input.extension().is_some_and(|e| e == "tar") {
             if !input.exists() {
                 bail!("{} does not exist", input.display());
             }
-            vec![input.to_path_buf()]
+            vec![(String::new(), input.to_path_buf())]
         } else {
             bail!(
                 "{}: expected a dataset directory, a .tar shard or a .npy image",
@@ -121,13 +149,17 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
         };
         let want = request.n.unwrap_or(1);
         let mut found = Vec::new();
-        for shard in &shards {
-            let bytes = read_shard(shard)?;
+        for (name, shard) in &shards {
+            let mut stream = open_shard(if input.is_dir() {
+                ShardAt::InDataset(&layout, name)
+            } else {
+                ShardAt::File(shard)
+            })?;
             let mut keep = |key: &str| match request.key {
                 Some(wanted) => key == wanted,
                 None => found.len() < want,
             };
-            let mut samples = samples_in_tar(&bytes, &mut keep)
+            let mut samples = samples_in_stream(&mut stream, &mut keep)
                 .with_context(|| format!("cannot read samples of {}", shard.display()))?;
             found.append(&mut samples);
             if found.len() >= want {

@@ -5,7 +5,7 @@
 use crate::commands::ExitStatus;
 use anyhow::{bail, Context};
 use bettimill_format::DatasetDir;
-use bettimill_preview::{labels_in_tar, plot, BuildTime, Stats};
+use bettimill_preview::{labels_in_stream, plot, BuildTime, Stats};
 use std::path::Path;
 
 /// Runs `bettimill stats`.
@@ -25,17 +25,22 @@ pub fn run(
         refuse_inside_dataset(path, "--plot")?;
     }
     let shards = crate::preview::dataset_shards(dir)?;
+    let layout = DatasetDir::new(dir);
     let bar = crate::progress::bar(shards.len() as u64, "shards", "reading labels", quiet);
     let mut labels = Vec::new();
-    for (split, shard) in &shards {
+    for (split, name) in &shards {
         bar.inc(1);
-        let bytes = std::fs::read(shard)
-            .with_context(|| format!("cannot read shard {}", shard.display()))?;
-        let shard_labels = labels_in_tar(&bytes)
-            .with_context(|| format!("cannot read the labels of {}", shard.display()))?;
+        let mut stream =
+            crate::preview::open_shard(crate::preview::ShardAt::InDataset(&layout, name))
+                .inspect_err(|_| bar.finish_and_clear())?;
+        let shard_labels = labels_in_stream(&mut stream).with_context(|| {
+            format!(
+                "cannot read the labels of {}",
+                layout.tar_path(name).display()
+            )
+        })?;
         labels.extend(shard_labels.into_iter().map(|l| (split.clone(), l)));
     }
-    let layout = DatasetDir::new(dir);
     let mut records = Vec::new();
     let mut timings = Vec::new();
     for name in layout.record_names()? {

@@ -284,6 +284,9 @@ pub struct KubernetesOptions {
     pub image: String,
     /// PersistentVolumeClaim holding the dataset directory.
     pub claim: String,
+    /// Memory of one pod in bytes: asked for and limited to (`resources`), and passed to
+    /// the worker as `--max-memory` (rounded up to whole MiB).
+    pub max_memory: Option<u64>,
 }
 
 /// A name made of lower-case letters, digits and '-' (DNS-1123 label, at most 63 bytes).
@@ -325,6 +328,10 @@ pub fn kubernetes_job(
     let dir = absolute(&dataset.dir)?;
     let dir_text = dir.to_string_lossy();
     let name = dns_label(&format!("bettimill-{}", dataset.plan.name));
+    // Whole MiB: `--max-memory 512M` for the worker, `512Mi` for Kubernetes.
+    let memory = options
+        .max_memory
+        .map(|bytes| format!("{}M", bytes.div_ceil(1 << 20)));
     Ok(format!(
         "# Written by `bettimill k8s`: pod t builds the incomplete shards s with s % {tasks} == t of\n\
          # the dataset in {dir_text}, which must be on the claim {claim} mounted at that path.\n\
@@ -335,8 +342,8 @@ pub fn kubernetes_job(
          spec:\n  completionMode: Indexed\n  completions: {tasks}\n  parallelism: {parallelism}\n  backoffLimit: {backoff}\n\
          \x20 template:\n    spec:\n      restartPolicy: Never\n      containers:\n\
          \x20       - name: worker\n          image: {image}\n\
-         \x20         command: [\"bettimill\", \"worker\", \"--dir\", {dir_y}, \"--task-index-from-env\", \"--task-count\", \"{tasks}\", \"--threads\", \"1\"]\n\
-         \x20         resources:\n            requests:\n              cpu: \"1\"\n\
+         \x20         command: [\"bettimill\", \"worker\", \"--dir\", {dir_y}, \"--task-index-from-env\", \"--task-count\", \"{tasks}\", \"--threads\", \"1\"{memory_arg}]\n\
+         \x20         resources:\n            requests:\n              cpu: \"1\"\n{memory_resources}\
          \x20         volumeMounts:\n            - name: data\n              mountPath: {dir_y}\n\
          \x20     volumes:\n        - name: data\n          persistentVolumeClaim:\n            claimName: {claim_y}\n",
         tasks = options.tasks,
@@ -346,6 +353,19 @@ pub fn kubernetes_job(
         image = yaml_string(&options.image),
         dir_y = yaml_string(&dir_text),
         claim_y = yaml_string(&options.claim),
+        memory_arg = memory
+            .as_ref()
+            .map(|m| format!(", \"--max-memory\", \"{m}\""))
+            .unwrap_or_default(),
+        memory_resources = memory
+            .as_ref()
+            .map(|m| {
+                let quantity = format!("{}Mi", m.trim_end_matches('M'));
+                format!(
+                    "              memory: \"{quantity}\"\n            limits:\n              memory: \"{quantity}\"\n"
+                )
+            })
+            .unwrap_or_default(),
     ))
 }
 

@@ -619,6 +619,26 @@ impl DatasetDir {
         }
     }
 
+    /// Opens the tar of `shard` for reading member after member ([`ShardStream`]), after
+    /// checking the file against its completion record: it must be a regular file (not a
+    /// device, such as a link to `/dev/zero`) of the record's size, and a member whose tar
+    /// header claims more than the record's largest member is refused by that header. So a
+    /// reader holds one member at a time, bounded by the record, whatever the file holds.
+    /// Without a record (a tar renamed into place whose record was not written yet) the
+    /// file's own size bounds the reading and a member may have `max_member_bytes`.
+    pub fn open_tar(&self, shard: &str, max_member_bytes: u64) -> Result<ShardStream, FormatError> {
+        let record = self.read_record(shard)?;
+        let path = self.tar_path(shard);
+        match record {
+            Some(record) => open_tar_file(
+                &path,
+                Some((&record.shard, &self.record_path(shard))),
+                max_member_bytes,
+            ),
+            None => open_tar_file(&path, None, max_member_bytes),
+        }
+    }
+
     /// The names (`NAME`, without `.json`) of every completion record, sorted.
     pub fn record_names(&self) -> Result<Vec<String>, FormatError> {
         list_stems(&self.records_dir(), "json")
@@ -700,12 +720,58 @@ fn ensure_real_dir_exists(path: &Path) -> Result<(), FormatError> {
     }
 }
 
+/// A shard opened by [`DatasetDir::open_tar`] or [`open_tar_file`]: its members one at a
+/// time through a fixed buffer, reading bounded by the expected size.
+pub type ShardStream = shard::TarStream<std::io::Take<std::io::BufReader<std::fs::File>>>;
+
+/// The size of the regular file at `path`; an error naming it for anything else (a device
+/// such as `/dev/zero`, which reports no size and never ends, a directory, a FIFO).
+fn regular_file_len(path: &Path) -> Result<u64, FormatError> {
+    let meta = std::fs::metadata(path).map_err(io(path))?;
+    if !meta.is_file() {
+        return Err(FormatError::Corrupt {
+            path: path.to_path_buf(),
+            reason: "is not a regular file (a device, a directory or a link to one); a shard is a plain file".into(),
+        });
+    }
+    Ok(meta.len())
+}
+
+/// Opens a tar file for streaming (see [`DatasetDir::open_tar`]). With `record` (the
+/// shard's record and the record file's path, for the message) the file must have the
+/// record's size and each member at most the record's largest member and
+/// `max_member_bytes`; without, the file's size bounds the reading.
+pub fn open_tar_file(
+    path: &Path,
+    record: Option<(&ShardRecord, &Path)>,
+    max_member_bytes: u64,
+) -> Result<ShardStream, FormatError> {
+    let size = regular_file_len(path)?;
+    let (expected, limit) = match record {
+        Some((record, record_path)) => {
+            if size != record.bytes {
+                return Err(FormatError::Corrupt {
+                    path: path.to_path_buf(),
+                    reason: format!(
+                        "has {size} bytes, its completion record {} says {}; it was not read (`bettimill verify` says where it differs, `bettimill build` rebuilds it)",
+                        record_path.display(),
+                        record.bytes
+                    ),
+                });
+            }
+            let largest = record.members.iter().map(|m| m.bytes).max().unwrap_or(0);
+            (record.bytes, largest.min(max_member_bytes))
+        }
+        None => (size, max_member_bytes),
+    };
+    let file = std::fs::File::open(path).map_err(io(path))?;
+    let reader = std::io::Read::take(std::io::BufReader::with_capacity(1 << 16, file), expected);
+    Ok(shard::TarStream::new(reader, path, limit))
+}
+
 /// [`DatasetDir::check_tar`] for a tar at `path`.
 pub fn check_tar_file(path: &Path, record: &ShardRecord, check: TarCheck) -> Result<(), String> {
-    let size = match std::fs::metadata(path) {
-        Ok(meta) => meta.len(),
-        Err(err) => return Err(format!("{}: {err}", path.display())),
-    };
+    let size = regular_file_len(path).map_err(|err| err.to_string())?;
     if size != record.bytes {
         return Err(format!(
             "{} has {size} bytes, its record says {}",

@@ -5,7 +5,9 @@
 //!
 //! - [`dir`]: the layout (where each file lives), the identity file [`BuildInfo`] (checked
 //!   in full on every open), the completion records ([`CompletionRecord`]) and the one
-//!   streaming "does this tar match its record" check ([`DatasetDir::check_tar`]).
+//!   streaming "does this tar match its record" check ([`DatasetDir::check_tar`]), and the
+//!   one way to read a shard's members ([`DatasetDir::open_tar`]: checked against its
+//!   record before reading, one member at a time).
 //! - [`label`]: the label stored as `KEY.json` ([`Label`], [`ResolutionLabel`]).
 //! - [`member`]: member names and their compression suffixes.
 //! - [`classes`]: the class table stored as `classes.json` ([`ClassTable`]): what every
@@ -31,8 +33,9 @@ pub mod member;
 
 pub use classes::{ClassTable, StratumClass, TopologyClass, CLASS_TABLE_FORMAT};
 pub use dir::{
-    check_build_info, check_tar_file, dataset_containing, BuildInfo, CompletionRecord, DatasetDir,
-    ShardState, ShardTiming, TarCheck, Unbound, CLASSES_FILE, REQUIRED_FILES,
+    check_build_info, check_tar_file, dataset_containing, open_tar_file, BuildInfo,
+    CompletionRecord, DatasetDir, ShardState, ShardStream, ShardTiming, TarCheck, Unbound,
+    CLASSES_FILE, REQUIRED_FILES,
 };
 pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};

@@ -24,7 +24,9 @@ pub mod stats;
 pub use canvas::Canvas;
 pub use focus::guess_mode;
 pub use render::{caption, contact_sheet, label_mode, render_sample, short_caption, Subject};
-pub use samples::{keys_in_tar, labels_in_tar, samples_in_tar, SampleView};
+pub use samples::{
+    keys_in_tar, labels_in_stream, labels_in_tar, samples_in_stream, samples_in_tar, SampleView,
+};
 pub use stats::{plot, BuildTime, Preservation, Stats};
 
 /// Why a preview or statistic could not be made.

@@ -5,7 +5,8 @@
 use crate::PreviewError;
 use bettimill_format::{Label, MemberName};
 use bettimill_grid::{npy, BinaryImage};
-use bettimill_shard::{decompress, tar_entries};
+use bettimill_shard::{decompress, TarStream};
+use std::io::Read;
 
 /// The largest decompressed array accepted: a 1024^3 image plus its header, with room.
 const MAX_ARRAY_BYTES: u64 = 1 << 31;
@@ -23,9 +24,10 @@ pub struct SampleView {
 
 /// The keys of a shard in tar order, each once.
 pub fn keys_in_tar(bytes: &[u8]) -> Result<Vec<String>, PreviewError> {
+    let mut stream = in_memory(bytes);
     let mut keys: Vec<String> = Vec::new();
-    for entry in tar_entries(bytes, u64::MAX)? {
-        if let Some(MemberName { key, .. }) = MemberName::parse(&entry.name) {
+    while let Some((name, _, _)) = stream.next_entry()? {
+        if let Some(MemberName { key, .. }) = MemberName::parse(name) {
             if keys.last().map(String::as_str) != Some(key) {
                 keys.push(key.to_string());
             }
@@ -34,12 +36,22 @@ pub fn keys_in_tar(bytes: &[u8]) -> Result<Vec<String>, PreviewError> {
     Ok(keys)
 }
 
+/// A stream over a whole archive held in memory (the tests, and callers that have one).
+fn in_memory(bytes: &[u8]) -> TarStream<&[u8]> {
+    TarStream::new(bytes, "(in memory)", u64::MAX)
+}
+
 /// Every label of a shard, in tar order (arrays are not decoded).
 pub fn labels_in_tar(bytes: &[u8]) -> Result<Vec<Label>, PreviewError> {
+    labels_in_stream(&mut in_memory(bytes))
+}
+
+/// [`labels_in_tar`] for a shard read member after member (one member held at a time).
+pub fn labels_in_stream<R: Read>(stream: &mut TarStream<R>) -> Result<Vec<Label>, PreviewError> {
     let mut labels = Vec::new();
-    for entry in tar_entries(bytes, u64::MAX)? {
-        match MemberName::parse(&entry.name) {
-            Some(member) if member.is_label() => labels.push(parse_label(member.key, entry.data)?),
+    while let Some((name, _, data)) = stream.next_entry()? {
+        match MemberName::parse(name) {
+            Some(member) if member.is_label() => labels.push(parse_label(member.key, data)?),
             _ => {}
         }
     }
@@ -59,10 +71,19 @@ pub fn samples_in_tar(
     bytes: &[u8],
     keep: &mut dyn FnMut(&str) -> bool,
 ) -> Result<Vec<SampleView>, PreviewError> {
+    samples_in_stream(&mut in_memory(bytes), keep)
+}
+
+/// [`samples_in_tar`] for a shard read member after member: each member is read once,
+/// and only the kept samples are held.
+pub fn samples_in_stream<R: Read>(
+    stream: &mut TarStream<R>,
+    keep: &mut dyn FnMut(&str) -> bool,
+) -> Result<Vec<SampleView>, PreviewError> {
     let mut wanted: Vec<(String, Option<Label>, Option<BinaryImage>)> = Vec::new();
     let mut current: Option<(String, bool)> = None;
-    for entry in tar_entries(bytes, u64::MAX)? {
-        let Some(member) = MemberName::parse(&entry.name) else {
+    while let Some((name, _, data)) = stream.next_entry()? {
+        let Some(member) = MemberName::parse(name) else {
             continue;
         };
         let key = member.key;
@@ -78,12 +99,12 @@ pub fn samples_in_tar(
         }
         let slot = wanted.last_mut().expect("a kept key was pushed");
         if member.is_label() {
-            slot.1 = Some(parse_label(key, entry.data)?);
+            slot.1 = Some(parse_label(key, data)?);
         } else if member.is_image() {
-            let raw = decompress(entry.data, member.compression, MAX_ARRAY_BYTES)?;
+            let raw = decompress(data, member.compression, MAX_ARRAY_BYTES)?;
             let image = npy::read_bytes(&raw, false)
                 .map_err(|source| PreviewError::Npy {
-                    what: entry.name.clone(),
+                    what: name.to_string(),
                     source,
                 })?
                 .image;

@@ -34,7 +34,7 @@ pub use index::{
     INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES, MAX_INDEX_SPLITS,
 };
 pub use ustar::{
-    read_tar, read_tar_with_limit, split_key, tar_bytes, tar_entries, Member, TarEntry,
+    read_tar, read_tar_with_limit, split_key, tar_bytes, tar_entries, Member, TarEntry, TarStream,
 };
 pub use verify::{
     file_matches, verify, verify_with_progress, Problem, RecordSource, Region, VerifyReport,

@@ -45,7 +45,8 @@
 //! the caller's limit, a missing end-of-archive marker (so a shard cut at a member boundary
 //! is an error, not a shorter shard) and non-zero bytes after the marker. Directory entries
 //! are skipped. Nothing is allocated from a header's claims: member data is only ever a
-//! slice of bytes already present.
+//! slice of bytes already present. [`TarStream`] reads the same way from a reader, one
+//! member at a time, and refuses a member over its limit by the header's size.
 
 use crate::ShardError;
 
@@ -391,6 +392,167 @@ pub fn tar_entries(bytes: &[u8], max_member_bytes: u64) -> Result<Vec<TarEntry<'
     }
 }
 
+/// One member read by [`TarStream::next_entry`]: its name, the offset of its header and
+/// its data (borrowed from the stream's buffer until the next call).
+pub type StreamEntry<'a> = (&'a str, u64, &'a [u8]);
+
+/// A streaming [`tar_entries`]: walks an untrusted archive from a reader, member after
+/// member, holding one member's data at a time in a buffer that is reused. It refuses what
+/// [`tar_entries`] refuses; a member whose header claims more than `max_member_bytes` is
+/// refused by that header, before anything of it is read, so memory is bounded by the
+/// limit, never by the file. The caller bounds the reader (a file's recorded size with
+/// [`std::io::Read::take`]); `path` names the source in I/O errors.
+pub struct TarStream<R> {
+    reader: R,
+    path: std::path::PathBuf,
+    max_member_bytes: u64,
+    position: u64,
+    data: Vec<u8>,
+    name: String,
+    header_offset: u64,
+    done: bool,
+}
+
+impl<R: std::io::Read> TarStream<R> {
+    /// A stream over `reader` (read from its current position as byte 0 of the archive).
+    pub fn new(reader: R, path: impl Into<std::path::PathBuf>, max_member_bytes: u64) -> Self {
+        TarStream {
+            reader,
+            path: path.into(),
+            max_member_bytes,
+            position: 0,
+            data: Vec::new(),
+            name: String::new(),
+            header_offset: 0,
+            done: false,
+        }
+    }
+
+    /// Reads up to `buf.len()` bytes, fewer only at the end of the input.
+    fn fill(&mut self, buf: &mut [u8]) -> Result<usize, ShardError> {
+        let mut got = 0;
+        while got < buf.len() {
+            match self.reader.read(&mut buf[got..]) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(err) if err.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(err) => return Err(ShardError::io("cannot read", &self.path, err)),
+            }
+        }
+        self.position += got as u64;
+        Ok(got)
+    }
+
+    /// Reads one block; `Err` names what was being read if the input ends first.
+    fn block(&mut self, context: impl FnOnce(u64) -> String) -> Result<[u8; 512], ShardError> {
+        let start = self.position;
+        let mut block = [0u8; 512];
+        let got = self.fill(&mut block)?;
+        if got < block.len() {
+            return Err(ShardError::TarTruncated {
+                offset: self.position,
+                needed: BLOCK - got as u64,
+                context: context(start),
+            });
+        }
+        Ok(block)
+    }
+
+    /// The next regular-file member as (name, header offset, data), or `None` after the
+    /// end-of-archive marker (and nothing but zeros after it).
+    pub fn next_entry(&mut self) -> Result<Option<StreamEntry<'_>>, ShardError> {
+        if self.done {
+            return Ok(None);
+        }
+        loop {
+            let pos = self.position;
+            let mut first = [0u8; 1];
+            if self.fill(&mut first)? == 0 {
+                return Err(ShardError::TarTruncated {
+                    offset: pos,
+                    needed: 2 * BLOCK,
+                    context: "the end-of-archive marker (two zero blocks) is missing".into(),
+                });
+            }
+            let mut header = [0u8; 512];
+            header[0] = first[0];
+            let got = self.fill(&mut header[1..])?;
+            if got < 511 {
+                return Err(ShardError::TarTruncated {
+                    offset: self.position,
+                    needed: 511 - got as u64,
+                    context: format!("header block at byte {pos}"),
+                });
+            }
+            if header.iter().all(|&b| b == 0) {
+                let second =
+                    self.block(|at| format!("second end-of-archive block at byte {at}"))?;
+                if let Some(i) = second.iter().position(|&b| b != 0) {
+                    return Err(ShardError::Tar {
+                        offset: pos + BLOCK + i as u64,
+                        reason: "non-zero byte after the end-of-archive marker".into(),
+                    });
+                }
+                let mut rest = [0u8; 8192];
+                loop {
+                    let start = self.position;
+                    let got = self.fill(&mut rest)?;
+                    if let Some(i) = rest[..got].iter().position(|&b| b != 0) {
+                        return Err(ShardError::Tar {
+                            offset: start + i as u64,
+                            reason: "non-zero byte after the end-of-archive marker".into(),
+                        });
+                    }
+                    if got < rest.len() {
+                        break;
+                    }
+                }
+                self.done = true;
+                return Ok(None);
+            }
+            let entry = parse_header(&header, pos)?;
+            if entry.size > self.max_member_bytes {
+                return Err(ShardError::MemberTooLarge {
+                    name: entry.name,
+                    bytes: entry.size,
+                    limit: self.max_member_bytes,
+                });
+            }
+            // Grows with the bytes that arrive, not with the header's claim.
+            let size = entry.size as usize;
+            self.data.clear();
+            let got = std::io::Read::read_to_end(
+                &mut std::io::Read::take(&mut self.reader, entry.size),
+                &mut self.data,
+            )
+            .map_err(|err| ShardError::io("cannot read", &self.path, err))?;
+            self.position += got as u64;
+            if got < size {
+                return Err(ShardError::TarTruncated {
+                    offset: self.position,
+                    needed: (size - got) as u64,
+                    context: format!("data of {:?} (header at byte {pos})", entry.name),
+                });
+            }
+            let padding = (round_up(entry.size) - entry.size) as usize;
+            let mut pad = [0u8; 512];
+            let got = self.fill(&mut pad[..padding])?;
+            if got < padding {
+                return Err(ShardError::TarTruncated {
+                    offset: self.position,
+                    needed: (padding - got) as u64,
+                    context: format!("padding after {:?}", entry.name),
+                });
+            }
+            if let EntryKind::File = entry.kind {
+                self.name = entry.name;
+                self.header_offset = pos;
+                return Ok(Some((&self.name, self.header_offset, &self.data)));
+            }
+        }
+    }
+}
+
 enum EntryKind {
     File,
     Directory,
@@ -557,6 +719,57 @@ mod tests {
         assert_eq!(split_key("train/s1.npy.gz"), Some(("train/s1", "npy.gz")));
         assert_eq!(split_key("s1.json"), Some(("s1", "json")));
         assert_eq!(split_key("dir/noext"), None);
+    }
+
+    /// Every entry of a stream, owned.
+    fn streamed(bytes: &[u8], limit: u64) -> Result<Vec<(String, u64, Vec<u8>)>, ShardError> {
+        let mut stream = TarStream::new(bytes, "t.tar", limit);
+        let mut found = Vec::new();
+        while let Some((name, offset, data)) = stream.next_entry()? {
+            found.push((name.to_string(), offset, data.to_vec()));
+        }
+        Ok(found)
+    }
+
+    #[test]
+    fn the_stream_reads_what_tar_entries_reads_and_refuses_what_it_refuses() {
+        let bytes = tar_bytes(&members(&["a.json", "a.npy", "b.json"])).unwrap();
+        let entries: Vec<_> = tar_entries(&bytes, u64::MAX)
+            .unwrap()
+            .into_iter()
+            .map(|e| (e.name, e.header_offset, e.data.to_vec()))
+            .collect();
+        assert_eq!(streamed(&bytes, u64::MAX).unwrap(), entries);
+        for cut in [0, 100, 512, 700, bytes.len() - 512, bytes.len() - 1] {
+            assert!(matches!(
+                streamed(&bytes[..cut], u64::MAX),
+                Err(ShardError::TarTruncated { .. })
+            ));
+        }
+        let mut garbage = bytes.clone();
+        garbage.extend_from_slice(&[0, 0, 9]);
+        assert!(matches!(
+            streamed(&garbage, u64::MAX),
+            Err(ShardError::Tar { offset, .. }) if offset == bytes.len() as u64 + 2
+        ));
+        // A member over the limit is refused by its header: the limit is the largest
+        // member here (203 bytes), one byte less refuses it.
+        assert_eq!(streamed(&bytes, 203).unwrap().len(), 3);
+        assert!(matches!(
+            streamed(&bytes, 202),
+            Err(ShardError::MemberTooLarge {
+                bytes: 203,
+                limit: 202,
+                ..
+            })
+        ));
+        // A header claiming a huge member on a short input allocates nothing for it.
+        let mut huge = header_block("big.npy", (1 << 33) - 1).unwrap().to_vec();
+        huge.extend_from_slice(&[1; 10]);
+        assert!(matches!(
+            streamed(&huge, u64::MAX),
+            Err(ShardError::TarTruncated { .. })
+        ));
     }
 
     #[test]

@@ -14,14 +14,16 @@
 //! resolves them, `bettimill-format` from `records/NAME.json`). Every shard is checked and
 //! every problem reported; only an unreadable or invalid `index.json` is an error. The
 //! index is read one shard at a time, and a shard is first compared with its record by
-//! size and a blake3 streamed through a fixed buffer ([`file_matches`]); only a shard that
-//! differs is read whole, to localise the damage. Extra files under `shards/` are found by
-//! counting: the index lists each name once (in plan order, checked holding one name), so
-//! if `shards/` holds as many files as the listed shards that exist, none is extra; only
-//! when the counts differ are the names found there kept, to say which. So memory does not
-//! grow with samples or shards.
+//! size and a blake3 streamed through a fixed buffer ([`file_matches`]); a shard that
+//! differs is gone through again, part by part through the same kind of buffer and never
+//! past its record's size, to localise the damage, and anything but a regular file (a link
+//! to `/dev/zero`) is reported unreadable without reading it. Extra files under `shards/`
+//! are found by counting: the index lists each name once (in plan order, checked holding
+//! one name), so if `shards/` holds as many files as the listed shards that exist, none is
+//! extra; only when the counts differ are the names found there kept, to say which. So
+//! memory does not grow with samples, shards or the size of a damaged file.
 
-use crate::index::{blake3_hex, count_samples, read_index, IndexShard, ShardRecord};
+use crate::index::{count_samples, read_index, IndexShard, ShardRecord};
 use crate::ustar::{self, BLOCK};
 use crate::ShardError;
 use serde::Serialize;
@@ -297,9 +299,7 @@ pub fn verify(dir: &Path, records: &mut RecordSource) -> Result<VerifyReport, Sh
 /// Whether the file at `path` has `bytes` bytes and blake3 `blake3`, hashed through a fixed
 /// buffer. The error says what differs (or why the file cannot be read).
 pub fn file_matches(path: &Path, bytes: u64, blake3: &str) -> Result<(), String> {
-    let size = std::fs::metadata(path)
-        .map_err(|err| format!("{}: {err}", path.display()))?
-        .len();
+    let size = regular_len(path).map_err(|err| format!("{}: {err}", path.display()))?;
     if size != bytes {
         return Err(format!(
             "{} has {size} bytes, its record says {bytes}",
@@ -309,7 +309,7 @@ pub fn file_matches(path: &Path, bytes: u64, blake3: &str) -> Result<(), String>
     let file = std::fs::File::open(path).map_err(|err| format!("{}: {err}", path.display()))?;
     let mut hasher = blake3::Hasher::new();
     hasher
-        .update_reader(file)
+        .update_reader(std::io::Read::take(file, bytes + 1))
         .map_err(|err| format!("{}: {err}", path.display()))?;
     let found = hasher.finalize().to_hex();
     if found.as_str() != blake3 {
@@ -458,21 +458,44 @@ fn check_entry(
         }
         Ok(_) => {}
     }
+    let len = match regular_len(&path) {
+        Ok(len) => len,
+        Err(error) => {
+            problems.push(Problem::Unreadable {
+                path: path.display().to_string(),
+                error,
+            });
+            return;
+        }
+    };
     if file_matches(&path, record.bytes, &record.blake3).is_ok() {
         report.bytes_checked += record.bytes;
         return;
     }
-    // It differs: read it whole (one shard) to say where.
-    match std::fs::read(&path) {
-        Ok(bytes) => {
-            report.bytes_checked += bytes.len() as u64;
-            check_shard_bytes(&record, &bytes, problems);
-        }
+    // It differs: go through it again, part by part through a fixed buffer, to say where
+    // (never past the record's size: a shard inflated to gigabytes is cut short there).
+    let checked = std::fs::File::open(&path)
+        .and_then(|mut file| check_shard_file(&record, &mut file, len, problems));
+    match checked {
+        Ok(read) => report.bytes_checked += read,
         Err(e) => problems.push(Problem::Unreadable {
             path: path.display().to_string(),
             error: e.to_string(),
         }),
     }
+}
+
+/// The size of a regular file; a readable reason for anything else (a link to
+/// `/dev/zero` reports no size and never ends).
+fn regular_len(path: &Path) -> Result<u64, String> {
+    let meta = std::fs::metadata(path).map_err(|err| err.to_string())?;
+    if !meta.is_file() {
+        return Err(
+            "not a regular file (a device, a directory or a link to one); a shard is a plain file"
+                .into(),
+        );
+    }
+    Ok(meta.len())
 }
 
 /// Problems a record has on its own, without looking at the file.
@@ -502,23 +525,28 @@ fn check_record(record: &ShardRecord, problems: &mut Vec<Problem>) {
     }
 }
 
-/// Compares a shard's bytes with the layout its record determines.
-fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Problem>) {
+/// Compares a shard file of `len` bytes with the layout its record determines, reading
+/// each part once through a fixed buffer and nothing past the record's size; returns the
+/// bytes read.
+fn check_shard_file(
+    record: &ShardRecord,
+    file: &mut std::fs::File,
+    len: u64,
+    problems: &mut Vec<Problem>,
+) -> std::io::Result<u64> {
     let shard = &record.name;
-    let len = bytes.len() as u64;
     let problems_before = problems.len();
+    let mut scanner = Scanner {
+        file,
+        buffer: vec![0u8; 1 << 16],
+        read_bytes: 0,
+    };
     let truncated = |member: Option<&str>, region| Problem::Truncated {
         shard: shard.clone(),
         expected_bytes: record.bytes,
         found_bytes: len,
         member: member.map(str::to_string),
         region,
-    };
-    let first_non_zero = |start: u64, end: u64| {
-        bytes[start as usize..end as usize]
-            .iter()
-            .position(|&b| b != 0)
-            .map(|i| start + i as u64)
     };
     let mut cut = false;
     for member in &record.members {
@@ -530,8 +558,11 @@ fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Prob
         }
         match ustar::header_block(&member.name, member.bytes) {
             Ok(expected) => {
-                let found = &bytes[header_offset as usize..(header_offset + BLOCK) as usize];
-                if let Some(i) = expected.iter().zip(found).position(|(a, b)| a != b) {
+                let mut found = Vec::with_capacity(BLOCK as usize);
+                scanner.scan(header_offset, header_offset + BLOCK, &mut |_, b| {
+                    found.extend_from_slice(b)
+                })?;
+                if let Some(i) = expected.iter().zip(&found).position(|(a, b)| a != b) {
                     problems.push(Problem::HeaderCorrupt {
                         shard: shard.clone(),
                         member: member.name.clone(),
@@ -551,7 +582,11 @@ fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Prob
             cut = true;
             break;
         }
-        let found_blake3 = blake3_hex(&bytes[member.offset as usize..data_end as usize]);
+        let mut hasher = blake3::Hasher::new();
+        scanner.scan(member.offset, data_end, &mut |_, b| {
+            hasher.update(b);
+        })?;
+        let found_blake3 = hasher.finalize().to_hex().to_string();
         if found_blake3 != member.blake3 {
             problems.push(Problem::DataCorrupt {
                 shard: shard.clone(),
@@ -568,7 +603,7 @@ fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Prob
             cut = true;
             break;
         }
-        if let Some(offset) = first_non_zero(data_end, padded_end) {
+        if let Some(offset) = scanner.first_non_zero(data_end, padded_end)? {
             problems.push(Problem::NonZeroPadding {
                 shard: shard.clone(),
                 member: Some(member.name.clone()),
@@ -581,7 +616,9 @@ fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Prob
         if len < record.bytes {
             problems.push(truncated(None, Region::EndMarker));
         }
-        if let Some(offset) = first_non_zero(marker_start.min(len), record.bytes.min(len)) {
+        if let Some(offset) =
+            scanner.first_non_zero(marker_start.min(len), record.bytes.min(len))?
+        {
             problems.push(Problem::NonZeroPadding {
                 shard: shard.clone(),
                 member: None,
@@ -597,7 +634,11 @@ fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Prob
         }
     }
     if problems.len() == problems_before {
-        let found_blake3 = blake3_hex(bytes);
+        let mut hasher = blake3::Hasher::new();
+        scanner.scan(0, len.min(record.bytes), &mut |_, b| {
+            hasher.update(b);
+        })?;
+        let found_blake3 = hasher.finalize().to_hex().to_string();
         if found_blake3 != record.blake3 {
             problems.push(Problem::HashMismatch {
                 shard: shard.clone(),
@@ -605,6 +646,47 @@ fn check_shard_bytes(record: &ShardRecord, bytes: &[u8], problems: &mut Vec<Prob
                 found_blake3,
             });
         }
+    }
+    Ok(scanner.read_bytes)
+}
+
+/// Reads parts of a shard file through one fixed buffer, counting the bytes read.
+struct Scanner<'a> {
+    file: &'a mut std::fs::File,
+    buffer: Vec<u8>,
+    read_bytes: u64,
+}
+
+impl Scanner<'_> {
+    /// Calls `each` with the bytes of [start, end), in order, with their offsets.
+    fn scan(
+        &mut self,
+        start: u64,
+        end: u64,
+        each: &mut dyn FnMut(u64, &[u8]),
+    ) -> std::io::Result<()> {
+        use std::io::{Read, Seek, SeekFrom};
+        self.file.seek(SeekFrom::Start(start))?;
+        let mut at = start;
+        while at < end {
+            let take = (end - at).min(self.buffer.len() as u64) as usize;
+            self.file.read_exact(&mut self.buffer[..take])?;
+            each(at, &self.buffer[..take]);
+            at += take as u64;
+            self.read_bytes += take as u64;
+        }
+        Ok(())
+    }
+
+    /// The offset of the first non-zero byte in [start, end).
+    fn first_non_zero(&mut self, start: u64, end: u64) -> std::io::Result<Option<u64>> {
+        let mut found = None;
+        self.scan(start, end, &mut |at, bytes| {
+            if found.is_none() {
+                found = bytes.iter().position(|&b| b != 0).map(|i| at + i as u64);
+            }
+        })?;
+        Ok(found)
     }
 }
 
