@@ -371,6 +371,7 @@ impl DenseComplex {
         }
         // Explicit reduction of what is left, top dimension first; a k-cell that is the
         // lowest row of a reduced (k+1)-column has a boundary column reducing to zero.
+        drop(queue);
         // Counted first, so that each list is allocated once at its size.
         let mut counts = vec![0usize; d + 1];
         for &o in &self.owners {
@@ -422,6 +423,7 @@ impl DenseComplex {
                 }
                 columns.push_list(&column);
             }
+            columns.shrink_to_fit();
             // The k-cells are not needed again (only their number).
             by_dim[k] = Vec::new();
             let rows = &by_dim[k - 1];

@@ -82,6 +82,11 @@ impl Lists {
         self.data.extend_from_slice(entries);
     }
 
+    /// Gives back the pool's unused capacity (after the lists are built).
+    pub(crate) fn shrink_to_fit(&mut self) {
+        self.data.shrink_to_fit();
+    }
+
     /// The number of lists.
     pub(crate) fn count(&self) -> usize {
         self.start.len()
@@ -119,6 +124,11 @@ impl Lists {
         let cap = n.max(2 * self.cap[i] as usize).max(4);
         let (start, len) = (self.start[i], self.len_of(i));
         let at = self.data.len();
+        // The pool grows by a quarter at a time, not the doubling of `Vec`: it is most of
+        // the memory, and lists move rarely.
+        if self.data.capacity() < at + cap {
+            self.data.reserve_exact(cap.max(at / 4));
+        }
         self.data.extend_from_within(start..start + len);
         self.data.resize(at + cap, 0);
         self.start[i] = at;
