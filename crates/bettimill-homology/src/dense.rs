@@ -424,20 +424,24 @@ impl DenseComplex {
                 columns.push_list(&column);
             }
             columns.shrink_to_fit();
-            // The k-cells are not needed again (only their number).
+            // The k-cells are not needed again (only their number), nor the (k-1)-cells
+            // when there are no (k-2)-cells for their columns (no vertices are left).
             by_dim[k] = Vec::new();
-            let rows = &by_dim[k - 1];
+            if k == 1 || counts[k - 2] == 0 {
+                by_dim[k - 1] = Vec::new();
+            }
+            let n_rows = counts[k - 1];
             let (r, pivots) = match final_rank {
                 FinalRank::Elimination => {
-                    let found = rank_by_elimination(columns, rows.len());
+                    let found = rank_by_elimination(columns, n_rows);
                     general += found.general;
                     (found.rank, found.pivots)
                 }
                 #[cfg(test)]
-                FinalRank::ColumnReduction => z2_rank(columns.to_vecs(), rows.len()),
+                FinalRank::ColumnReduction => z2_rank(columns.to_vecs(), n_rows),
             };
             rank[k] = r;
-            cleared = vec![false; rows.len()];
+            cleared = vec![false; n_rows];
             for row in pivots {
                 cleared[row as usize] = true;
             }

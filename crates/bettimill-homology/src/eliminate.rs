@@ -34,7 +34,7 @@ pub(crate) struct Elimination {
 }
 
 /// Many short lists of `u32` in one pool: list i is `data[start[i]..start[i] + len[i]]`,
-/// with room for `cap[i]` entries there. A list that outgrows its room moves to the end of
+/// with room for `cap[i]` entries there (12 bytes of header per list). A list that outgrows its room moves to the end of
 /// the pool with twice the room (the old place is left unused), so the pool holds at most
 /// about twice the entries the lists ever needed at once, in one allocation, where a `Vec`
 /// per list cost a 24-byte header and a heap block each (about 70 bytes per list before
@@ -42,7 +42,7 @@ pub(crate) struct Elimination {
 #[derive(Debug, Default)]
 pub(crate) struct Lists {
     data: Vec<u32>,
-    start: Vec<usize>,
+    start: Vec<u32>,
     len: Vec<u32>,
     cap: Vec<u32>,
 }
@@ -63,7 +63,7 @@ impl Lists {
         let mut start = Vec::with_capacity(rooms.len());
         let mut at = 0usize;
         for &n in rooms {
-            start.push(at);
+            start.push(to_u32(at));
             at += n as usize;
         }
         Lists {
@@ -76,7 +76,7 @@ impl Lists {
 
     /// Appends a list with the given entries (and exactly that much room).
     pub(crate) fn push_list(&mut self, entries: &[u32]) {
-        self.start.push(self.data.len());
+        self.start.push(to_u32(self.data.len()));
         self.len.push(to_u32(entries.len()));
         self.cap.push(to_u32(entries.len()));
         self.data.extend_from_slice(entries);
@@ -95,7 +95,7 @@ impl Lists {
     /// List i.
     #[inline]
     pub(crate) fn get(&self, i: usize) -> &[u32] {
-        let start = self.start[i];
+        let start = self.start[i] as usize;
         &self.data[start..start + self.len[i] as usize]
     }
 
@@ -122,7 +122,7 @@ impl Lists {
             return;
         }
         let cap = n.max(2 * self.cap[i] as usize).max(4);
-        let (start, len) = (self.start[i], self.len_of(i));
+        let (start, len) = (self.start[i] as usize, self.len_of(i));
         let at = self.data.len();
         // The pool grows by a quarter at a time, not the doubling of `Vec`: it is most of
         // the memory, and lists move rarely.
@@ -131,7 +131,7 @@ impl Lists {
         }
         self.data.extend_from_within(start..start + len);
         self.data.resize(at + cap, 0);
-        self.start[i] = at;
+        self.start[i] = to_u32(at);
         self.cap[i] = to_u32(cap);
     }
 
@@ -140,7 +140,7 @@ impl Lists {
     fn push(&mut self, i: usize, value: u32) {
         let len = self.len_of(i);
         self.reserve(i, len + 1);
-        self.data[self.start[i] + len] = value;
+        self.data[self.start[i] as usize + len] = value;
         self.len[i] += 1;
     }
 
@@ -148,7 +148,7 @@ impl Lists {
     fn set(&mut self, i: usize, entries: &[u32]) {
         self.len[i] = 0;
         self.reserve(i, entries.len());
-        let start = self.start[i];
+        let start = self.start[i] as usize;
         self.data[start..start + entries.len()].copy_from_slice(entries);
         self.len[i] = to_u32(entries.len());
     }
@@ -159,7 +159,7 @@ impl Lists {
             .get(i)
             .binary_search(&value)
             .expect("row and column lists agree");
-        let start = self.start[i];
+        let start = self.start[i] as usize;
         let len = self.len_of(i);
         self.data
             .copy_within(start + at + 1..start + len, start + at);
@@ -173,7 +173,7 @@ impl Lists {
             .iter()
             .position(|&x| x == value)
             .expect("row and column lists agree");
-        let start = self.start[i];
+        let start = self.start[i] as usize;
         let last = start + self.len_of(i) - 1;
         self.data[start + at] = self.data[last];
         self.len[i] -= 1;
@@ -196,11 +196,12 @@ impl Lists {
     }
 }
 
-/// A length or a capacity as `u32`: no list here comes near 2^32 entries (a list is a
-/// cell's facets or cofacets, or after fill-in part of one row or column of a matrix
-/// whose sides are counts of cells of an image).
+/// A length, capacity or place in the pool as `u32`: 4 bytes per list instead of 8. A
+/// pool of 2^32 entries (16 GiB, one boundary matrix of some billion cells left by the
+/// reduction pairs, an image of several hundred voxels a side) would stop here rather
+/// than give a wrong rank.
 fn to_u32(n: usize) -> u32 {
-    u32::try_from(n).expect("a list of fewer than 2^32 entries")
+    u32::try_from(n).expect("a pool of fewer than 2^32 entries")
 }
 
 /// The rank over Z/2 of the matrix with the given columns (each a sorted list of distinct
