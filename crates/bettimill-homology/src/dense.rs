@@ -391,6 +391,8 @@ impl DenseComplex {
                 by_dim[d - code.count_ones() as usize].push(cell(o, code));
             }
         }
+        // The ranks only look cells up in the masks.
+        self.owners = Vec::new();
         for cells in &mut by_dim {
             cells.sort_unstable();
         }
