@@ -34,7 +34,7 @@ minimum-of-repeats: noise only ever adds time); the ratio is the peer's best wal
 Usage:
   python benches/compare_peers.py [--cases 4:32:blob,4:32:random,...] [--skip-gudhi]
       [--skip-cripser] [--routes T,V] [--bettimill PATH | --example PATH] [--workdir DIR]
-      [--json OUT.json] [--repeat N] [--markdown]
+      [--json OUT.json] [--repeat N]   (prints a Markdown table)
 
 Needs numpy, cripser and gudhi (pip install numpy cripser gudhi; not in the CI
 requirements).

@@ -43,7 +43,7 @@
 
 #[cfg(test)]
 use crate::complex::z2_rank;
-use crate::eliminate::rank_by_elimination;
+use crate::eliminate::{rank_by_elimination, Lists};
 use std::collections::VecDeque;
 
 /// How [`DenseComplex::betti_with`] ranks the boundary matrices of the cells that the
@@ -371,32 +371,45 @@ impl DenseComplex {
         }
         // Explicit reduction of what is left, top dimension first; a k-cell that is the
         // lowest row of a reduced (k+1)-column has a boundary column reducing to zero.
-        let mut by_dim: Vec<Vec<u64>> = vec![Vec::new(); d + 1];
+        drop(queue);
+        // Counted first, so that each list is allocated once at its size.
+        let mut counts = vec![0usize; d + 1];
         for &o in &self.owners {
             let mut rest = self.masks[o];
+            while rest != 0 {
+                let code = rest.trailing_zeros();
+                rest &= rest - 1;
+                counts[d - code.count_ones() as usize] += 1;
+            }
+        }
+        // The ranks only look cells up in the masks.
+        self.owners = Vec::new();
+        // In increasing order of place and code, i.e. of cell, so no sort is needed (the
+        // masks are two bytes a voxel: scanning them all costs less than sorting).
+        let mut by_dim: Vec<Vec<u64>> = counts.iter().map(|&n| Vec::with_capacity(n)).collect();
+        for (o, &mask) in self.masks.iter().enumerate() {
+            let mut rest = mask;
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
                 by_dim[d - code.count_ones() as usize].push(cell(o, code));
             }
         }
-        for cells in &mut by_dim {
-            cells.sort_unstable();
-        }
+        debug_assert!(by_dim
+            .iter()
+            .all(|cells| cells.windows(2).all(|w| w[0] < w[1])));
         let mut rank = vec![0u64; d + 2];
         let mut general = 0u64;
         let mut cleared = vec![false; by_dim[d].len()];
         for k in (1..=d).rev() {
             let rows = &by_dim[k - 1];
-            let columns: Vec<Vec<u32>> = by_dim[k]
-                .iter()
-                .zip(&cleared)
-                .map(|(&c, &skip)| {
-                    if skip {
-                        return Vec::new();
-                    }
+            // A k-cell has at most 2k facets.
+            let mut columns = Lists::with_capacity(by_dim[k].len(), 2 * k * by_dim[k].len());
+            let mut column = Vec::with_capacity(2 * d);
+            for (&c, &skip) in by_dim[k].iter().zip(&cleared) {
+                column.clear();
+                if !skip {
                     let (o, code) = split(c);
-                    let mut column = Vec::with_capacity(2 * d);
                     for axis in 0..d {
                         if code >> axis & 1 == 0 {
                             let f = code | 1 << axis;
@@ -411,26 +424,34 @@ impl DenseComplex {
                         }
                     }
                     column.sort_unstable();
-                    column
-                })
-                .collect();
+                }
+                columns.push_list(&column);
+            }
+            columns.shrink_to_fit();
+            // The k-cells are not needed again (only their number), nor the (k-1)-cells
+            // when there are no (k-2)-cells for their columns (no vertices are left).
+            by_dim[k] = Vec::new();
+            if k == 1 || counts[k - 2] == 0 {
+                by_dim[k - 1] = Vec::new();
+            }
+            let n_rows = counts[k - 1];
             let (r, pivots) = match final_rank {
                 FinalRank::Elimination => {
-                    let found = rank_by_elimination(columns, rows.len());
+                    let found = rank_by_elimination(columns, n_rows);
                     general += found.general;
                     (found.rank, found.pivots)
                 }
                 #[cfg(test)]
-                FinalRank::ColumnReduction => z2_rank(columns, rows.len()),
+                FinalRank::ColumnReduction => z2_rank(columns.to_vecs(), n_rows),
             };
             rank[k] = r;
-            cleared = vec![false; rows.len()];
+            cleared = vec![false; n_rows];
             for row in pivots {
                 cleared[row as usize] = true;
             }
         }
         let relative: Vec<u64> = (0..=d)
-            .map(|k| by_dim[k].len() as u64 - rank[k] - rank[k + 1])
+            .map(|k| counts[k] as u64 - rank[k] - rank[k + 1])
             .collect();
         // c = b_0 - dim H_0(X, V); b_1 = dim H_1(X, V) - m + c.
         let met = b0

@@ -33,69 +33,250 @@ pub(crate) struct Elimination {
     pub(crate) general: u64,
 }
 
+/// Many short lists of `u32` in one pool: list i is `data[start[i]..start[i] + len[i]]`,
+/// with room for `cap[i]` entries there (12 bytes of header per list). A list that outgrows its room moves to the end of
+/// the pool with twice the room (the old place is left unused), so the pool holds at most
+/// about twice the entries the lists ever needed at once, in one allocation, where a `Vec`
+/// per list cost a 24-byte header and a heap block each (about 70 bytes per list before
+/// any entry: most of the peak memory on a random 4D image, issue 18).
+#[derive(Debug, Default)]
+pub(crate) struct Lists {
+    data: Vec<u32>,
+    start: Vec<u32>,
+    len: Vec<u32>,
+    cap: Vec<u32>,
+}
+
+impl Lists {
+    /// No lists yet, with room for `lists` lists of `entries` entries in all.
+    pub(crate) fn with_capacity(lists: usize, entries: usize) -> Lists {
+        Lists {
+            data: Vec::with_capacity(entries),
+            start: Vec::with_capacity(lists),
+            len: Vec::with_capacity(lists),
+            cap: Vec::with_capacity(lists),
+        }
+    }
+
+    /// Empty lists with room for `rooms[i]` entries each, side by side.
+    fn with_room(rooms: &[u32]) -> Lists {
+        let mut start = Vec::with_capacity(rooms.len());
+        let mut at = 0usize;
+        for &n in rooms {
+            start.push(to_u32(at));
+            at += n as usize;
+        }
+        Lists {
+            data: vec![0; at],
+            start,
+            len: vec![0; rooms.len()],
+            cap: rooms.to_vec(),
+        }
+    }
+
+    /// Appends a list with the given entries (and exactly that much room).
+    pub(crate) fn push_list(&mut self, entries: &[u32]) {
+        self.start.push(to_u32(self.data.len()));
+        self.len.push(to_u32(entries.len()));
+        self.cap.push(to_u32(entries.len()));
+        self.data.extend_from_slice(entries);
+    }
+
+    /// Gives back the pool's unused capacity (after the lists are built).
+    pub(crate) fn shrink_to_fit(&mut self) {
+        self.data.shrink_to_fit();
+    }
+
+    /// The number of lists.
+    pub(crate) fn count(&self) -> usize {
+        self.start.len()
+    }
+
+    /// List i.
+    #[inline]
+    pub(crate) fn get(&self, i: usize) -> &[u32] {
+        let start = self.start[i] as usize;
+        &self.data[start..start + self.len[i] as usize]
+    }
+
+    #[inline]
+    fn len_of(&self, i: usize) -> usize {
+        self.len[i] as usize
+    }
+
+    fn clear(&mut self, i: usize) {
+        self.len[i] = 0;
+    }
+
+    /// Copies list i into `out` (cleared first) and empties it.
+    fn take_into(&mut self, i: usize, out: &mut Vec<u32>) {
+        out.clear();
+        out.extend_from_slice(self.get(i));
+        self.clear(i);
+    }
+
+    /// Makes room for `n` entries in list i, moving it (with its entries) to the end of
+    /// the pool if its place is too small.
+    fn reserve(&mut self, i: usize, n: usize) {
+        if n <= self.cap[i] as usize {
+            return;
+        }
+        let cap = n.max(2 * self.cap[i] as usize).max(4);
+        let (start, len) = (self.start[i] as usize, self.len_of(i));
+        let at = self.data.len();
+        // The pool grows by a quarter at a time, not the doubling of `Vec`: it is most of
+        // the memory, and lists move rarely.
+        if self.data.capacity() < at + cap {
+            self.data.reserve_exact(cap.max(at / 4));
+        }
+        self.data.extend_from_within(start..start + len);
+        self.data.resize(at + cap, 0);
+        self.start[i] = to_u32(at);
+        self.cap[i] = to_u32(cap);
+    }
+
+    /// Appends `value` to list i.
+    #[inline]
+    fn push(&mut self, i: usize, value: u32) {
+        let len = self.len_of(i);
+        self.reserve(i, len + 1);
+        self.data[self.start[i] as usize + len] = value;
+        self.len[i] += 1;
+    }
+
+    /// Replaces list i by `entries`.
+    fn set(&mut self, i: usize, entries: &[u32]) {
+        self.len[i] = 0;
+        self.reserve(i, entries.len());
+        let start = self.start[i] as usize;
+        self.data[start..start + entries.len()].copy_from_slice(entries);
+        self.len[i] = to_u32(entries.len());
+    }
+
+    /// Removes `value` from the sorted list i, keeping it sorted.
+    fn remove_sorted(&mut self, i: usize, value: u32) {
+        let at = self
+            .get(i)
+            .binary_search(&value)
+            .expect("row and column lists agree");
+        let start = self.start[i] as usize;
+        let len = self.len_of(i);
+        self.data
+            .copy_within(start + at + 1..start + len, start + at);
+        self.len[i] -= 1;
+    }
+
+    /// Removes `value` from list i, moving its last entry into its place.
+    fn swap_remove_value(&mut self, i: usize, value: u32) {
+        let at = self
+            .get(i)
+            .iter()
+            .position(|&x| x == value)
+            .expect("row and column lists agree");
+        let start = self.start[i] as usize;
+        let last = start + self.len_of(i) - 1;
+        self.data[start + at] = self.data[last];
+        self.len[i] -= 1;
+    }
+
+    /// The lists as vectors (the oracle's column reduction takes those).
+    #[cfg(test)]
+    pub(crate) fn to_vecs(&self) -> Vec<Vec<u32>> {
+        (0..self.count()).map(|i| self.get(i).to_vec()).collect()
+    }
+
+    /// Lists from vectors.
+    #[cfg(test)]
+    pub(crate) fn from_vecs(lists: &[Vec<u32>]) -> Lists {
+        let mut out = Lists::default();
+        for list in lists {
+            out.push_list(list);
+        }
+        out
+    }
+}
+
+/// A length, capacity or place in the pool as `u32`: 4 bytes per list instead of 8. A
+/// pool of 2^32 entries (16 GiB, one boundary matrix of some billion cells left by the
+/// reduction pairs, an image of several hundred voxels a side) would stop here rather
+/// than give a wrong rank.
+fn to_u32(n: usize) -> u32 {
+    u32::try_from(n).expect("a pool of fewer than 2^32 entries")
+}
+
 /// The rank over Z/2 of the matrix with the given columns (each a sorted list of distinct
 /// row indices below `n_rows`), and the pivot rows.
-pub(crate) fn rank_by_elimination(mut columns: Vec<Vec<u32>>, n_rows: usize) -> Elimination {
-    let mut rows: Vec<Vec<u32>> = vec![Vec::new(); n_rows];
-    for (j, column) in columns.iter().enumerate() {
+pub(crate) fn rank_by_elimination(mut columns: Lists, n_rows: usize) -> Elimination {
+    let n_columns = columns.count();
+    // The rows: counted first, so that they are filled in place with exact room.
+    let mut counts = vec![0u32; n_rows];
+    for j in 0..n_columns {
+        let column = columns.get(j);
         debug_assert!(column.windows(2).all(|w| w[0] < w[1]), "sorted, distinct");
         for &r in column {
-            rows[r as usize].push(j as u32);
+            counts[r as usize] += 1;
+        }
+    }
+    let mut rows = Lists::with_room(&counts);
+    drop(counts);
+    for j in 0..n_columns {
+        for &r in columns.get(j) {
+            rows.push(r as usize, j as u32);
         }
     }
     let mut single_columns: Vec<u32> = Vec::new();
     let mut heap = Buckets::default();
-    for (j, column) in columns.iter().enumerate() {
-        match column.len() {
+    for j in 0..n_columns {
+        match columns.len_of(j) {
             0 => {}
             1 => single_columns.push(j as u32),
             n => heap.push(n, j as u32),
         }
     }
     let mut single_rows: Vec<u32> = (0..n_rows as u32)
-        .filter(|&r| rows[r as usize].len() == 1)
+        .filter(|&r| rows.len_of(r as usize) == 1)
         .collect();
     let mut is_pivot_row = vec![false; n_rows];
     let mut rank = 0u64;
     let mut merged: Vec<u32> = Vec::new();
+    let mut line: Vec<u32> = Vec::new();
+    let mut pivot: Vec<u32> = Vec::new();
     let mut general = 0u64;
     loop {
         if let Some(c) = single_columns.pop() {
             let c = c as usize;
-            if columns[c].len() != 1 {
+            if columns.len_of(c) != 1 {
                 continue;
             }
             // The column is e_r: it clears row r from every other column.
-            let r = columns[c][0] as usize;
-            columns[c].clear();
+            let r = columns.get(c)[0] as usize;
+            columns.clear(c);
             rank += 1;
             is_pivot_row[r] = true;
-            for x in std::mem::take(&mut rows[r]) {
+            rows.take_into(r, &mut line);
+            for &x in &line {
                 let x = x as usize;
                 if x == c {
                     continue;
                 }
-                let column = &mut columns[x];
-                let at = column
-                    .binary_search(&(r as u32))
-                    .expect("row and column lists agree");
-                column.remove(at);
-                note_column(x, column.len(), &mut single_columns, &mut heap);
+                columns.remove_sorted(x, r as u32);
+                note_column(x, columns.len_of(x), &mut single_columns, &mut heap);
             }
             continue;
         }
         if let Some(r) = single_rows.pop() {
             let r = r as usize;
-            if rows[r].len() != 1 {
+            if rows.len_of(r) != 1 {
                 continue;
             }
             // The row is e_c: column c goes, with every entry it had.
-            let c = rows[r][0] as usize;
+            let c = rows.get(r)[0] as usize;
             rank += 1;
             is_pivot_row[r] = true;
-            for s in std::mem::take(&mut columns[c]) {
-                remove_from_row(&mut rows[s as usize], c as u32);
-                if rows[s as usize].len() == 1 {
+            columns.take_into(c, &mut line);
+            for &s in &line {
+                rows.swap_remove_value(s as usize, c as u32);
+                if rows.len_of(s as usize) == 1 {
                     single_rows.push(s);
                 }
             }
@@ -105,24 +286,22 @@ pub(crate) fn rank_by_elimination(mut columns: Vec<Vec<u32>>, n_rows: usize) -> 
             break;
         };
         let c = c as usize;
-        if columns[c].len() != degree as usize {
+        if columns.len_of(c) != degree as usize {
             // A stale entry: the column changed (and was queued again) or went.
             continue;
         }
-        let r = *columns[c]
+        let r = *columns
+            .get(c)
             .iter()
-            .min_by_key(|&&s| (rows[s as usize].len(), s))
+            .min_by_key(|&&s| (rows.len_of(s as usize), s))
             .expect("a column in the heap has entries") as usize;
-        let pivot = std::mem::take(&mut columns[c]);
+        columns.take_into(c, &mut pivot);
         general += 1;
-        let others: Vec<u32> = rows[r]
-            .iter()
-            .copied()
-            .filter(|&x| x as usize != c)
-            .collect();
-        for x in others {
+        line.clear();
+        line.extend(rows.get(r).iter().copied().filter(|&x| x as usize != c));
+        for &x in &line {
             // columns[x] += pivot, keeping the row lists in step.
-            let column = &columns[x as usize];
+            let column = columns.get(x as usize);
             merged.clear();
             let (mut i, mut j) = (0, 0);
             while i < column.len() && j < pivot.len() {
@@ -132,10 +311,10 @@ pub(crate) fn rank_by_elimination(mut columns: Vec<Vec<u32>>, n_rows: usize) -> 
                     i += 1;
                 } else if b < a {
                     merged.push(b);
-                    rows[b as usize].push(x);
+                    rows.push(b as usize, x);
                     j += 1;
                 } else {
-                    remove_from_row(&mut rows[a as usize], x);
+                    rows.swap_remove_value(a as usize, x);
                     i += 1;
                     j += 1;
                 }
@@ -143,12 +322,12 @@ pub(crate) fn rank_by_elimination(mut columns: Vec<Vec<u32>>, n_rows: usize) -> 
             merged.extend_from_slice(&column[i..]);
             for &b in &pivot[j..] {
                 merged.push(b);
-                rows[b as usize].push(x);
+                rows.push(b as usize, x);
             }
-            std::mem::swap(&mut columns[x as usize], &mut merged);
+            columns.set(x as usize, &merged);
             note_column(
                 x as usize,
-                columns[x as usize].len(),
+                columns.len_of(x as usize),
                 &mut single_columns,
                 &mut heap,
             );
@@ -156,9 +335,9 @@ pub(crate) fn rank_by_elimination(mut columns: Vec<Vec<u32>>, n_rows: usize) -> 
         // Row r now meets only column c: delete both.
         rank += 1;
         is_pivot_row[r] = true;
-        for s in pivot {
-            remove_from_row(&mut rows[s as usize], c as u32);
-            if rows[s as usize].len() == 1 {
+        for &s in &pivot {
+            rows.swap_remove_value(s as usize, c as u32);
+            if rows.len_of(s as usize) == 1 {
                 single_rows.push(s);
             }
         }
@@ -211,14 +390,6 @@ impl Buckets {
     }
 }
 
-fn remove_from_row(row: &mut Vec<u32>, column: u32) {
-    let at = row
-        .iter()
-        .position(|&x| x == column)
-        .expect("row and column lists agree");
-    row.swap_remove(at);
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -227,15 +398,17 @@ mod tests {
 
     #[test]
     fn small_matrices() {
-        let rank = |columns: Vec<Vec<u32>>, n_rows| rank_by_elimination(columns, n_rows).rank;
+        let rank = |columns: Vec<Vec<u32>>, n_rows| {
+            rank_by_elimination(Lists::from_vecs(&columns), n_rows).rank
+        };
         // Columns {0,1}, {1,2}, {0,2}: a cycle, no free pivot (two general ones: the first
         // leaves two equal columns), and dependent over Z/2.
-        let cycle = rank_by_elimination(vec![vec![0, 1], vec![1, 2], vec![0, 2]], 3);
+        let cycle = rank_by_elimination(Lists::from_vecs(&[vec![0, 1], vec![1, 2], vec![0, 2]]), 3);
         assert_eq!((cycle.rank, cycle.general), (2, 2));
         assert_eq!(rank(vec![vec![0], vec![1], vec![2]], 3), 3);
         assert_eq!(rank(vec![vec![0, 1, 2], vec![0, 1, 2]], 3), 1);
         assert_eq!(
-            rank_by_elimination(vec![vec![], vec![1]], 3),
+            rank_by_elimination(Lists::from_vecs(&[vec![], vec![1]]), 3),
             Elimination {
                 rank: 1,
                 pivots: vec![1],
@@ -243,6 +416,52 @@ mod tests {
             }
         );
         assert_eq!(rank(Vec::new(), 0), 0);
+    }
+
+    /// The pool against a `Vec` per list under random pushes, sets, removals and takes,
+    /// so lists move (outgrow their room) many times.
+    #[test]
+    fn pooled_lists_match_vectors() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut model: Vec<Vec<u32>> = (0..20)
+            .map(|_| (0..rng.gen_range(0..5)).collect())
+            .collect();
+        let mut lists = Lists::from_vecs(&model);
+        let mut out = Vec::new();
+        for step in 0..20_000 {
+            let i = rng.gen_range(0..model.len());
+            match rng.gen_range(0..5) {
+                0 | 1 => {
+                    let v = rng.gen_range(0..1000);
+                    model[i].push(v);
+                    lists.push(i, v);
+                }
+                2 => {
+                    let n = rng.gen_range(0..12);
+                    let new: Vec<u32> = (0..n).map(|_| rng.gen_range(0..1000)).collect();
+                    lists.set(i, &new);
+                    model[i] = new;
+                }
+                3 if !model[i].is_empty() => {
+                    let at = rng.gen_range(0..model[i].len());
+                    // The first entry of that value (values may repeat here).
+                    let v = model[i][at];
+                    let first = model[i].iter().position(|&x| x == v).unwrap();
+                    model[i].swap_remove(first);
+                    lists.swap_remove_value(i, v);
+                }
+                3 => {}
+                _ => {
+                    lists.take_into(i, &mut out);
+                    assert_eq!(out, std::mem::take(&mut model[i]), "step {step}");
+                }
+            }
+            assert_eq!(lists.get(i), &model[i][..], "step {step}");
+        }
+        assert_eq!(lists.to_vecs(), model);
+        let mut sorted = Lists::from_vecs(&[vec![1, 4, 9, 12]]);
+        sorted.remove_sorted(0, 9);
+        assert_eq!(sorted.get(0), &[1, 4, 12]);
     }
 
     /// Against plain column reduction on random matrices from sparse (mostly peeling) to
@@ -267,7 +486,7 @@ mod tests {
                 columns[1] = columns[0].clone();
             }
             let (expected, _) = z2_rank(columns.clone(), n_rows);
-            let found = rank_by_elimination(columns.clone(), n_rows);
+            let found = rank_by_elimination(Lists::from_vecs(&columns), n_rows);
             general += found.general;
             let (rank, pivots) = (found.rank, found.pivots);
             assert_eq!(rank, expected, "trial {trial}");

@@ -121,8 +121,12 @@ fn topology_by_thinning_with(mut padded: BinaryImage, final_rank: FinalRank) -> 
     let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
     let steps = flat_offsets(&padded, tester.offsets());
     let b0 = components::count_components_of(padded.data_mut(), &remaining, &steps);
-    let (mut betti, general) =
-        remnant_complex(&padded, &remaining, &tester).betti_with(b0, final_rank);
+    let complex = remnant_complex(&padded, &remaining, &tester);
+    // The image and the survivors' list are not needed by the reduction: freed before its
+    // lists are built (a random image's peak).
+    drop(remaining);
+    drop(padded);
+    let (mut betti, general) = complex.betti_with(b0, final_rank);
     betti.truncate(d);
     (Topology::from_betti(betti), general)
 }
