@@ -40,19 +40,29 @@ fn cpu_seconds() -> Option<f64> {
     Some((ticks(11)? + ticks(12)?) / 100.0)
 }
 
-/// Builds samples of the first `strata` strata (every stratum when `None`) as a build
-/// would, measures their CPU seconds and their members' bytes with the plan's compression,
+/// Builds samples of the first `strata` strata that have samples (every one when `None`)
+/// as a build would, measures their CPU seconds and their members' bytes with the plan's compression,
 /// and extrapolates to the plan: strata not built take the model's figures scaled by how
 /// the built ones compared with the model.
 pub fn pilot(plan: &Plan, model: &Estimate, strata: Option<usize>) -> anyhow::Result<Pilot> {
-    let wanted = strata
-        .unwrap_or(plan.strata.len())
-        .clamp(1, plan.strata.len().max(1));
+    let counts = plan.total_counts();
+    // Strata without samples (more strata than samples) cost nothing and are skipped.
+    let selected: Vec<usize> = (0..plan.strata.len())
+        .filter(|&s| counts[s] > 0)
+        .take(strata.unwrap_or(usize::MAX).max(1))
+        .collect();
+    let wanted = selected.len();
+    let mut slot = vec![None; plan.strata.len()];
+    for (i, &s) in selected.iter().enumerate() {
+        slot[s] = Some(i);
+    }
     let mut tasks: Vec<Vec<bettimill_plan::SampleTask>> = vec![Vec::new(); wanted];
     'shards: for shard in plan.shards() {
         for task in plan.shard_tasks(&shard) {
-            if task.stratum < wanted && tasks[task.stratum].len() < PILOT_MAX_SAMPLES {
-                tasks[task.stratum].push(task);
+            if let Some(i) = slot[task.stratum] {
+                if tasks[i].len() < PILOT_MAX_SAMPLES {
+                    tasks[i].push(task);
+                }
             }
         }
         if tasks.iter().all(|t| t.len() >= PILOT_MAX_SAMPLES) {
@@ -64,10 +74,9 @@ pub fn pilot(plan: &Plan, model: &Estimate, strata: Option<usize>) -> anyhow::Re
             anyhow::anyhow!("plan --pilot: cannot read this process's CPU time (/proc/self/stat)")
         })
     };
-    let counts = plan.total_counts();
     let (mut built, mut spent) = (0u64, 0.0);
     let mut measured = vec![None; plan.strata.len()];
-    for (stratum, stratum_tasks) in tasks.iter().enumerate() {
+    for (&stratum, stratum_tasks) in selected.iter().zip(&tasks) {
         let start = clock()?;
         let (mut n, mut bytes) = (0u64, 0u64);
         for task in stratum_tasks {
