@@ -110,20 +110,14 @@ pub struct Estimate {
     pub compressed_bytes: u64,
     /// The uncompressed bound ([`Plan::sample_bytes`] x samples).
     pub uncompressed_bytes: u64,
+    /// The plan's samples.
+    pub samples: u64,
 }
 
 impl Estimate {
     /// Wall seconds on `cores` cores (or workers), samples spread evenly over them.
     pub fn wall_seconds(&self, cores: u64) -> f64 {
-        wall_seconds(self.cpu_seconds, cores, self.samples())
-    }
-
-    fn samples(&self) -> u64 {
-        if self.cpu_seconds_per_sample > 0.0 {
-            ((self.cpu_seconds - BUILD_FIXED_SECONDS) / self.cpu_seconds_per_sample).round() as u64
-        } else {
-            0
-        }
+        wall_seconds(self.cpu_seconds, cores, self.samples)
     }
 }
 
@@ -168,6 +162,7 @@ pub fn estimate(plan: &Plan) -> Estimate {
         },
         compressed_bytes: compressed,
         uncompressed_bytes: plan.sample_bytes.saturating_mul(plan.samples),
+        samples: plan.samples,
     }
 }
 
