@@ -5,7 +5,9 @@
 # shared, wall time is not a measure) per sample, nanoseconds per voxel, and the
 # compressed bytes per sample and ratio to the uncompressed bound, beside what
 # `plan --json` estimates for the same manifest. Also the demo manifests as they are.
-# BETTIMILL=path/to/bettimill (default: the dev build); CASES=quick skips the larger sides.
+# BETTIMILL=path/to/bettimill (default: the dev build); CASES=quick skips the larger sides,
+# CASES=extra runs only the factor cases (bins, deformation, copies, parts, resolutions),
+# CASES=all runs everything.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [[ -z ${BETTIMILL:-} ]]; then
@@ -72,11 +74,14 @@ else
 fi
 if [[ $1 == base ]]; then
 for m in demo-2d demo-3d demo-4d; do measure "$m (as shipped)" "manifests/$m.toml"; done
-case_ "2D 8 embed ball (fixed cost)" 2 8 embed 1 none ball
+case_ "2D 16 embed ball (fixed cost)" 2 16 embed 1 none ball
 case_ "2D 128 embed ball" 2 128 embed 60 none ball
 case_ "2D 128 carve handle" 2 128 carve 60 none handle
+case_ "2D 128 carve handle gzip" 2 128 carve 60 gzip handle
+case_ "2D 128 embed ball zstd" 2 128 embed 60 zstd ball
 case_ "3D 64 embed handle" 3 64 embed 20 gzip handle
 case_ "3D 64 carve ball" 3 64 carve 20 gzip ball
+case_ "3D 64 carve ball zstd" 3 64 carve 20 zstd ball
 case_ "4D 32 embed t2_x_b2" 4 32 embed 16 gzip t2_x_b2
 case_ "4D 32 carve s2_x_b2" 4 32 carve 16 gzip s2_x_b2
 case_ "4D 48 carve handle zstd" 4 48 carve 4 zstd handle
