@@ -19,7 +19,7 @@ sed -e 's/^samples = 9600$/samples = 8/' -e 's/^train = 8000$/train = 6/' \
     manifests/4d-mixed-128.toml >"$work/m8.toml"
 echo "machine: $(nproc) cores, $(uname -sr), $(date -u +%Y-%m-%dT%H:%MZ), load $(cut -d' ' -f1 /proc/loadavg)"
 echo "== plan of the reduced preset"
-"$B" plan "$work/m8.toml" 2>&1 | grep -iE 'estimat|hours|time|size' || true
+"$B" plan "$work/m8.toml" 2>&1 | grep -iE 'estimat|hours|time|size|output|build|pilot' || true
 echo "== build, 8 samples, --workers 1"
 /usr/bin/time -f "%e %U %S %M" -o "$work/time.txt" \
     "$B" build "$work/m8.toml" --out "$work/ds" --workers 1 --quiet >/dev/null
@@ -28,6 +28,9 @@ cpu=$(echo "$user + $sys" | bc -l)
 per_sample=$(echo "$cpu / 8" | bc -l)
 printf 'wall %.1f s, cpu %.1f s (%.2f cpu-s per sample), peak RSS %d MiB\n' \
     "$wall" "$cpu" "$per_sample" $((rss_kib / 1024))
+# The dataset's bytes (shards), beside plan's compressed estimate (issue 17 item 5).
+shard_bytes=$(cat "$work"/ds/shards/*.tar | wc -c)
+printf 'shards: %d bytes (%.0f a sample)\n' "$shard_bytes" "$(echo "$shard_bytes / 8" | bc -l)"
 echo "== samples built"
 for shard in "$work"/ds/shards/*.tar; do
     mkdir -p "$work/x" && tar -xf "$shard" -C "$work/x" --wildcards '*.json'

@@ -125,6 +125,11 @@ enum Command {
         /// worker would need more is printed, then refused (exit 2).
         #[arg(long, value_name = "SIZE", value_parser = parse_memory)]
         max_memory: Option<u64>,
+        /// Also build samples of every stratum (or of the first STRATA) here, one worker,
+        /// and print their measured CPU time and compressed size extrapolated to the plan,
+        /// beside the model's estimate. Nothing is written.
+        #[arg(long, value_name = "STRATA", num_args = 0..=1, default_missing_value = "0")]
+        pilot: Option<usize>,
     },
     /// Draw a sample, or a contact sheet of several, as a PNG with its label.
     ///
@@ -242,9 +247,11 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             manifest,
             json,
             max_memory,
+            pilot,
         } => {
             let (_, manifest) = load_manifest(manifest.as_deref())?;
-            crate::plan::show(&manifest, json, max_memory)?;
+            let pilot = pilot.map(|n| (n > 0).then_some(n));
+            crate::plan::show(&manifest, json, max_memory, pilot)?;
             Ok(ExitStatus::Success)
         }
         Command::Preview { input, key, n, out } => crate::preview::run(&crate::preview::Request {

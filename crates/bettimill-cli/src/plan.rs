@@ -1,13 +1,144 @@
 //! `bettimill plan`: the strata table, counts per split and shard, size and time estimates.
 
 use bettimill_manifest::Manifest;
+use bettimill_plan::estimate::{self, Estimate};
 use bettimill_plan::memory::{self, WorkerMemory};
 use bettimill_plan::Plan;
 
-/// Rough single-core cost of making and verifying one sample, in nanoseconds per voxel, by
-/// dimension (2D, 3D, 4D). Measured on the 2-core reference machine (BENCHMARKS.md); an
-/// estimate for planning, not a promise.
-const NS_PER_VOXEL: [f64; 3] = [400.0, 300.0, 250.0];
+/// A pilot keeps building samples of a stratum until they took this many CPU seconds (or
+/// [`PILOT_MAX_SAMPLES`]), so that small samples are timed above the clock's resolution.
+const PILOT_MIN_CPU_SECONDS: f64 = 0.2;
+
+/// The most samples a pilot builds of one stratum.
+const PILOT_MAX_SAMPLES: usize = 32;
+
+/// What `plan --pilot` measured: samples of the first strata built in-process, their CPU
+/// seconds and their bytes as stored, extrapolated to the plan.
+#[derive(Clone, Debug)]
+pub struct Pilot {
+    /// Strata built.
+    pub strata: usize,
+    /// Samples built.
+    pub samples: u64,
+    /// CPU seconds of the samples built.
+    pub cpu_seconds: f64,
+    /// Mean CPU seconds of one sample of the plan (strata weighted by their counts).
+    pub cpu_seconds_per_sample: f64,
+    /// CPU seconds of the whole build, extrapolated.
+    pub build_cpu_seconds: f64,
+    /// Bytes of the whole dataset's shards, extrapolated.
+    pub compressed_bytes: u64,
+}
+
+/// CPU seconds (user + system, every thread) of this process so far, from /proc/self/stat;
+/// `None` where there is no /proc.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let fields: Vec<&str> = stat.rsplit(')').next()?.split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i).and_then(|f| f.parse::<f64>().ok());
+    // utime and stime, in clock ticks of 1/100 s (USER_HZ on Linux).
+    Some((ticks(11)? + ticks(12)?) / 100.0)
+}
+
+/// Builds samples of the first `strata` strata that have samples (every one when `None`)
+/// as a build would, measures their CPU seconds and their members' bytes with the plan's compression,
+/// and extrapolates to the plan: strata not built take the model's figures scaled by how
+/// the built ones compared with the model.
+pub fn pilot(plan: &Plan, model: &Estimate, strata: Option<usize>) -> anyhow::Result<Pilot> {
+    let counts = plan.total_counts();
+    // Strata without samples (more strata than samples) cost nothing and are skipped.
+    let selected: Vec<usize> = (0..plan.strata.len())
+        .filter(|&s| counts[s] > 0)
+        .take(strata.unwrap_or(usize::MAX).max(1))
+        .collect();
+    let wanted = selected.len();
+    let mut slot = vec![None; plan.strata.len()];
+    for (i, &s) in selected.iter().enumerate() {
+        slot[s] = Some(i);
+    }
+    let mut tasks: Vec<Vec<bettimill_plan::SampleTask>> = vec![Vec::new(); wanted];
+    'shards: for shard in plan.shards() {
+        for task in plan.shard_tasks(&shard) {
+            if let Some(i) = slot[task.stratum] {
+                if tasks[i].len() < PILOT_MAX_SAMPLES {
+                    tasks[i].push(task);
+                }
+            }
+        }
+        if tasks.iter().all(|t| t.len() >= PILOT_MAX_SAMPLES) {
+            break 'shards;
+        }
+    }
+    let clock = || {
+        cpu_seconds().ok_or_else(|| {
+            anyhow::anyhow!("plan --pilot: cannot read this process's CPU time (/proc/self/stat)")
+        })
+    };
+    let (mut built, mut spent) = (0u64, 0.0);
+    let mut measured = vec![None; plan.strata.len()];
+    for (&stratum, stratum_tasks) in selected.iter().zip(&tasks) {
+        let start = clock()?;
+        let (mut n, mut bytes) = (0u64, 0u64);
+        for task in stratum_tasks {
+            let sample = bettimill_sample::make_sample(plan, task)
+                .map_err(|err| anyhow::anyhow!("plan --pilot: sample {}: {err}", task.key))?;
+            for (field, data) in sample.fields() {
+                let len = if bettimill_format::member::is_array_field(&field)
+                    && plan.compression != bettimill_shard::Compression::None
+                {
+                    bettimill_shard::compress(&data, plan.compression)?.len()
+                } else {
+                    data.len()
+                };
+                bytes += bettimill_shard::ustar::member_bytes(len as u64);
+            }
+            n += 1;
+            if clock()? - start >= PILOT_MIN_CPU_SECONDS {
+                break;
+            }
+        }
+        if n > 0 {
+            let cpu = clock()? - start;
+            measured[stratum] = Some((cpu / n as f64, bytes as f64 / n as f64));
+            built += n;
+            spent += cpu;
+        }
+    }
+    // Strata not built: the model, scaled by the built strata's measured / model ratio.
+    let (mut cpu_ratio, mut byte_ratio) = ((0.0, 0.0), (0.0, 0.0));
+    for (m, e) in measured.iter().zip(&model.strata) {
+        if let Some((cpu, bytes)) = m {
+            cpu_ratio = (cpu_ratio.0 + cpu, cpu_ratio.1 + e.cpu_seconds);
+            byte_ratio = (
+                byte_ratio.0 + bytes,
+                byte_ratio.1 + e.compressed_bytes as f64,
+            );
+        }
+    }
+    let ratio = |(a, b): (f64, f64)| if b > 0.0 { a / b } else { 1.0 };
+    let (cpu_ratio, byte_ratio) = (ratio(cpu_ratio), ratio(byte_ratio));
+    let (mut sample_cpu, mut bytes) = (0.0, 0.0);
+    for ((m, e), &count) in measured.iter().zip(&model.strata).zip(&counts) {
+        let (cpu, b) = m.unwrap_or((
+            e.cpu_seconds * cpu_ratio,
+            e.compressed_bytes as f64 * byte_ratio,
+        ));
+        sample_cpu += cpu * count as f64;
+        bytes += b * count as f64;
+    }
+    Ok(Pilot {
+        strata: wanted,
+        samples: built,
+        cpu_seconds: spent,
+        cpu_seconds_per_sample: if plan.samples == 0 {
+            0.0
+        } else {
+            sample_cpu / plan.samples as f64
+        },
+        build_cpu_seconds: sample_cpu + estimate::BUILD_FIXED_SECONDS,
+        compressed_bytes: (bytes as u64).saturating_add(plan.shard_count().saturating_mul(1024)),
+    })
+}
 
 /// The share of /proc/meminfo's MemAvailable that the default `--max-memory` hands out.
 pub(crate) const DEFAULT_MEMORY_SHARE: f64 = 0.8;
@@ -67,17 +198,41 @@ pub(crate) fn check_memory(
     Ok(())
 }
 
-/// Prints the plan of `manifest` (text, or JSON with `json`). A plan whose worker would not
+/// Prints the plan of `manifest` (text, or JSON with `json`), with the cost model's time
+/// and size estimates and, with `pilot` (`Some(None)`: every stratum; `Some(Some(n))`: the
+/// first n), the figures of samples built and measured here. A plan whose worker would not
 /// fit the memory limit (`max_memory`, or the machine's default for one worker) is printed
 /// and then refused.
-pub fn show(manifest: &Manifest, json: bool, max_memory: Option<u64>) -> anyhow::Result<()> {
+pub fn show(
+    manifest: &Manifest,
+    json: bool,
+    max_memory: Option<u64>,
+    pilot_strata: Option<Option<usize>>,
+) -> anyhow::Result<()> {
     let plan = Plan::new(manifest)?;
     let worker_memory = WorkerMemory::of(&plan);
-    let voxels = (plan.side as f64).powi(plan.dimension.get() as i32);
     let bytes = plan.sample_bytes.saturating_mul(plan.samples);
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
-    let seconds =
-        plan.samples as f64 * voxels * NS_PER_VOXEL[plan.dimension.get() - 2] / 1e9 / cores;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
+    let model = estimate::estimate(&plan);
+    let seconds = model.wall_seconds(cores);
+    let pilot = match pilot_strata {
+        Some(strata) => {
+            check_memory(&plan, max_memory, 1, 1)?;
+            Some(pilot(&plan, &model, strata)?)
+        }
+        None => None,
+    };
+    let pilot_json = pilot.as_ref().map(|p| {
+        serde_json::json!({
+            "strata": p.strata,
+            "samples_built": p.samples,
+            "cpu_seconds_spent": p.cpu_seconds,
+            "cpu_seconds_per_sample": p.cpu_seconds_per_sample,
+            "estimated_cpu_seconds": p.build_cpu_seconds,
+            "estimated_seconds": estimate::wall_seconds(p.build_cpu_seconds, cores, plan.samples),
+            "estimated_compressed_bytes": p.compressed_bytes,
+        })
+    });
     let totals = plan.total_counts();
     if json {
         let strata: Vec<serde_json::Value> = plan
@@ -108,7 +263,13 @@ pub fn show(manifest: &Manifest, json: bool, max_memory: Option<u64>) -> anyhow:
             "strata": strata,
             "infeasible": plan.infeasible,
             "estimated_bytes": bytes,
+            "estimated_compressed_bytes": model.compressed_bytes,
+            "compression": plan.compression.name(),
             "estimated_seconds": seconds,
+            "estimated_cpu_seconds": model.cpu_seconds,
+            "estimated_cpu_seconds_per_sample": model.cpu_seconds_per_sample,
+            "estimate_cores": cores,
+            "pilot": pilot_json,
             "worker_memory_bytes": worker_memory.total(1),
             "sample_memory_bytes": worker_memory.sample_bytes,
         });
@@ -215,12 +376,32 @@ pub fn show(manifest: &Manifest, json: bool, max_memory: Option<u64>) -> anyhow:
     }
     outln!("per-shard balance: stratum counts differ by at most {spread} within any shard");
     outln!(
-        "estimated output at most {} uncompressed ({} a sample), build time {} on {}",
+        "estimated output: about {} with {} members (model), at most {} uncompressed ({} a sample)",
+        human_bytes(model.compressed_bytes),
+        plan.compression.name(),
         human_bytes(bytes),
         human_bytes(plan.sample_bytes),
-        human_duration(seconds),
-        count(cores as u64, "core")
     );
+    outln!(
+        "estimated build time: {} on {} (model: {} CPU-s a sample, {} CPU in all; calibrated on the 2-core reference machine)",
+        human_duration(seconds),
+        count(cores, "core"),
+        cpu_figure(model.cpu_seconds_per_sample),
+        human_duration(model.cpu_seconds).trim_start_matches("about "),
+    );
+    if let Some(p) = &pilot {
+        outln!(
+            "pilot (measured here: {} of {} built in {} CPU-s): {} CPU-s and {} a sample; build time {} on {}, output about {}",
+            count(p.samples, "sample"),
+            count(p.strata as u64, "stratum").replace("stratums", "strata"),
+            cpu_figure(p.cpu_seconds),
+            cpu_figure(p.cpu_seconds_per_sample),
+            human_bytes(p.compressed_bytes / plan.samples.max(1)),
+            human_duration(estimate::wall_seconds(p.build_cpu_seconds, cores, plan.samples)),
+            count(cores, "core"),
+            human_bytes(p.compressed_bytes),
+        );
+    }
     outln!(
         "worker memory: about {} a worker ({} for one sample of {} voxels in flight + {} for the shard being written)",
         memory::human_bytes(worker_memory.total(1)),
@@ -230,6 +411,21 @@ pub fn show(manifest: &Manifest, json: bool, max_memory: Option<u64>) -> anyhow:
     );
     check_memory(&plan, max_memory, 1, 1)?;
     Ok(())
+}
+
+/// CPU seconds with three significant digits: `10.7`, `0.0123`.
+fn cpu_figure(seconds: f64) -> String {
+    if seconds >= 100.0 {
+        format!("{seconds:.0}")
+    } else if seconds >= 10.0 {
+        format!("{seconds:.1}")
+    } else if seconds >= 1.0 {
+        format!("{seconds:.2}")
+    } else if seconds >= 0.001 {
+        format!("{seconds:.4}")
+    } else {
+        format!("{seconds:.1e}")
+    }
 }
 
 /// `1 shard`, `6 shards`.

@@ -23,6 +23,7 @@
 //! index_le)` (32 bytes), and regeneration attempt k of that sample uses
 //! `blake3-derive-key("bettimill attempt seed v1", sample_seed || k_le)` as a ChaCha8 seed.
 
+pub mod estimate;
 pub mod memory;
 
 use bettimill_deform::DeformSettings;

@@ -1,0 +1,342 @@
+//! What a plan will cost: CPU seconds per sample and compressed bytes, from a cost model
+//! calibrated on the 2-core reference machine.
+//!
+//! The model is a pure function of the plan (nothing here reads the machine or builds a
+//! sample: the CLI's `plan --pilot` builds and measures real samples, and divides by the
+//! cores it finds). One sample of a stratum costs
+//!
+//! ```text
+//! cpu = voxels x NS_PER_VOXEL[d][mode] x (binned ? BINNED_FACTOR[d] : 1)
+//!           x (1 + COPY_WEIGHT x (components - 1))
+//!     + voxels x deformation steps x DEFORM_NS_PER_STEP_VOXEL
+//!     + voxels of the downscaled copies x DOWNSCALE_NS_PER_VOXEL
+//!     + SAMPLE_FIXED_SECONDS
+//! ```
+//!
+//! and a build costs [`BUILD_FIXED_SECONDS`] on top (the process, the plan, the workers).
+//! The family's own parts (a connected sum's summands) measured no extra cost (4D 64 carve:
+//! a connected sum of four summands 37.6 ns/voxel, a ball 46.8: a big ball's cavity is the
+//! costlier), so only the copies of a scene count. `NS_PER_VOXEL` includes generating, targeting, verifying (the
+//! homology), labelling and compressing one sample with the calibration's compression.
+//!
+//! The compressed size of an array of side `s` in `d` dimensions is
+//! `128 + s^d` bytes without compression and otherwise
+//! `max(s^d x FLOOR[c], s^(d-1) x BYTES_PER_FACE_VOXEL[c][d][mode])`: these images are a
+//! few smooth solids, so their compressed size follows their boundary (a side^(d-1)
+//! surface), not their volume; `FLOOR` is the best ratio the compressor reaches on
+//! constant data. Tar headers and padding are added exactly, and the label as
+//! [`LABEL_BYTES`]. The result never exceeds [`Plan::sample_bytes`], the uncompressed bound.
+//!
+//! Constants come from `ci/calibrate-plan.sh` (one-worker builds of one family, side and
+//! mode each under `/usr/bin/time`, user + system seconds) and `ci/bench-4d-mixed-128.sh`;
+//! the runs are in BENCHMARKS.md, "Plan estimates (issue 17 item 5, issue 20 item 5)".
+//! They are estimates for planning, within 2x of the measured builds there, not promises.
+
+use crate::{Plan, Stratum};
+use bettimill_grid::Mode;
+use bettimill_shard::Compression;
+
+/// CPU nanoseconds per voxel of one sample (side^d), by dimension (2D, 3D, 4D) and mode
+/// (embed, carve), one worker, measured at sides 128 (2D), 64 (3D), 32-64 (4D).
+pub const NS_PER_VOXEL: [[f64; 2]; 3] = [[51.0, 81.0], [34.0, 105.0], [39.0, 46.0]];
+
+/// Factor on [`NS_PER_VOXEL`] for a stratum brought into a hypervolume bin, by dimension:
+/// binned samples are sized for their bin (the box and cavities are chosen to land in it),
+/// which measured cheaper than an unbinned sample of the same family (3D 64 carve ball
+/// 70.6 vs 108.7 ns/voxel, 4D 64 carve ball 34.9 vs 46.8). 2D was not measured: the 3D
+/// factor is used.
+pub const BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.75];
+
+/// Extra cost of each copy past the first in a scene of `components` copies (4D 48 carve
+/// handle: 0.235 CPU-s alone, 0.330 with two copies).
+pub const COPY_WEIGHT: f64 = 0.4;
+
+/// CPU nanoseconds per voxel and deformation step (3D 64 embed ball with 200 `moves`
+/// steps: 0.37 CPU-s against 0.009 without).
+pub const DEFORM_NS_PER_STEP_VOXEL: f64 = 6.9;
+
+/// CPU nanoseconds per voxel of each downscaled copy (pooling, its homology, compressing).
+pub const DOWNSCALE_NS_PER_VOXEL: f64 = 60.0;
+
+/// CPU seconds of one sample that do not depend on its size (label, members, tar entry).
+pub const SAMPLE_FIXED_SECONDS: f64 = 0.000_05;
+
+/// CPU seconds of one build that do not depend on its samples: starting the process and
+/// its workers, planning, the index and the dataset card (demo-2d: 240 samples of 32^2 in
+/// 0.05 CPU-s in all).
+pub const BUILD_FIXED_SECONDS: f64 = 0.03;
+
+/// Compressed bytes per voxel of an array's boundary (side^(d-1)), by compression (gzip,
+/// zstd), dimension (2D, 3D, 4D) and mode (embed, carve).
+pub const BYTES_PER_FACE_VOXEL: [[[f64; 2]; 3]; 2] = [
+    // gzip
+    [[1.2, 1.2], [0.25, 0.6], [0.15, 0.27]],
+    // zstd
+    [[1.0, 1.0], [0.12, 0.32], [0.12, 0.16]],
+];
+
+/// The best compression ratio of each compressor on constant data (bytes out per byte in):
+/// deflate's longest match is 258 bytes; zstd's frames go much further.
+pub const FLOOR: [f64; 2] = [1.0 / 1032.0, 1.0 / 32768.0];
+
+/// Bytes of one sample's label (`KEY.json`) as written, a little above the 1.0-1.2 kB the
+/// demos' labels take.
+pub const LABEL_BYTES: u64 = 1300;
+
+/// Bytes of an npy header.
+const NPY_HEADER: u64 = 128;
+
+/// The model's figures for one stratum.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StratumEstimate {
+    /// Index into [`Plan::strata`].
+    pub stratum: usize,
+    /// CPU seconds of one sample.
+    pub cpu_seconds: f64,
+    /// Bytes of one sample in a shard, compressed as the plan says.
+    pub compressed_bytes: u64,
+}
+
+/// The model's figures for a whole plan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    /// Per stratum, in [`Plan::strata`] order.
+    pub strata: Vec<StratumEstimate>,
+    /// CPU seconds of every sample together, plus [`BUILD_FIXED_SECONDS`].
+    pub cpu_seconds: f64,
+    /// Mean CPU seconds of one sample (over the plan's samples).
+    pub cpu_seconds_per_sample: f64,
+    /// Bytes of every shard together, compressed as the plan says.
+    pub compressed_bytes: u64,
+    /// The uncompressed bound ([`Plan::sample_bytes`] x samples).
+    pub uncompressed_bytes: u64,
+    /// The plan's samples.
+    pub samples: u64,
+}
+
+impl Estimate {
+    /// Wall seconds on `cores` cores (or workers), samples spread evenly over them.
+    pub fn wall_seconds(&self, cores: u64) -> f64 {
+        wall_seconds(self.cpu_seconds, cores, self.samples)
+    }
+}
+
+/// Wall seconds of `cpu_seconds` of `samples` samples on `cores` cores: a sample is built
+/// on one core, so no more cores than samples are busy.
+pub fn wall_seconds(cpu_seconds: f64, cores: u64, samples: u64) -> f64 {
+    let busy = cores.min(samples).max(1) as f64;
+    BUILD_FIXED_SECONDS.min(cpu_seconds) + (cpu_seconds - BUILD_FIXED_SECONDS).max(0.0) / busy
+}
+
+/// The model's estimate of `plan`.
+pub fn estimate(plan: &Plan) -> Estimate {
+    let counts = plan.total_counts();
+    let strata: Vec<StratumEstimate> = plan
+        .strata
+        .iter()
+        .map(|stratum| StratumEstimate {
+            stratum: stratum.index,
+            cpu_seconds: sample_cpu_seconds(plan, stratum),
+            compressed_bytes: sample_compressed_bytes(plan, stratum),
+        })
+        .collect();
+    let sample_cpu: f64 = strata
+        .iter()
+        .zip(&counts)
+        .map(|(s, &n)| s.cpu_seconds * n as f64)
+        .sum();
+    let compressed: u64 = strata
+        .iter()
+        .zip(&counts)
+        .map(|(s, &n)| s.compressed_bytes.saturating_mul(n))
+        .fold(0, u64::saturating_add);
+    // Two 512-byte blocks end every tar.
+    let compressed = compressed.saturating_add(plan.shard_count().saturating_mul(1024));
+    Estimate {
+        strata,
+        cpu_seconds: sample_cpu + BUILD_FIXED_SECONDS,
+        cpu_seconds_per_sample: if plan.samples == 0 {
+            0.0
+        } else {
+            sample_cpu / plan.samples as f64
+        },
+        compressed_bytes: compressed,
+        uncompressed_bytes: plan.sample_bytes.saturating_mul(plan.samples),
+        samples: plan.samples,
+    }
+}
+
+fn voxels(plan: &Plan, side: u32) -> f64 {
+    (side as f64).powi(plan.dimension.get() as i32)
+}
+
+fn mode_index(mode: Mode) -> usize {
+    match mode {
+        Mode::Embed => 0,
+        Mode::Carve => 1,
+    }
+}
+
+/// The model's CPU seconds of one sample of `stratum`.
+pub fn sample_cpu_seconds(plan: &Plan, stratum: &Stratum) -> f64 {
+    let d = plan.dimension.get() - 2;
+    let volume = voxels(plan, plan.side);
+    let mut ns = NS_PER_VOXEL[d][mode_index(stratum.mode)];
+    if stratum.hypervolume.is_some() {
+        ns *= BINNED_FACTOR[d];
+    }
+    ns *= 1.0 + COPY_WEIGHT * (stratum.components.max(1) - 1) as f64;
+    let mut seconds = volume * ns * 1e-9;
+    if let Some(deform) = &plan.deform {
+        seconds += volume * deform.steps as f64 * DEFORM_NS_PER_STEP_VOXEL * 1e-9;
+    }
+    let copies: f64 = plan.resolutions.iter().map(|&r| voxels(plan, r)).sum();
+    seconds + copies * DOWNSCALE_NS_PER_VOXEL * 1e-9 + SAMPLE_FIXED_SECONDS
+}
+
+/// The model's bytes of one array of side `side` as stored (before its tar header).
+pub fn array_bytes(plan: &Plan, mode: Mode, side: u32) -> u64 {
+    let d = plan.dimension.get();
+    let volume = voxels(plan, side);
+    let c = match plan.compression {
+        Compression::None => return NPY_HEADER + volume as u64,
+        Compression::Gzip => 0,
+        Compression::Zstd => 1,
+    };
+    let surface = (side as f64).powi(d as i32 - 1);
+    let bytes = (volume * FLOOR[c]).max(surface * BYTES_PER_FACE_VOXEL[c][d - 2][mode_index(mode)]);
+    (bytes.ceil() as u64).clamp(20, NPY_HEADER + volume as u64)
+}
+
+/// Bytes of a tar member of `len` bytes: a 512-byte header and the data padded to 512.
+fn member(len: u64) -> u64 {
+    512 + len.div_ceil(512) * 512
+}
+
+/// The model's bytes of one sample of `stratum` in a shard (tar headers included).
+pub fn sample_compressed_bytes(plan: &Plan, stratum: &Stratum) -> u64 {
+    let arrays: u64 = std::iter::once(plan.side)
+        .chain(plan.resolutions.iter().copied())
+        .map(|side| member(array_bytes(plan, stratum.mode, side)))
+        .sum();
+    let bytes = arrays + member(LABEL_BYTES) + member(stratum.index.to_string().len() as u64);
+    bytes.min(plan.sample_bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(text: &str) -> Plan {
+        Plan::parse(text, std::path::Path::new("test.toml")).unwrap()
+    }
+
+    fn manifest(dimension: u32, side: u32, mode: &str, extra: &str, family: &str) -> String {
+        format!(
+            "schema_version = 1\nname = \"t\"\ndimension = {dimension}\nside = {side}\n\
+             mode = \"{mode}\"\nsamples = 8\nshard_size = 4\nseed = 1\ncompression = \"gzip\"\n\
+             {extra}\n[[classes]]\n{family}\n"
+        )
+    }
+
+    fn per_sample(text: &str) -> f64 {
+        estimate(&plan(text)).cpu_seconds_per_sample
+    }
+
+    #[test]
+    fn cost_grows_with_the_side() {
+        for (dimension, sides) in [(2, [32, 64, 128]), (3, [24, 48, 64]), (4, [24, 32, 48])] {
+            for mode in ["embed", "carve"] {
+                let costs: Vec<f64> = sides
+                    .iter()
+                    .map(|&side| {
+                        per_sample(&manifest(dimension, side, mode, "", "family = \"ball\""))
+                    })
+                    .collect();
+                assert!(
+                    costs.windows(2).all(|w| w[0] < w[1]),
+                    "{dimension}D {mode}: {costs:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn carve_embed_and_binned_differ_as_measured() {
+        let ball = "family = \"ball\"";
+        let embed = per_sample(&manifest(3, 64, "embed", "", ball));
+        let carve = per_sample(&manifest(3, 64, "carve", "", ball));
+        let binned = per_sample(&manifest(
+            3,
+            64,
+            "carve",
+            "[hypervolume]\nunit = \"fraction\"\nbins = [[0.55, 0.65]]\n",
+            ball,
+        ));
+        // Measured: 3D 64 embed 34, carve 109, carve binned 71 ns/voxel.
+        assert!(carve > 2.0 * embed, "carve {carve} embed {embed}");
+        assert!(binned < carve && binned > embed, "binned {binned}");
+        let single = per_sample(&manifest(4, 32, "carve", "", "family = \"handle\""));
+        let double = per_sample(&manifest(
+            4,
+            32,
+            "carve",
+            "components = [2]",
+            "family = \"handle\"",
+        ));
+        assert!(double > 1.2 * single, "two copies {double}, one {single}");
+        let deformed = per_sample(&manifest(
+            3,
+            64,
+            "embed",
+            "[deform]\nmethod = \"moves\"\nsteps = 200\n",
+            ball,
+        ));
+        assert!(deformed > 10.0 * embed, "deformed {deformed}");
+    }
+
+    #[test]
+    fn compressed_never_exceeds_the_uncompressed_bound() {
+        for (dimension, side) in [(2, 16), (2, 128), (3, 24), (3, 64), (4, 16), (4, 48)] {
+            for mode in ["embed", "carve"] {
+                for compression in ["none", "gzip", "zstd"] {
+                    let text = manifest(dimension, side, mode, "", "family = \"ball\"")
+                        .replace("\"gzip\"", &format!("\"{compression}\""));
+                    let plan = plan(&text);
+                    let e = estimate(&plan);
+                    assert!(e.compressed_bytes <= e.uncompressed_bytes + 1024 * plan.shard_count());
+                    for s in &e.strata {
+                        assert!(s.compressed_bytes <= plan.sample_bytes);
+                    }
+                    if compression != "none" && dimension >= 3 && side >= 48 {
+                        assert!(
+                            e.compressed_bytes * 10 < e.uncompressed_bytes,
+                            "{dimension}D {side} {mode} {compression}: {e:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn uncompressed_arrays_are_counted_exactly() {
+        let plan = plan(&manifest(2, 32, "embed", "", "family = \"ball\"").replace("gzip", "none"));
+        // 128-byte npy header + 1024 voxels, in a 512-byte tar header + 1536 bytes.
+        assert_eq!(array_bytes(&plan, Mode::Embed, 32), 1152);
+        assert_eq!(
+            sample_compressed_bytes(&plan, &plan.strata[0]),
+            (512 + 1536) + (512 + 1536) + (512 + 512)
+        );
+    }
+
+    #[test]
+    fn wall_time_divides_by_the_cores_a_build_can_use() {
+        let e = estimate(&plan(&manifest(4, 32, "carve", "", "family = \"ball\"")));
+        let one = e.wall_seconds(1);
+        let two = e.wall_seconds(2);
+        assert!(two < one && two > one / 2.0 - 1e-9);
+        // Eight samples keep at most eight cores busy.
+        assert_eq!(e.wall_seconds(8), e.wall_seconds(64));
+    }
+}
