@@ -9,13 +9,8 @@
 # is printed before each run. BETTIMILL=path/to/bettimill (default: a release build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if [[ -z ${BETTIMILL:-} ]]; then
-    cargo build --release -p bettimill-cli
-    BETTIMILL=$PWD/target/release/bettimill
-fi
-B=$BETTIMILL
-work=$(mktemp -d /tmp/bettimill-bench.XXXXXX)
-trap 'rm -rf -- "$work"' EXIT
+source ci/bench-lib.sh
+bench_setup release bench
 cd "$work"
 manifest() { # name dimension side samples shard_size
     printf 'schema_version = 1\nname = "%s"\ndimension = %s\nside = %s\nmode = ["embed", "carve"]\nsamples = %s\nshard_size = %s\nseed = 7\n\n[[classes]]\nfamily = "ball"\n\n[[classes]]\nfamily = "handle"\n' "$@" >"$1.toml"

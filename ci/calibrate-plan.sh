@@ -10,13 +10,8 @@
 # CASES=all runs everything.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if [[ -z ${BETTIMILL:-} ]]; then
-    cargo build -p bettimill-cli
-    BETTIMILL=${CARGO_TARGET_DIR:-$PWD/target}/debug/bettimill
-fi
-B=$BETTIMILL
-work=$(mktemp -d /tmp/bettimill-calibrate.XXXXXX)
-trap 'rm -rf -- "$work"' EXIT
+source ci/bench-lib.sh
+bench_setup dev calibrate
 echo "machine: $(nproc) cores, $(uname -sr), $(date -u +%Y-%m-%dT%H:%MZ), load $(cut -d' ' -f1 /proc/loadavg)"
 printf '%-34s %7s %9s %9s %11s %8s %9s %11s\n' case samples cpu-s/smp ns/voxel bytes/smp ratio model-s model-bytes
 

@@ -218,7 +218,7 @@ fn a_shard_that_keeps_failing_is_given_up_while_the_others_finish() {
     let coordinator = spawn_build(&m, &out, 2, &[("BETTIMILL_TEST_FAIL_SHARD", "1")]);
     let (code, stderr) = finish(coordinator);
     assert_eq!(code, Some(2), "{stderr}");
-    assert!(stderr.contains("1 shard(s) failed 3 times"), "{stderr}");
+    assert!(stderr.contains("1 shard failed 3 times"), "{stderr}");
     assert!(
         stderr.contains("w2d-000001: BETTIMILL_TEST_FAIL_SHARD"),
         "{stderr}"

@@ -2,7 +2,7 @@
 //! coordinator), rendered by [`crate::build_display`]. Exit codes: 0 success, 2 a failed
 //! build or a refused directory, 130 interrupted (rerun to resume).
 
-use crate::build_display::Display;
+use crate::build_display::{count, Display};
 use crate::commands::{load_manifest, ExitStatus};
 use anyhow::bail;
 use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
@@ -120,8 +120,8 @@ pub fn build(
     }
     if !report.failed.is_empty() {
         eprintln!(
-            "error: {} shard(s) failed {} times and were given up ({} of {} shards complete; index.json not written):",
-            report.failed.len(),
+            "error: {} failed {} times and were given up ({} of {} shards complete; index.json not written):",
+            count(report.failed.len() as u64, "shard"),
             max_shard_failures,
             report.complete,
             report.shards
@@ -138,15 +138,15 @@ pub fn build(
     }
     if !quiet {
         eprintln!(
-            "built {} shards, skipped {} complete ones; {} samples in {} ({}, {} workers), {} regenerations, {} retried shard attempts\n{}",
-            report.built,
+            "built {}, skipped {} complete; {} in {} ({}, {}), {}, {}\n{}",
+            count(report.built, "shard"),
             report.skipped,
-            report.samples_built,
+            count(report.samples_built, "sample"),
             crate::build_display::human_seconds(seconds),
             crate::build_display::rate(report.samples_built, seconds),
-            display.workers,
-            report.regenerations,
-            report.retries,
+            count(display.workers as u64, "worker"),
+            count(report.regenerations, "regeneration"),
+            count(report.retries, "retried shard attempt"),
             dataset.layout().index_path().display()
         );
     }

@@ -142,6 +142,15 @@ fn progress_line(c: &Counts, elapsed: Duration) -> String {
     )
 }
 
+/// `1 shard`, `6 shards`.
+pub(crate) fn count(n: u64, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
 /// A sample rate a person can read: `31.4 samples/s`, `0.52 samples/s`, `77 s per sample`,
 /// or `no sample built yet`.
 pub(crate) fn rate(samples: u64, seconds: f64) -> String {

@@ -428,14 +428,7 @@ fn cpu_figure(seconds: f64) -> String {
     }
 }
 
-/// `1 shard`, `6 shards`.
-fn count(n: u64, noun: &str) -> String {
-    if n == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{n} {noun}s")
-    }
-}
+use crate::build_display::count;
 
 /// Bytes in binary units: `512 B`, `5.6 MiB`, `3.2 TiB`.
 fn human_bytes(bytes: u64) -> String {
