@@ -386,3 +386,41 @@ fn a_worker_timeout_shorter_than_three_heartbeats_is_refused() {
         text(&out.stderr)
     );
 }
+
+#[test]
+fn status_counts_every_shard_and_lists_the_first_ten_thousand_of_each_state() {
+    // 10,003 one-sample shards, none built: `slurm` (not submitted) only creates the
+    // directory, so every shard is missing.
+    let tmp = Dir::new();
+    let manifest = manifest(tmp.path(), 2, 16, 10_003, 1);
+    let dir = tmp.path().join("many");
+    let d = dir.to_str().unwrap();
+    let out = run(&["slurm", manifest.to_str().unwrap(), "--out", d]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let out = run(&["status", d, "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let status: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(status["shards"], 10_003);
+    assert_eq!(status["missing_count"], 10_003);
+    assert_eq!(status["complete_count"], 0);
+    let missing = status["missing"].as_array().unwrap();
+    assert_eq!(missing.len(), 10_000);
+    assert_eq!(missing[9_999], "w2d-009999");
+    let out = run(&["status", d]);
+    let listing = text(&out.stdout);
+    assert!(
+        listing.contains("0 of 10003 shards complete, 10003 missing"),
+        "{listing}"
+    );
+    assert!(
+        listing.ends_with("... and 3 more missing shards (the first 10000 are listed)\n"),
+        "{listing}"
+    );
+    let out = run(&["finalize", d]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("10003 of 10003 shards are not complete: w2d-000000, "),
+        "{}",
+        text(&out.stderr)
+    );
+}

@@ -18,19 +18,20 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
         .map(String::as_str)
         .chain(status.invalid.iter().map(|s| s.shard.as_str()))
         .collect();
-    if !incomplete.is_empty() {
+    let not_complete = status.missing_count + status.invalid_count;
+    if not_complete > 0 {
         const SHOWN: usize = 20;
         let mut names = incomplete[..incomplete.len().min(SHOWN)].join(", ");
-        if incomplete.len() > SHOWN {
+        if not_complete > SHOWN as u64 {
             names.push_str(&format!(
-                " and {} more (`bettimill status {}` lists them all)",
-                incomplete.len() - SHOWN,
+                " and {} more (`bettimill status {}` lists them)",
+                not_complete - SHOWN as u64,
                 dir.display()
             ));
         }
         eprintln!(
             "error: {} of {} shards are not complete: {}\nindex.json not written; build them (resubmit `bettimill slurm ... --submit`, or run `bettimill build ... --out {}`), then finalize again",
-            incomplete.len(),
+            not_complete,
             status.shards,
             names,
             dir.display()
@@ -39,16 +40,14 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
     }
     // Every shard is complete, so no writer has work left: leftovers of killed ones can go.
     dataset.remove_temporaries()?;
-    // `status` has just hashed every shard: finalize checks their records and sizes only,
-    // so a standalone finalize reads every byte once, not twice.
-    let checked: std::collections::BTreeSet<&str> =
-        status.complete.iter().map(String::as_str).collect();
+    // `status` has just hashed every shard and found each complete: finalize checks their
+    // records and sizes only, so a standalone finalize reads every byte once, not twice.
     // A finalize that finds every file already as it would write it writes nothing (not
     // even a temporary); otherwise every file is renamed into place, index.json last, so
     // the identity of index.json tells the two apart.
     let index_path = dataset.layout().index_path();
     let before = file_identity(&index_path);
-    dataset.finalize_checked(&|shard| checked.contains(shard.name.as_str()))?;
+    dataset.finalize_checked(&|_| true)?;
     if !quiet {
         if before.is_some() && before == file_identity(&index_path) {
             eprintln!(
@@ -89,10 +88,10 @@ pub fn status(dir: &Path, json: bool) -> anyhow::Result<ExitStatus> {
         text.push_str(&format!(
             "{}: {} of {} shards complete, {} missing, {} invalid; index.json {}\n",
             dir.display(),
-            report.complete.len(),
+            report.complete_count,
             report.shards,
-            report.missing.len(),
-            report.invalid.len(),
+            report.missing_count,
+            report.invalid_count,
             if report.finalized {
                 "written"
             } else {
@@ -104,6 +103,17 @@ pub fn status(dir: &Path, json: bool) -> anyhow::Result<ExitStatus> {
         }
         for invalid in &report.invalid {
             text.push_str(&format!("invalid {}: {}\n", invalid.shard, invalid.reason));
+        }
+        for (count, listed, state) in [
+            (report.missing_count, report.missing.len(), "missing"),
+            (report.invalid_count, report.invalid.len(), "invalid"),
+        ] {
+            if count > listed as u64 {
+                text.push_str(&format!(
+                    "... and {} more {state} shards (the first {listed} are listed)\n",
+                    count - listed as u64
+                ));
+            }
         }
     }
     // A reader that stops early (`| head`) is not an error.

@@ -37,18 +37,30 @@ pub enum ClusterError {
     },
 }
 
-/// The shards of a dataset by state.
+/// The most names [`status`] keeps of each state (the counts are exact), so that its
+/// memory does not grow with the number of shards.
+pub const STATUS_NAMES: usize = 10_000;
+
+/// The shards of a dataset by state: exact counts, and the names of the first
+/// [`STATUS_NAMES`] shards of each state in plan order.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct StatusReport {
     /// The dataset directory.
     pub dir: PathBuf,
     /// Shards in the plan.
     pub shards: u64,
-    /// Names of complete shards.
+    /// Complete shards.
+    pub complete_count: u64,
+    /// Shards with nothing on disk.
+    pub missing_count: u64,
+    /// Shards with something on disk that is not a complete shard.
+    pub invalid_count: u64,
+    /// Names of complete shards (the first [`STATUS_NAMES`]).
     pub complete: Vec<String>,
-    /// Names of shards with nothing on disk.
+    /// Names of shards with nothing on disk (the first [`STATUS_NAMES`]).
     pub missing: Vec<String>,
-    /// Shards with something on disk that is not a complete shard, and why.
+    /// Shards with something on disk that is not a complete shard, and why (the first
+    /// [`STATUS_NAMES`]).
     pub invalid: Vec<InvalidShard>,
     /// Whether index.json exists.
     pub finalized: bool,
@@ -73,12 +85,27 @@ pub fn status(dataset: &Dataset) -> StatusReport {
     };
     for shard in dataset.plan.shards() {
         match dataset.shard_state(&shard) {
-            ShardState::Complete(_) => report.complete.push(shard.name.clone()),
-            ShardState::Missing => report.missing.push(shard.name.clone()),
-            ShardState::Invalid { reason } => report.invalid.push(InvalidShard {
-                shard: shard.name.clone(),
-                reason,
-            }),
+            ShardState::Complete(_) => {
+                report.complete_count += 1;
+                if report.complete.len() < STATUS_NAMES {
+                    report.complete.push(shard.name);
+                }
+            }
+            ShardState::Missing => {
+                report.missing_count += 1;
+                if report.missing.len() < STATUS_NAMES {
+                    report.missing.push(shard.name);
+                }
+            }
+            ShardState::Invalid { reason } => {
+                report.invalid_count += 1;
+                if report.invalid.len() < STATUS_NAMES {
+                    report.invalid.push(InvalidShard {
+                        shard: shard.name,
+                        reason,
+                    });
+                }
+            }
         }
     }
     report
