@@ -178,7 +178,9 @@ pub(crate) fn rate_per_second(per_second: f64) -> String {
 
 /// `42 s`, `3 min 5 s`, `2.2 h`.
 pub(crate) fn human_seconds(seconds: f64) -> String {
-    if seconds < 60.0 {
+    if seconds < 9.95 {
+        format!("{seconds:.1} s")
+    } else if seconds < 60.0 {
         format!("{seconds:.0} s")
     } else if seconds < 3600.0 {
         format!(
@@ -440,6 +442,8 @@ mod tests {
         assert_eq!(rate(4, 308.0), "77 s per sample");
         assert_eq!(rate(5000, 10.0), "500 samples/s");
         assert_eq!(human_seconds(42.4), "42 s");
+        assert_eq!(human_seconds(0.33), "0.3 s");
+        assert_eq!(human_seconds(9.96), "10 s");
         assert_eq!(human_seconds(185.0), "3 min 5 s");
         let line = progress_line(
             &Counts {
