@@ -29,7 +29,6 @@ struct Counts {
     failures: u64,
     /// What each busy worker slot is doing.
     working: BTreeMap<usize, Activity>,
-    finished: bool,
 }
 
 /// The sample a worker slot is making and the stage it last reported.
@@ -64,46 +63,52 @@ impl Counts {
     }
 }
 
-/// The thread that writes a plain progress line every interval until the build ends.
-struct PlainLines {
-    counts: Arc<(Mutex<Counts>, Condvar)>,
+/// A thread that calls `tick` with the shared state every interval until it is dropped:
+/// the plain progress lines of a build, and an array task's stage lines.
+pub(crate) struct Periodic<S: Send + 'static> {
+    /// The state, and whether the owner has been dropped.
+    shared: Arc<(Mutex<(S, bool)>, Condvar)>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
-impl PlainLines {
-    fn start(interval: Duration) -> PlainLines {
-        let counts = Arc::new((Mutex::new(Counts::default()), Condvar::new()));
-        let shared = counts.clone();
-        let started = Instant::now();
+impl<S: Send + 'static> Periodic<S> {
+    pub(crate) fn start(
+        interval: Duration,
+        state: S,
+        tick: impl Fn(&S) + Send + 'static,
+    ) -> Periodic<S> {
+        let shared = Arc::new((Mutex::new((state, false)), Condvar::new()));
+        let theirs = shared.clone();
         let thread = std::thread::spawn(move || {
-            let (lock, wake) = &*shared;
-            let mut counts = lock.lock().unwrap_or_else(|e| e.into_inner());
+            let (lock, wake) = &*theirs;
+            let mut guard = lock.lock().unwrap_or_else(|e| e.into_inner());
             loop {
                 let (next, _) = wake
-                    .wait_timeout(counts, interval)
+                    .wait_timeout(guard, interval)
                     .unwrap_or_else(|e| e.into_inner());
-                counts = next;
-                if counts.finished {
+                guard = next;
+                if guard.1 {
                     return;
                 }
-                eprintln!("{}", progress_line(&counts, started.elapsed()));
+                tick(&guard.0);
             }
         });
-        PlainLines {
-            counts,
+        Periodic {
+            shared,
             thread: Some(thread),
         }
     }
 
-    fn update(&self, change: impl FnOnce(&mut Counts)) {
-        change(&mut self.counts.0.lock().unwrap_or_else(|e| e.into_inner()));
+    /// Changes the state under the lock (what `change` prints cannot interleave a tick).
+    pub(crate) fn update<R>(&self, change: impl FnOnce(&mut S) -> R) -> R {
+        change(&mut self.shared.0.lock().unwrap_or_else(|e| e.into_inner()).0)
     }
 }
 
-impl Drop for PlainLines {
+impl<S: Send + 'static> Drop for Periodic<S> {
     fn drop(&mut self) {
-        self.update(|c| c.finished = true);
-        self.counts.1.notify_all();
+        self.shared.0.lock().unwrap_or_else(|e| e.into_inner()).1 = true;
+        self.shared.1.notify_all();
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
         }
@@ -209,7 +214,8 @@ pub(crate) struct Display {
     /// Worker processes (or 0 for an in-process build), for the closing summary.
     pub(crate) workers: usize,
     /// Plain progress lines, when stderr is not a terminal and not `--quiet`.
-    plain: Option<PlainLines>,
+    /// The plain progress lines, written by their own thread every interval.
+    plain: Option<Periodic<Counts>>,
 }
 
 impl Display {
@@ -217,8 +223,12 @@ impl Display {
     /// not a terminal).
     #[allow(clippy::disallowed_methods)] // asks whether stderr is a terminal; writes nothing
     pub(crate) fn new(quiet: bool, interval: Duration) -> Display {
-        let plain =
-            (!quiet && !std::io::stderr().is_terminal()).then(|| PlainLines::start(interval));
+        let plain = (!quiet && !std::io::stderr().is_terminal()).then(|| {
+            let started = Instant::now();
+            Periodic::start(interval, Counts::default(), move |counts| {
+                eprintln!("{}", progress_line(counts, started.elapsed()));
+            })
+        });
         Display {
             multi: MultiProgress::with_draw_target(crate::progress::target(quiet)),
             overall: None,

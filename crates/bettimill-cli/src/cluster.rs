@@ -3,6 +3,7 @@
 //! argument handling and printing lives in `bettimill_executor` (`worker`, `cluster`).
 //! Exit codes: 0 success, 2 failure, 3 an array task failed on purpose (test hook).
 
+use crate::build_display::{human_seconds, Periodic};
 use crate::commands::{load_manifest, ExitStatus};
 use anyhow::{bail, Context};
 use bettimill_executor::cluster::{self, KubernetesOptions, SlurmOptions};
@@ -10,7 +11,6 @@ use bettimill_executor::worker::{self, WorkerError};
 use bettimill_executor::{Dataset, SampleEvent};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 /// Arguments of the hidden `bettimill worker` subcommand.
@@ -48,56 +48,35 @@ struct TaskState {
     /// Samples in progress by index: key, shard, stage, attempt, started.
     working: BTreeMap<u64, (String, String, String, u32, Instant)>,
     samples_done: u64,
-    finished: bool,
 }
 
 /// An array task's sample-level log lines on stderr (a Slurm job's log): one per finished
 /// sample at once, and every interval one per sample still in progress, with its stage.
 struct TaskLines {
-    state: Arc<(Mutex<TaskState>, Condvar)>,
+    lines: Periodic<TaskState>,
     started: Instant,
-    thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl TaskLines {
     fn start(interval: Duration) -> TaskLines {
-        let state = Arc::new((Mutex::new(TaskState::default()), Condvar::new()));
-        let shared = state.clone();
-        let thread = std::thread::spawn(move || {
-            let (lock, wake) = &*shared;
-            let mut state = lock.lock().unwrap_or_else(|e| e.into_inner());
-            loop {
-                let (next, _) = wake
-                    .wait_timeout(state, interval)
-                    .unwrap_or_else(|e| e.into_inner());
-                state = next;
-                if state.finished {
-                    return;
-                }
-                for (key, shard, stage, attempt, since) in state.working.values() {
-                    eprintln!(
-                        "working: {key} (shard {shard}) {stage}{}, {} in",
-                        attempt_note(*attempt),
-                        crate::build_display::human_seconds(since.elapsed().as_secs_f64())
-                    );
-                }
+        let lines = Periodic::start(interval, TaskState::default(), |state| {
+            for (key, shard, stage, attempt, since) in state.working.values() {
+                eprintln!(
+                    "working: {key} (shard {shard}) {stage}{}, {} in",
+                    attempt_note(*attempt),
+                    human_seconds(since.elapsed().as_secs_f64())
+                );
             }
         });
         TaskLines {
-            state,
+            lines,
             started: Instant::now(),
-            thread: Some(thread),
         }
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, TaskState> {
-        self.state.0.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     fn event(&self, shard: &str, event: SampleEvent<'_>) {
         match event {
-            SampleEvent::Stage { task, progress } => {
-                let mut state = self.lock();
+            SampleEvent::Stage { task, progress } => self.lines.update(|state| {
                 let entry = state.working.entry(task.index).or_insert_with(|| {
                     (
                         task.key.clone(),
@@ -109,12 +88,11 @@ impl TaskLines {
                 });
                 entry.2 = progress.stage.to_string();
                 entry.3 = progress.attempt;
-            }
+            }),
             SampleEvent::Done {
                 task,
                 regenerations,
-            } => {
-                let mut state = self.lock();
+            } => self.lines.update(|state| {
                 let took = state
                     .working
                     .remove(&task.index)
@@ -125,21 +103,11 @@ impl TaskLines {
                 eprintln!(
                     "sample {} done (shard {shard}) in {}, {regenerations} regenerations; {} samples by this task, {} elapsed",
                     task.key,
-                    crate::build_display::human_seconds(took),
+                    human_seconds(took),
                     state.samples_done,
-                    crate::build_display::human_seconds(self.started.elapsed().as_secs_f64()),
+                    human_seconds(self.started.elapsed().as_secs_f64()),
                 );
-            }
-        }
-    }
-}
-
-impl Drop for TaskLines {
-    fn drop(&mut self) {
-        self.lock().finished = true;
-        self.state.1.notify_all();
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
+            }),
         }
     }
 }
