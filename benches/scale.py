@@ -7,8 +7,8 @@ Builds 2D datasets of tiny samples (side 12, one class, shard_size 1000) of 10^4
 
 - index.json bytes, in all and per sample;
 - build wall time, and the start-up: seconds from launching ``bettimill build --workers 2``
-  until the first completion record appears (the coordinator lists records/ once and starts
-  workers; it does not open a record per shard);
+  until the first completion record appears (the coordinator reads nothing per shard before
+  its workers start: whether a shard is complete is checked when its turn comes);
 - wall time and peak RSS (``/usr/bin/time``; for builds the largest of the coordinator and
   its workers) of ``verify``, ``status`` and a standalone ``finalize``;
 - with ``--big N`` (default 10^7), the seconds until a plan of N samples writes its first

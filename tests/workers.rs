@@ -424,3 +424,71 @@ fn status_counts_every_shard_and_lists_the_first_ten_thousand_of_each_state() {
         text(&out.stderr)
     );
 }
+
+#[test]
+fn a_resumed_build_starts_its_first_missing_shard_before_it_checks_the_complete_ones() {
+    use bettimill_executor::coordinator::{self, BuildEvent, BuildOptions};
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 24, 6, 1);
+    let (out, clean) = (tmp.path().join("out"), tmp.path().join("clean"));
+    assert_exit(&build(&m, &out, 1), 0);
+    assert_exit(&build(&m, &clean, 1), 0);
+    let text_of = std::fs::read_to_string(&m).unwrap();
+    let manifest = bettimill_manifest::Manifest::parse(&text_of, &m).unwrap();
+    let dataset = bettimill_executor::Dataset::bind(&out, &text_of, manifest).unwrap();
+    // Shard 0 is lost (tar and record), the five after it are complete, the index is stale.
+    let first = dataset.plan.shard(0).name;
+    for path in [
+        out.join("shards").join(format!("{first}.tar")),
+        out.join("records").join(format!("{first}.json")),
+        out.join("index.json"),
+    ] {
+        std::fs::remove_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    }
+    let options = BuildOptions {
+        workers: 1,
+        max_shard_failures: 1,
+        worker_program: common::BETTIMILL.into(),
+        worker_args: vec!["worker".into(), "--dir".into(), out.clone().into()],
+        worker_timeout: coordinator::DEFAULT_WORKER_TIMEOUT,
+    };
+    let mut events = Vec::new();
+    let report = coordinator::run(&dataset, &options, std::future::pending(), |event| {
+        events.push(event)
+    })
+    .unwrap();
+    assert_eq!((report.built, report.skipped), (1, 5), "{report:?}");
+    assert!(report.finalized, "{report:?}");
+    // Nothing is read per shard before work starts: the one worker builds shard 0 first,
+    // and the complete shards are found (each hashed against its record) as their turn
+    // comes, after it.
+    let kinds: Vec<&str> = events
+        .iter()
+        .map(|event| match event {
+            BuildEvent::Started { .. } => "started",
+            BuildEvent::WorkerStarted { .. } => "worker",
+            BuildEvent::ShardStarted { .. } => "shard",
+            BuildEvent::ShardDone { .. } => "done",
+            BuildEvent::ShardSkipped { .. } => "skipped",
+            _ => "other",
+        })
+        .filter(|kind| *kind != "other")
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            "started", "worker", "shard", "done", "skipped", "skipped", "skipped", "skipped",
+            "skipped"
+        ],
+        "{events:?}"
+    );
+    assert!(matches!(
+        &events[0],
+        BuildEvent::Started {
+            shards: 6,
+            samples: 6,
+            workers: 1
+        }
+    ));
+    assert_same(&out, &clean);
+}

@@ -213,8 +213,8 @@ pub(crate) struct Display {
     quiet: bool,
     /// Worker processes (or 0 for an in-process build), for the closing summary.
     pub(crate) workers: usize,
-    /// Plain progress lines, when stderr is not a terminal and not `--quiet`.
-    /// The plain progress lines, written by their own thread every interval.
+    /// The plain progress lines (when stderr is not a terminal and not `--quiet`), written
+    /// by their own thread every interval.
     plain: Option<Periodic<Counts>>,
 }
 
@@ -261,20 +261,14 @@ impl Display {
         match event {
             BuildEvent::Started {
                 shards,
-                skipped,
                 samples,
                 workers,
             } => {
                 self.workers = workers;
                 self.count(|c| {
                     c.samples_total = samples;
-                    c.shards_total = shards - skipped;
+                    c.shards_total = shards;
                 });
-                if !self.quiet && skipped > 0 {
-                    let _ = self
-                        .multi
-                        .println(format!("{skipped} of {shards} shards already complete"));
-                }
                 let overall = self.multi.add(ProgressBar::new(samples * 1000));
                 overall.set_style(crate::progress::thousandths_style("samples"));
                 overall.set_message(self.message());
@@ -290,6 +284,17 @@ impl Display {
                     self.slots.push(bar);
                     self.shards.push(String::new());
                     self.working.push(None);
+                }
+            }
+            BuildEvent::ShardSkipped { samples, .. } => {
+                // The totals are of what this run builds: a shard found complete leaves them.
+                self.count(|c| {
+                    c.samples_total = c.samples_total.saturating_sub(samples);
+                    c.shards_total = c.shards_total.saturating_sub(1);
+                });
+                if let Some(overall) = &self.overall {
+                    overall
+                        .set_length(overall.length().unwrap_or(0).saturating_sub(samples * 1000));
                 }
             }
             BuildEvent::WorkerStarted { slot, pid } => {
@@ -514,7 +519,6 @@ mod tests {
         let mut display = Display::new(true, Duration::from_secs(60));
         display.event(BuildEvent::Started {
             shards: 1,
-            skipped: 0,
             samples: 2,
             workers: 1,
         });
@@ -551,5 +555,22 @@ mod tests {
             given_up: false,
         });
         assert_eq!(position(&display), 0);
+    }
+
+    #[test]
+    fn shards_found_complete_leave_the_totals() {
+        let mut display = Display::new(true, Duration::from_secs(60));
+        display.event(BuildEvent::Started {
+            shards: 3,
+            samples: 6,
+            workers: 1,
+        });
+        let length = |d: &Display| d.overall.as_ref().unwrap().length();
+        assert_eq!(length(&display), Some(6000));
+        display.event(BuildEvent::ShardSkipped {
+            shard: "x-000000".into(),
+            samples: 2,
+        });
+        assert_eq!(length(&display), Some(4000));
     }
 }

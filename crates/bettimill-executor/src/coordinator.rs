@@ -1,8 +1,11 @@
 //! The local coordinator: `bettimill build --workers N`.
 //!
 //! It takes the directory lock, removes temporary files that killed writers left behind,
-//! queues the incomplete shards in plan order and starts up to N worker processes (the
-//! given program and arguments, normally `bettimill worker --dir DIR`), each in its own
+//! hands out the plan's shards in order to up to N worker slots. A slot checks a shard it
+//! takes against its record (a resumed build: complete shards are found as their turn comes,
+//! so nothing is read or held per shard before work starts) and starts its worker process
+//! (the given program and arguments, normally `bettimill worker --dir DIR`) only when it
+//! has a shard to build, each in its own
 //! process group so that a terminal's Ctrl-C reaches only the coordinator. Each worker is
 //! driven by one task that hands it one shard at a time over the [`crate::protocol`].
 //!
@@ -25,7 +28,7 @@
 
 use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
 use crate::{BuildError, Dataset, DirLock, LockError};
-use bettimill_plan::{Plan, ShardPlan};
+use bettimill_plan::ShardPlan;
 use bettimill_sample::TOOL_VERSION;
 use std::collections::{BTreeMap, VecDeque};
 use std::ffi::OsString;
@@ -66,12 +69,19 @@ pub enum BuildEvent {
     Started {
         /// Shards in the plan.
         shards: u64,
-        /// Shards already complete.
-        skipped: u64,
-        /// Samples to generate now.
+        /// Samples in the plan (complete shards are found as the build goes, each told by
+        /// a [`BuildEvent::ShardSkipped`]).
         samples: u64,
-        /// Worker processes.
+        /// Worker slots (each starts its process when it first has a shard to build).
         workers: usize,
+    },
+    /// A shard found complete (its tar matches its record, checked in one streamed pass)
+    /// when its turn came: it is not built again.
+    ShardSkipped {
+        /// The shard's name.
+        shard: String,
+        /// Samples in it.
+        samples: u64,
     },
     /// Worker slot `slot` started process `pid`.
     WorkerStarted {
@@ -238,28 +248,19 @@ struct ShardQueue {
 }
 
 impl ShardQueue {
-    /// Every shard below `shards` but those in `complete` (sorted).
-    fn without(shards: u64, complete: &[u64]) -> ShardQueue {
-        let mut ranges = VecDeque::new();
-        let mut start = 0;
-        for &done in complete {
-            if done > start {
-                ranges.push_back(start..done);
-            }
-            start = done + 1;
-        }
-        if start < shards {
-            ranges.push_back(start..shards);
-        }
+    /// Every shard below `shards`, in plan order.
+    fn all(shards: u64) -> ShardQueue {
         ShardQueue {
             retries: VecDeque::new(),
-            ranges,
+            ranges: (shards > 0).then_some(0..shards).into_iter().collect(),
         }
     }
 
-    fn pop_front(&mut self) -> Option<usize> {
+    /// The next shard, and whether it is untried in this run (then it may be complete on
+    /// disk already; a retried one is known not to be).
+    fn pop_front(&mut self) -> Option<(usize, bool)> {
         if let Some(retry) = self.retries.pop_front() {
-            return Some(retry);
+            return Some((retry, false));
         }
         let range = self.ranges.front_mut()?;
         let next = range.start;
@@ -267,7 +268,7 @@ impl ShardQueue {
         if range.is_empty() {
             self.ranges.pop_front();
         }
-        Some(next as usize)
+        Some((next as usize, true))
     }
 
     fn push_front(&mut self, shard: usize) {
@@ -280,6 +281,7 @@ struct Scheduler {
     failures: BTreeMap<usize, Vec<String>>,
     given_up: Vec<FailedShard>,
     built: u64,
+    skipped: u64,
     samples: u64,
     regenerations: u64,
     retries: u64,
@@ -309,47 +311,30 @@ pub fn run(
 ) -> Result<BuildReport, CoordinatorError> {
     let _lock = DirLock::acquire(&dataset.dir)?;
     dataset.remove_temporaries()?;
-    // Only shards with a record are opened (one listing of records/ says which), and the
-    // shards to build are kept as ranges, so a new build of 10^8 shards starts its workers
-    // without a file, or a word of memory, per shard.
-    let recorded = dataset.record_names()?;
-    let mut complete: Vec<u64> = recorded
-        .iter()
-        .filter_map(|name| dataset.plan.shard_named(name))
-        .filter(|shard| dataset.completed(shard).is_some())
-        .map(|shard| shard.index)
-        .collect();
-    drop(recorded);
-    complete.sort_unstable();
-    complete.dedup();
+    // Nothing is read per shard before the workers start: the shards to build are kept as
+    // ranges of plan indexes, and whether a shard is already complete (a resumed build) is
+    // checked when its turn comes, off the runtime's thread. So a new build of 10^8 shards
+    // starts its first worker at once, and a resumed one holds no list of complete shards.
     let shards = dataset.plan.shard_count();
-    let queue = ShardQueue::without(shards, &complete);
-    let complete_samples: u64 = complete
-        .iter()
-        .map(|&i| dataset.plan.shard(i).samples)
-        .sum();
     let mut report = BuildReport {
-        skipped: complete.len() as u64,
         shards,
         ..BuildReport::default()
     };
-    drop(complete);
-    let missing = shards - report.skipped;
     let workers = options
         .workers
         .max(1)
-        .min(usize::try_from(missing).unwrap_or(usize::MAX));
+        .min(usize::try_from(shards).unwrap_or(usize::MAX));
     events(BuildEvent::Started {
         shards,
-        skipped: report.skipped,
-        samples: dataset.plan.samples - complete_samples,
+        samples: dataset.plan.samples,
         workers,
     });
     let scheduler = Arc::new(Mutex::new(Scheduler {
-        queue,
+        queue: ShardQueue::all(shards),
         failures: BTreeMap::new(),
         given_up: Vec::new(),
         built: 0,
+        skipped: 0,
         samples: 0,
         regenerations: 0,
         retries: 0,
@@ -375,14 +360,15 @@ pub fn run(
 
     let scheduler = scheduler.lock().unwrap_or_else(|e| e.into_inner());
     report.built = scheduler.built;
+    report.skipped = scheduler.skipped;
     report.samples_built = scheduler.samples;
     report.regenerations = scheduler.regenerations;
     report.retries = scheduler.retries;
     report.failed = scheduler.given_up.clone();
     report.complete = report.skipped + report.built;
     if report.complete == shards && !report.interrupted {
-        // Every shard was hashed above (complete at the start) or by the worker that wrote
-        // it in this run: finalize need not read them back.
+        // Every shard was hashed when its turn came (found complete) or by the worker that
+        // wrote it in this run: finalize need not read them back.
         dataset.finalize_checked(&|_| true)?;
         report.finalized = true;
     }
@@ -408,7 +394,7 @@ async fn drive(
         any_handshake: std::sync::atomic::AtomicBool::new(false),
         options: options.clone(),
         handshake,
-        plan: dataset.plan.clone(),
+        dataset: dataset.clone(),
         scheduler: scheduler.clone(),
     });
     let mut slots = tokio::task::JoinSet::new();
@@ -464,7 +450,7 @@ struct SlotContext {
     any_handshake: std::sync::atomic::AtomicBool,
     options: BuildOptions,
     handshake: Handshake,
-    plan: Plan,
+    dataset: Dataset,
     scheduler: Arc<Mutex<Scheduler>>,
 }
 
@@ -548,10 +534,23 @@ async fn run_slot(
         if *stop.borrow() {
             break;
         }
-        let Some(shard_index) = context.lock().queue.pop_front() else {
+        let Some((shard_index, untried)) = context.lock().queue.pop_front() else {
             break;
         };
-        let ShardPlan { name, samples, .. } = context.plan.shard(shard_index as u64);
+        let shard = context.dataset.plan.shard(shard_index as u64);
+        if untried && is_complete(&context, &shard, &mut stop).await {
+            context.lock().skipped += 1;
+            let _ = events.send(BuildEvent::ShardSkipped {
+                shard: shard.name,
+                samples: shard.samples,
+            });
+            continue;
+        }
+        if *stop.borrow() {
+            context.lock().queue.push_front(shard_index);
+            break;
+        }
+        let ShardPlan { name, samples, .. } = shard;
         let mut early_death = None;
         if worker.is_none() {
             match start_worker(&context).await {
@@ -661,6 +660,22 @@ async fn run_slot(
     Ok(())
 }
 
+/// Whether the shard is complete on disk already (the record is read and the tar hashed
+/// against it on the blocking pool, so the other slots' pipes are served meanwhile). A
+/// shard without a record costs one failed open. An interrupt does not wait for the check.
+async fn is_complete(
+    context: &Arc<SlotContext>,
+    shard: &ShardPlan,
+    stop: &mut watch::Receiver<bool>,
+) -> bool {
+    let (context, shard) = (context.clone(), shard.clone());
+    let check = tokio::task::spawn_blocking(move || context.dataset.completed(&shard).is_some());
+    tokio::select! {
+        complete = check => complete.unwrap_or(false),
+        _ = stop.wait_for(|stopped| *stopped) => false,
+    }
+}
+
 /// `Some(how it ended)` if the worker process has exited (waiting briefly: a worker whose
 /// pipe broke is about to).
 async fn worker_is_dead(worker: &mut Worker) -> Option<String> {
@@ -734,6 +749,7 @@ async fn attempt_shard(
                 thousandths,
             })) if of == shard_index => {
                 let key = context
+                    .dataset
                     .plan
                     .task(sample)
                     .map_or_else(|| format!("sample {sample}"), |task| task.key);
@@ -813,23 +829,26 @@ mod tests {
         assert!(text.contains("it printed nothing"), "{text}");
     }
 
-    fn drain(mut queue: ShardQueue) -> Vec<usize> {
+    fn drain(mut queue: ShardQueue) -> Vec<(usize, bool)> {
         std::iter::from_fn(|| queue.pop_front()).collect()
     }
 
     #[test]
-    fn the_queue_hands_out_every_missing_shard_in_order_without_a_word_per_shard() {
-        assert_eq!(drain(ShardQueue::without(6, &[])), vec![0, 1, 2, 3, 4, 5]);
-        assert_eq!(drain(ShardQueue::without(6, &[0, 2, 3, 5])), vec![1, 4]);
-        assert_eq!(
-            drain(ShardQueue::without(3, &[0, 1, 2])),
-            Vec::<usize>::new()
-        );
-        let huge = ShardQueue::without(100_000_000, &[]);
+    fn the_queue_hands_out_every_shard_in_order_without_a_word_per_shard() {
+        let untried = |shards: &[usize]| shards.iter().map(|&s| (s, true)).collect::<Vec<_>>();
+        assert_eq!(drain(ShardQueue::all(6)), untried(&[0, 1, 2, 3, 4, 5]));
+        assert_eq!(drain(ShardQueue::all(0)), untried(&[]));
+        let huge = ShardQueue::all(100_000_000);
         assert_eq!(huge.ranges.len(), 1);
-        let mut queue = ShardQueue::without(4, &[1]);
-        assert_eq!(queue.pop_front(), Some(0));
+        assert_eq!(
+            std::mem::size_of_val(&huge),
+            std::mem::size_of::<ShardQueue>()
+        );
+        // A retried shard comes first and is known not to be complete.
+        let mut queue = ShardQueue::all(4);
+        assert_eq!(queue.pop_front(), Some((0, true)));
+        assert_eq!(queue.pop_front(), Some((1, true)));
         queue.push_front(0);
-        assert_eq!(drain(queue), vec![0, 2, 3]);
+        assert_eq!(drain(queue), vec![(0, false), (2, true), (3, true)]);
     }
 }
