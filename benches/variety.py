@@ -2,9 +2,10 @@
 """Variety of the 4D mixed 128 preset, per stratum (issue 17 item 2).
 
 Builds a reduced copy of `manifests/4d-mixed-128.toml` with a given bettimill binary (the
-preset's classes, components, bins, mode and seed; `samples` set so every stratum gets
-PER_STRATUM samples; optionally a smaller side; no downscaled copies and no splits, which
-change no sample's own voxels' construction), reads every sample back from the shards
+preset's classes, components, bins, mode and seed; `samples` set so every stratum that can
+be built gets PER_STRATUM samples; optionally a smaller side, where a class that cannot be
+built at all is left out and reported; no downscaled copies and no splits, which only cost
+time here), reads every sample back from the complete shards
 (`KEY.json` and `KEY.npy[.zst|.gz]`) and prints, per stratum (class x components x bin):
 the number of samples and min / median / max / coefficient of variation (population std
 over mean) of
@@ -24,7 +25,10 @@ no-op on a finished directory):
     /work/venv-variety/bin/python benches/variety.py --bettimill target/debug/bettimill \
         --side 64 --per-stratum 3 --workers 2 --work /tmp/variety-main --json main.json
 
-and before/after side by side as Markdown, from two such JSON files:
+(`--no-build` reads the complete shards of a stopped build: by default a shard holds one
+sample of every stratum; with `--shard-samples 22` at side 64, where 88 strata can be
+built, each 4 consecutive shards hold one sample of every stratum), and before/after side
+by side as Markdown, from two such JSON files:
 
     /work/venv-variety/bin/python benches/variety.py --compare before.json after.json
 
@@ -46,6 +50,11 @@ import numpy as np
 
 PRESET = Path(__file__).resolve().parent.parent / "manifests" / "4d-mixed-128.toml"
 SIZE_PARAMS = ["tube_radius", "grow", "scale", "thickness", "voxels"]
+# Parameters a family fixes by design (a ball's radius is tube_radius + grow, with the tube
+# radius at its minimum): one value there is no collapse.
+FIXED = {("ball", "tube_radius")}
+# The statistics checked for a collapse to one value within a stratum.
+COLLAPSE = ["tube_radius", "grow", "scale", "voxels", "cavity_voxels", "surface_to_volume"]
 
 
 # ---------------------------------------------------------------- manifest
@@ -83,7 +92,7 @@ def expand(cls):
             for g in axes[0] for h in axes[1] for i in axes[2] for j in axes[3]]
 
 
-def reduced_manifest(bettimill, side, per_stratum, work):
+def reduced_manifest(bettimill, side, per_stratum, shard_samples, work):
     """The preset at `side`, without resolutions and splits, with PER_STRATUM samples a
     stratum. A class that cannot be built at all at this side is left out, and so are
     the combinations the plan leaves out; both are returned, to be reported."""
@@ -100,8 +109,12 @@ def reduced_manifest(bettimill, side, per_stratum, work):
         if run.returncode == 0:
             plan = json.loads(run.stdout)
             strata = len(plan["strata"])
-            if doc["samples"] != per_stratum * strata:
+            # Small shards (by default one sample a stratum: the plan deals each round of
+            # the strata over consecutive shards), so a stopped build is already useful.
+            shard_bytes = (shard_samples or strata) * (side**4 + 16384)
+            if doc["samples"] != per_stratum * strata or doc["shard_bytes"] != shard_bytes:
                 doc["samples"] = per_stratum * strata
+                doc["shard_bytes"] = shard_bytes
                 continue
             left_out = [x if isinstance(x, str) else x.get("label", str(x))
                         for x in plan.get("infeasible", [])]
@@ -137,8 +150,11 @@ def read_npy(name, data):
 
 
 def samples(directory):
-    """(label, voxels) of every sample of every shard, in key order."""
+    """(label, voxels) of every sample of every complete shard (one with its completion
+    record), in key order."""
     for shard in sorted((directory / "shards").glob("*.tar")):
+        if not (directory / "records" / (shard.stem + ".json")).exists():
+            continue
         with tarfile.open(shard) as tar:
             pending = {}
             for member in tar:
@@ -204,7 +220,7 @@ def sample_stats(label, voxels):
         "key": label["key"],
         "tool_version": label["tool_version"],
         "stratum": label["class_label"],
-        "family": label["family"],
+        "family": label["class_label"].split("/")[0],
         "components": label["components"],
         "bin": [bin_lo, bin_hi],
         "betti": label["betti"],
@@ -273,8 +289,8 @@ def print_table(result):
           f"{result['strata']} strata ({result['per_stratum']} a stratum)")
     if result["dropped"]:
         print("left out (cannot be built at this side):", "; ".join(result["dropped"]))
-    stats = ["tube_radius", "grow", "scale", "thickness", "voxels", "surface_to_volume",
-             "hypervolume_fraction"]
+    stats = ["tube_radius", "grow", "scale", "thickness", "voxels", "cavity_voxels",
+             "surface_to_volume", "hypervolume_fraction"]
     for name, entry in per_stratum(result["records"]).items():
         print(f"{stratum_name(entry['first'], side)}  (n={entry['samples']})")
         for stat in stats:
@@ -285,16 +301,25 @@ def print_table(result):
     collapses(result)
 
 
+def collapsed(entries, side):
+    """{statistic: [strata]} where a statistic takes one value in the stratum (min = max,
+    over more than one value; family-fixed parameters excepted)."""
+    found = {}
+    for entry in entries.values():
+        for stat in COLLAPSE:
+            s = entry.get(stat)
+            if s and s["n"] > 1 and s["min"] == s["max"] \
+                    and (entry["first"]["family"], stat) not in FIXED:
+                found.setdefault(stat, []).append(stratum_name(entry["first"], side))
+    return found
+
+
 def collapses(result):
-    """Strata where a size parameter or the shape statistic takes one value only."""
-    found = []
-    for name, entry in per_stratum(result["records"]).items():
-        for stat in ["tube_radius", "grow", "scale", "voxels", "surface_to_volume"]:
-            if stat in entry and entry[stat]["n"] > 1 and entry[stat]["cv"] == 0:
-                found.append(f"{stratum_name(entry['first'], result['side'])}: {stat}")
-    print(f"strata with coefficient of variation 0: {len(found)}")
-    for f in found:
-        print("   ", f)
+    found = collapsed(per_stratum(result["records"]), result["side"])
+    print(f"statistics with one value in a stratum (min = max): "
+          f"{sum(len(v) for v in found.values())}")
+    for stat, strata in found.items():
+        print(f"    {stat}: {len(strata)}: {', '.join(strata)}")
 
 
 def cell(entry, stat, spread=True):
@@ -311,9 +336,11 @@ def compare(before, after):
     b, a = per_stratum(before["records"]), per_stratum(after["records"])
     side = after["side"]
     print(f"Before: bettimill {before['tool_version']}, after: {after['tool_version']}; "
-          f"side {side}; cells are min-max (coefficient of variation), S/V median (cv).\n")
+          f"side {side}; cells are min-max (coefficient of variation), S/V median (cv); "
+          f"n samples before/after; cavity voxels measured on the stored voxels.\n")
     print("| stratum | n | tube radius before | after | grow before | after | scale after "
-          "| cavity voxels before | after | S/V before | after | hv fraction before | after |")
+          "| cavity voxels before | after | cavity S/V before | after | hv fraction before "
+          "| after |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in stratum_order(after["records"]) + [n for n in b if n not in a]:
         eb, ea = b.get(name, {}), a.get(name, {})
@@ -321,16 +348,12 @@ def compare(before, after):
         n = f"{eb.get('samples', 0)}/{ea.get('samples', 0)}"
         print(f"| {stratum_name(first, side)} | {n} | {cell(eb, 'tube_radius')} | "
               f"{cell(ea, 'tube_radius')} | {cell(eb, 'grow')} | {cell(ea, 'grow')} | "
-              f"{cell(ea, 'scale')} | {cell(eb, 'voxels')} | {cell(ea, 'voxels')} | "
+              f"{cell(ea, 'scale')} | {cell(eb, 'cavity_voxels')} | {cell(ea, 'cavity_voxels')} | "
               f"{cell(eb, 'surface_to_volume', False)} | {cell(ea, 'surface_to_volume', False)} | "
               f"{cell(eb, 'hypervolume_fraction')} | {cell(ea, 'hypervolume_fraction')} |")
-    for label, result, entries in (("before", before, b), ("after", after, a)):
-        zero = {}
-        for entry in entries.values():
-            for stat in ["tube_radius", "grow", "scale", "voxels", "surface_to_volume"]:
-                if stat in entry and entry[stat]["n"] > 1 and entry[stat]["cv"] == 0:
-                    zero.setdefault(stat, []).append(stratum_name(entry["first"], side))
-        print(f"\n{label}: strata with cv 0 (of {len(entries)}): "
+    for label, entries in (("before", b), ("after", a)):
+        zero = collapsed(entries, side)
+        print(f"\n{label}: strata where a statistic takes one value (of {len(entries)} strata): "
               + ("; ".join(f"{k} {len(v)} ({', '.join(v)})" for k, v in zero.items()) or "none"))
 
 
@@ -345,6 +368,10 @@ def main():
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--work", type=Path, help="scratch directory (kept; a finished build is reused)")
     ap.add_argument("--json", type=Path, help="write the per-sample statistics here")
+    ap.add_argument("--shard-samples", type=int,
+                    help="samples a shard (default: the number of strata)")
+    ap.add_argument("--no-build", action="store_true",
+                    help="only read the complete shards already in --work (of a stopped build)")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("BEFORE", "AFTER"),
                     help="print before/after as Markdown from two --json files; builds nothing")
     args = ap.parse_args()
@@ -356,15 +383,19 @@ def main():
         ap.error("--bettimill and --work are needed (or --compare)")
     args.work.mkdir(parents=True, exist_ok=True)
     manifest, strata, dropped = reduced_manifest(args.bettimill, args.side, args.per_stratum,
-                                                 args.work)
+                                                 args.shard_samples, args.work)
     out = args.work / "dataset"
     build = [args.bettimill, "build", str(manifest), "--out", str(out), "--workers",
              str(args.workers), "--quiet"]
     print("$", " ".join(build), file=sys.stderr, flush=True)
-    subprocess.run(build, check=True, stdout=subprocess.DEVNULL)
+    if not args.no_build:
+        subprocess.run(build, check=True, stdout=subprocess.DEVNULL)
     records = [sample_stats(label, voxels) for label, voxels in samples(out)]
+    if not records:
+        sys.exit(f"no complete shard in {out}")
     result = {"tool_version": records[0]["tool_version"], "side": args.side,
               "per_stratum": args.per_stratum, "strata": strata, "samples": len(records),
+              "command": " ".join(build),
               "dropped": dropped, "records": records}
     if args.json:
         args.json.write_text(json.dumps(result, indent=1) + "\n")
