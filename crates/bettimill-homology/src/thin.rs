@@ -49,14 +49,8 @@ fn sweep(
         if data[i] & 5 != 1 {
             continue;
         }
-        // After a gap of one unvisited voxel (in the same line: i and `previous` are both
-        // inside it, so the voxel between them is too), sliding twice reads two columns
-        // where a fresh block reads three; the voxel skipped was not changed.
         block = if previous.wrapping_add(1) == i {
             window.advance(data, block, i, &mut columns)
-        } else if previous.wrapping_add(2) == i {
-            let skipped = window.advance(data, block, i - 1, &mut columns);
-            window.advance(data, skipped, i, &mut columns)
         } else {
             window.block(data, i, &mut columns)
         };
