@@ -355,7 +355,7 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
 
 fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<ExitStatus> {
     let npy = crate::image::read_image(path, strict)?;
-    let topology = bettimill_homology::topology(&npy.image);
+    let topology = bettimill_homology::try_topology(&npy.image)?;
     if json {
         let value = serde_json::json!({
             "betti": topology.betti,

@@ -79,14 +79,14 @@ pub fn run(args: &DeformArgs) -> anyhow::Result<ExitStatus> {
         growth_probability: args.growth_probability,
     };
     let mut image = input.image.clone();
-    let before = bettimill_homology::topology(&image);
+    let before = bettimill_homology::try_topology(&image)?;
     let report = match args.method {
         MethodArg::HitOrMiss => bettimill_deform::hitmiss::thicken_2d(&mut image, args.steps)?,
         _ => bettimill_deform::deform(&mut image, &settings, args.seed)?,
     };
     // The deformation is topology-preserving by construction; the check is cheap next to it
     // and keeps the promise visible to the user.
-    let after = bettimill_homology::topology(&image);
+    let after = bettimill_homology::try_topology(&image)?;
     anyhow::ensure!(
         before == after,
         "internal error: the deformation changed the Betti numbers from {:?} to {:?}; nothing written",

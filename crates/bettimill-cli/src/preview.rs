@@ -100,7 +100,7 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
             bail!("--key and --n pick samples of a dataset or shard; a .npy file is one image");
         }
         let npy = crate::image::read_image(input, false)?;
-        let topology = bettimill_homology::topology(&npy.image);
+        let topology = bettimill_homology::try_topology(&npy.image)?;
         let image = &npy.image;
         let shape: Vec<String> = image.shape().iter().map(|n| n.to_string()).collect();
         let name = input

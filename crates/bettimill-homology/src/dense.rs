@@ -43,7 +43,7 @@
 
 #[cfg(test)]
 use crate::complex::z2_rank;
-use crate::eliminate::{rank_by_elimination, Lists};
+use crate::eliminate::{rank_by_elimination, Lists, PoolOverflow};
 use std::collections::VecDeque;
 
 /// How [`DenseComplex::betti_with`] ranks the boundary matrices of the cells that the
@@ -302,8 +302,13 @@ impl DenseComplex {
     /// goes.
     ///
     /// The final rank is computed as `final_rank` says; also returns how many general
-    /// (fill-in) pivots the elimination took.
-    pub(crate) fn betti_with(mut self, b0: u64, final_rank: FinalRank) -> (Vec<u64>, u64) {
+    /// (fill-in) pivots the elimination took. An error when the elimination's lists would
+    /// pass their limit ([`PoolOverflow`]).
+    pub(crate) fn betti_with(
+        mut self,
+        b0: u64,
+        final_rank: FinalRank,
+    ) -> Result<(Vec<u64>, u64), PoolOverflow> {
         let d = self.d;
         // The vertex code: every axis even.
         let top = self.all_codes;
@@ -320,7 +325,7 @@ impl DenseComplex {
             })
             .sum();
         if self.owners.is_empty() {
-            return (vec![0; d + 1], 0);
+            return Ok((vec![0; d + 1], 0));
         }
         // Free faces start the collapses; first in, first out, so that coreductions spread
         // from a removed vertex in waves, which leaves far fewer cells stuck than
@@ -425,7 +430,7 @@ impl DenseComplex {
                     }
                     column.sort_unstable();
                 }
-                columns.push_list(&column);
+                columns.push_list(&column)?;
             }
             columns.shrink_to_fit();
             // The k-cells are not needed again (only their number), nor the (k-1)-cells
@@ -437,7 +442,7 @@ impl DenseComplex {
             let n_rows = counts[k - 1];
             let (r, pivots) = match final_rank {
                 FinalRank::Elimination => {
-                    let found = rank_by_elimination(columns, n_rows);
+                    let found = rank_by_elimination(columns, n_rows)?;
                     general += found.general;
                     (found.rank, found.pivots)
                 }
@@ -473,7 +478,7 @@ impl DenseComplex {
             "reduction pairs lost homology: Betti numbers {betti:?} disagree with the Euler \
              characteristic {chi}"
         );
-        (betti, general)
+        Ok((betti, general))
     }
 }
 
@@ -515,6 +520,7 @@ mod tests {
         assert_eq!(
             DenseComplex::of_image(&image)
                 .betti_with(1, FinalRank::Elimination)
+                .unwrap()
                 .0,
             vec![1, 1, 0, 0]
         );
@@ -522,6 +528,7 @@ mod tests {
         assert_eq!(
             DenseComplex::of_image(&empty)
                 .betti_with(0, FinalRank::Elimination)
+                .unwrap()
                 .0,
             vec![0; 5]
         );
@@ -578,7 +585,10 @@ mod tests {
                 let expected = CellComplex::of_image(&image).betti_by_boundaries();
                 for final_rank in [FinalRank::Elimination, FinalRank::ColumnReduction] {
                     assert_eq!(
-                        DenseComplex::of_image(&image).betti_with(b0, final_rank).0,
+                        DenseComplex::of_image(&image)
+                            .betti_with(b0, final_rank)
+                            .unwrap()
+                            .0,
                         expected,
                         "{d}D trial {trial}, density {density:.2}, {final_rank:?}"
                     );

@@ -33,18 +33,97 @@ pub(crate) struct Elimination {
     pub(crate) general: u64,
 }
 
+/// A pool of [`Lists`] would pass its limit of entries (2^32 - 1: places and lengths are
+/// `u32`, 4 bytes per list instead of 8): one boundary matrix of some billion cells left by
+/// the reduction pairs, an image of several hundred voxels a side. The rank is not
+/// computed rather than computed wrong; [`crate::TopologyError::TooRough`] tells the caller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct PoolOverflow {
+    /// The entries the pool would have needed.
+    pub(crate) needed: u64,
+    /// Its limit.
+    pub(crate) limit: u64,
+}
+
+/// The most entries a pool may hold: every place and length fits a `u32`.
+#[cfg(not(test))]
+fn pool_limit() -> usize {
+    u32::MAX as usize
+}
+
+#[cfg(test)]
+thread_local! {
+    static POOL_LIMIT: std::cell::Cell<usize> = const { std::cell::Cell::new(u32::MAX as usize) };
+}
+
+/// The most entries a pool may hold: in tests, as [`with_pool_limit`] sets it on this thread
+/// (the elimination runs on the caller's thread).
+#[cfg(test)]
+fn pool_limit() -> usize {
+    POOL_LIMIT.with(|limit| limit.get())
+}
+
+/// Runs `f` with the pools' limit lowered to `limit` entries on this thread, so that the
+/// overflow path is tested on small images.
+#[cfg(test)]
+pub(crate) fn with_pool_limit<T>(limit: usize, f: impl FnOnce() -> T) -> T {
+    let old = POOL_LIMIT.with(|l| l.replace(limit));
+    let out = f();
+    POOL_LIMIT.with(|l| l.set(old));
+    out
+}
+
+/// Checks that a pool of `n` entries is within the limit.
+fn check_pool(n: usize) -> Result<(), PoolOverflow> {
+    let limit = pool_limit();
+    if n > limit {
+        Err(PoolOverflow {
+            needed: n as u64,
+            limit: limit as u64,
+        })
+    } else {
+        Ok(())
+    }
+}
+
 /// Many short lists of `u32` in one pool: list i is `data[start[i]..start[i] + len[i]]`,
-/// with room for `cap[i]` entries there (12 bytes of header per list). A list that outgrows its room moves to the end of
-/// the pool with twice the room (the old place is left unused), so the pool holds at most
-/// about twice the entries the lists ever needed at once, in one allocation, where a `Vec`
-/// per list cost a 24-byte header and a heap block each (about 70 bytes per list before
-/// any entry: most of the peak memory on a random 4D image, issue 18).
+/// with room for `room(cap[i])` entries there (9 bytes of header per list: a place, a
+/// length and a one-byte room code). A list that outgrows its room moves to the end of the
+/// pool with twice the room (the old place is left unused), where a `Vec` per list cost a
+/// 24-byte header and a heap block each (about 70 bytes per list before any entry: most of
+/// the peak memory on a random 4D image, issue 18). When the pool is full and at most half
+/// of it holds entries (rooms left behind by moved lists, and lists emptied by the
+/// elimination's pivots), it is compacted in place instead of grown, so it stays within
+/// about twice the entries the lists hold at once.
 #[derive(Debug, Default)]
 pub(crate) struct Lists {
     data: Vec<u32>,
     start: Vec<u32>,
     len: Vec<u32>,
-    cap: Vec<u32>,
+    cap: Vec<u8>,
+    /// The entries the lists hold, in all.
+    live: usize,
+}
+
+/// The room a code stands for: 0-127 exactly, 128 + e for 2^e.
+#[inline]
+fn room(code: u8) -> usize {
+    if code < 128 {
+        code as usize
+    } else {
+        1usize << (code - 128)
+    }
+}
+
+/// The code of the least room of at least `n` entries (exact below 128, else a power of
+/// two), and that room.
+fn room_code(n: usize) -> (u8, usize) {
+    if n < 128 {
+        (n as u8, n)
+    } else {
+        let room = n.next_power_of_two();
+        (128 + room.trailing_zeros() as u8, room)
+    }
 }
 
 impl Lists {
@@ -55,31 +134,46 @@ impl Lists {
             start: Vec::with_capacity(lists),
             len: Vec::with_capacity(lists),
             cap: Vec::with_capacity(lists),
+            live: 0,
         }
     }
 
-    /// Empty lists with room for `rooms[i]` entries each, side by side.
-    fn with_room(rooms: &[u32]) -> Lists {
+    /// Empty lists with room for `rooms[i]` entries each (rounded up to a room code), side
+    /// by side.
+    fn with_room(rooms: &[u32]) -> Result<Lists, PoolOverflow> {
         let mut start = Vec::with_capacity(rooms.len());
+        let mut cap = Vec::with_capacity(rooms.len());
         let mut at = 0usize;
         for &n in rooms {
-            start.push(to_u32(at));
-            at += n as usize;
+            check_pool(at)?;
+            start.push(at as u32);
+            let (code, room) = room_code(n as usize);
+            cap.push(code);
+            at += room;
         }
-        Lists {
+        check_pool(at)?;
+        Ok(Lists {
             data: vec![0; at],
             start,
             len: vec![0; rooms.len()],
-            cap: rooms.to_vec(),
-        }
+            cap,
+            live: 0,
+        })
     }
 
-    /// Appends a list with the given entries (and exactly that much room).
-    pub(crate) fn push_list(&mut self, entries: &[u32]) {
-        self.start.push(to_u32(self.data.len()));
-        self.len.push(to_u32(entries.len()));
-        self.cap.push(to_u32(entries.len()));
+    /// Appends a list with the given entries (and that much room, rounded up to a room
+    /// code).
+    pub(crate) fn push_list(&mut self, entries: &[u32]) -> Result<(), PoolOverflow> {
+        let at = self.data.len();
+        let (code, room) = room_code(entries.len());
+        check_pool(at + room)?;
+        self.start.push(at as u32);
+        self.len.push(entries.len() as u32);
+        self.cap.push(code);
         self.data.extend_from_slice(entries);
+        self.data.resize(at + room, 0);
+        self.live += entries.len();
+        Ok(())
     }
 
     /// Gives back the pool's unused capacity (after the lists are built).
@@ -105,6 +199,7 @@ impl Lists {
     }
 
     fn clear(&mut self, i: usize) {
+        self.live -= self.len_of(i);
         self.len[i] = 0;
     }
 
@@ -117,40 +212,81 @@ impl Lists {
 
     /// Makes room for `n` entries in list i, moving it (with its entries) to the end of
     /// the pool if its place is too small.
-    fn reserve(&mut self, i: usize, n: usize) {
-        if n <= self.cap[i] as usize {
-            return;
+    fn reserve(&mut self, i: usize, n: usize) -> Result<(), PoolOverflow> {
+        if n <= room(self.cap[i]) {
+            return Ok(());
         }
-        let cap = n.max(2 * self.cap[i] as usize).max(4);
+        let (code, cap) = room_code(n.max(2 * room(self.cap[i])).max(4));
+        if self.data.capacity() < self.data.len() + cap && 2 * self.live <= self.data.len() {
+            self.compact();
+        }
         let (start, len) = (self.start[i] as usize, self.len_of(i));
         let at = self.data.len();
+        check_pool(at + cap)?;
         // The pool grows by a quarter at a time, not the doubling of `Vec`: it is most of
         // the memory, and lists move rarely.
         if self.data.capacity() < at + cap {
-            self.data.reserve_exact(cap.max(at / 4));
+            self.data
+                .reserve_exact(cap.max(at / 4).min(pool_limit() - at).max(cap));
         }
         self.data.extend_from_within(start..start + len);
         self.data.resize(at + cap, 0);
-        self.start[i] = to_u32(at);
-        self.cap[i] = to_u32(cap);
+        self.start[i] = at as u32;
+        self.cap[i] = code;
+        Ok(())
+    }
+
+    /// Moves every list to the front of the pool, in the order of their places, each with
+    /// the least room that holds it (none for an empty list), and drops the rest: the rooms
+    /// left behind by moved lists and those of emptied lists are free again (the
+    /// allocation is kept, so the pool need not grow).
+    fn compact(&mut self) {
+        let mut order: Vec<u32> = (0..self.count() as u32)
+            .filter(|&i| self.len[i as usize] > 0)
+            .collect();
+        order.sort_unstable_by_key(|&i| self.start[i as usize]);
+        let mut at = 0usize;
+        for &i in &order {
+            let i = i as usize;
+            let (start, len) = (self.start[i] as usize, self.len_of(i));
+            // Places only move down (at <= start), so nothing unread is overwritten.
+            self.data.copy_within(start..start + len, at);
+            let (code, room) = room_code(len);
+            self.start[i] = at as u32;
+            self.cap[i] = code;
+            at += room;
+        }
+        for i in 0..self.count() {
+            if self.len[i] == 0 {
+                self.start[i] = 0;
+                self.cap[i] = 0;
+            }
+        }
+        self.data.truncate(at);
     }
 
     /// Appends `value` to list i.
     #[inline]
-    fn push(&mut self, i: usize, value: u32) {
+    fn push(&mut self, i: usize, value: u32) -> Result<(), PoolOverflow> {
         let len = self.len_of(i);
-        self.reserve(i, len + 1);
+        if len == room(self.cap[i]) {
+            self.reserve(i, len + 1)?;
+        }
         self.data[self.start[i] as usize + len] = value;
         self.len[i] += 1;
+        self.live += 1;
+        Ok(())
     }
 
     /// Replaces list i by `entries`.
-    fn set(&mut self, i: usize, entries: &[u32]) {
-        self.len[i] = 0;
-        self.reserve(i, entries.len());
+    fn set(&mut self, i: usize, entries: &[u32]) -> Result<(), PoolOverflow> {
+        self.clear(i);
+        self.reserve(i, entries.len())?;
         let start = self.start[i] as usize;
         self.data[start..start + entries.len()].copy_from_slice(entries);
-        self.len[i] = to_u32(entries.len());
+        self.len[i] = entries.len() as u32;
+        self.live += entries.len();
+        Ok(())
     }
 
     /// Removes `value` from the sorted list i, keeping it sorted.
@@ -164,6 +300,7 @@ impl Lists {
         self.data
             .copy_within(start + at + 1..start + len, start + at);
         self.len[i] -= 1;
+        self.live -= 1;
     }
 
     /// Removes `value` from list i, moving its last entry into its place.
@@ -177,6 +314,7 @@ impl Lists {
         let last = start + self.len_of(i) - 1;
         self.data[start + at] = self.data[last];
         self.len[i] -= 1;
+        self.live -= 1;
     }
 
     /// The lists as vectors (the oracle's column reduction takes those).
@@ -190,23 +328,19 @@ impl Lists {
     pub(crate) fn from_vecs(lists: &[Vec<u32>]) -> Lists {
         let mut out = Lists::default();
         for list in lists {
-            out.push_list(list);
+            out.push_list(list).expect("small lists");
         }
         out
     }
 }
 
-/// A length, capacity or place in the pool as `u32`: 4 bytes per list instead of 8. A
-/// pool of 2^32 entries (16 GiB, one boundary matrix of some billion cells left by the
-/// reduction pairs, an image of several hundred voxels a side) would stop here rather
-/// than give a wrong rank.
-fn to_u32(n: usize) -> u32 {
-    u32::try_from(n).expect("a pool of fewer than 2^32 entries")
-}
-
 /// The rank over Z/2 of the matrix with the given columns (each a sorted list of distinct
-/// row indices below `n_rows`), and the pivot rows.
-pub(crate) fn rank_by_elimination(mut columns: Lists, n_rows: usize) -> Elimination {
+/// row indices below `n_rows`), and the pivot rows; an error when a pool would pass its
+/// limit ([`PoolOverflow`]).
+pub(crate) fn rank_by_elimination(
+    mut columns: Lists,
+    n_rows: usize,
+) -> Result<Elimination, PoolOverflow> {
     let n_columns = columns.count();
     // The rows: counted first, so that they are filled in place with exact room.
     let mut counts = vec![0u32; n_rows];
@@ -217,22 +351,19 @@ pub(crate) fn rank_by_elimination(mut columns: Lists, n_rows: usize) -> Eliminat
             counts[r as usize] += 1;
         }
     }
-    let mut rows = Lists::with_room(&counts);
+    let mut rows = Lists::with_room(&counts)?;
     drop(counts);
     for j in 0..n_columns {
         for &r in columns.get(j) {
-            rows.push(r as usize, j as u32);
+            rows.push(r as usize, j as u32)?;
         }
     }
-    let mut single_columns: Vec<u32> = Vec::new();
-    let mut heap = Buckets::default();
-    for j in 0..n_columns {
-        match columns.len_of(j) {
-            0 => {}
-            1 => single_columns.push(j as u32),
-            n => heap.push(n, j as u32),
-        }
-    }
+    let mut single_columns: Vec<u32> = (0..n_columns as u32)
+        .filter(|&j| columns.len_of(j as usize) == 1)
+        .collect();
+    // Every column of two entries or more starts in the bucket of its length (held as the
+    // lengths themselves, not as queue entries).
+    let mut heap = Buckets::new(&columns);
     let mut single_rows: Vec<u32> = (0..n_rows as u32)
         .filter(|&r| rows.len_of(r as usize) == 1)
         .collect();
@@ -311,7 +442,7 @@ pub(crate) fn rank_by_elimination(mut columns: Lists, n_rows: usize) -> Eliminat
                     i += 1;
                 } else if b < a {
                     merged.push(b);
-                    rows.push(b as usize, x);
+                    rows.push(b as usize, x)?;
                     j += 1;
                 } else {
                     rows.swap_remove_value(a as usize, x);
@@ -322,9 +453,9 @@ pub(crate) fn rank_by_elimination(mut columns: Lists, n_rows: usize) -> Eliminat
             merged.extend_from_slice(&column[i..]);
             for &b in &pivot[j..] {
                 merged.push(b);
-                rows.push(b as usize, x);
+                rows.push(b as usize, x)?;
             }
-            columns.set(x as usize, &merged);
+            columns.set(x as usize, &merged)?;
             note_column(
                 x as usize,
                 columns.len_of(x as usize),
@@ -345,11 +476,11 @@ pub(crate) fn rank_by_elimination(mut columns: Lists, n_rows: usize) -> Eliminat
     let pivots = (0..n_rows as u32)
         .filter(|&r| is_pivot_row[r as usize])
         .collect();
-    Elimination {
+    Ok(Elimination {
         rank,
         pivots,
         general,
-    }
+    })
 }
 
 /// Queues column `x`, now with `len` entries, where it belongs.
@@ -363,26 +494,75 @@ fn note_column(x: usize, len: usize, single_columns: &mut Vec<u32>, heap: &mut B
 
 /// Columns by their number of entries when queued (a bucket queue: entries go stale when
 /// the column changes, and are checked when taken). First in, first out within a bucket.
-#[derive(Default)]
+///
+/// The first entries of each bucket are every column whose length at the start was that
+/// bucket's, in column order: those are not stored as entries but as the start lengths
+/// (one byte per column, `initial`) with a cursor per bucket, which is the same order as
+/// pushing them all first (about 4 bytes per column less, and no queue doubling).
 struct Buckets {
+    /// Per column, its length when the elimination started (0 for those of no bucket:
+    /// under two entries, or over 255, which are queued as entries instead).
+    initial: Vec<u8>,
+    /// Per bucket, the next column to look at in `initial`.
+    cursor: Vec<u32>,
     buckets: Vec<std::collections::VecDeque<u32>>,
     /// No bucket below this one holds anything.
     lowest: usize,
 }
 
 impl Buckets {
+    /// Every column of `columns` with two entries or more, in the bucket of its length.
+    fn new(columns: &Lists) -> Buckets {
+        let mut queue = Buckets {
+            initial: Vec::with_capacity(columns.count()),
+            cursor: Vec::new(),
+            buckets: Vec::new(),
+            lowest: 0,
+        };
+        for j in 0..columns.count() {
+            let n = columns.len_of(j);
+            queue.initial.push(match n {
+                2..=255 => n as u8,
+                _ => 0,
+            });
+            if n > 255 {
+                queue.push(n, j as u32);
+            }
+        }
+        let widest = queue.initial.iter().copied().max().unwrap_or(0) as usize;
+        if queue.buckets.len() <= widest {
+            queue.buckets.resize_with(widest + 1, Default::default);
+        }
+        queue.cursor = vec![0; queue.buckets.len()];
+        queue
+    }
+
     fn push(&mut self, degree: usize, column: u32) {
         if self.buckets.len() <= degree {
             self.buckets.resize_with(degree + 1, Default::default);
+            self.cursor.resize(degree + 1, 0);
         }
         self.buckets[degree].push_back(column);
         self.lowest = self.lowest.min(degree);
     }
 
+    /// The next entry of the lowest bucket (bucket, column): maybe stale, so the caller
+    /// checks the column's length.
     fn pop(&mut self) -> Option<(u32, u32)> {
         while self.lowest < self.buckets.len() {
-            if let Some(column) = self.buckets[self.lowest].pop_front() {
-                return Some((self.lowest as u32, column));
+            let degree = self.lowest;
+            if (2..256).contains(&degree) {
+                let cursor = &mut self.cursor[degree];
+                while (*cursor as usize) < self.initial.len() {
+                    let j = *cursor;
+                    *cursor += 1;
+                    if self.initial[j as usize] as usize == degree {
+                        return Some((degree as u32, j));
+                    }
+                }
+            }
+            if let Some(column) = self.buckets[degree].pop_front() {
+                return Some((degree as u32, column));
             }
             self.lowest += 1;
         }
@@ -399,16 +579,19 @@ mod tests {
     #[test]
     fn small_matrices() {
         let rank = |columns: Vec<Vec<u32>>, n_rows| {
-            rank_by_elimination(Lists::from_vecs(&columns), n_rows).rank
+            rank_by_elimination(Lists::from_vecs(&columns), n_rows)
+                .unwrap()
+                .rank
         };
         // Columns {0,1}, {1,2}, {0,2}: a cycle, no free pivot (two general ones: the first
         // leaves two equal columns), and dependent over Z/2.
-        let cycle = rank_by_elimination(Lists::from_vecs(&[vec![0, 1], vec![1, 2], vec![0, 2]]), 3);
+        let cycle = rank_by_elimination(Lists::from_vecs(&[vec![0, 1], vec![1, 2], vec![0, 2]]), 3)
+            .unwrap();
         assert_eq!((cycle.rank, cycle.general), (2, 2));
         assert_eq!(rank(vec![vec![0], vec![1], vec![2]], 3), 3);
         assert_eq!(rank(vec![vec![0, 1, 2], vec![0, 1, 2]], 3), 1);
         assert_eq!(
-            rank_by_elimination(Lists::from_vecs(&[vec![], vec![1]]), 3),
+            rank_by_elimination(Lists::from_vecs(&[vec![], vec![1]]), 3).unwrap(),
             Elimination {
                 rank: 1,
                 pivots: vec![1],
@@ -434,12 +617,12 @@ mod tests {
                 0 | 1 => {
                     let v = rng.gen_range(0..1000);
                     model[i].push(v);
-                    lists.push(i, v);
+                    lists.push(i, v).unwrap();
                 }
                 2 => {
                     let n = rng.gen_range(0..12);
                     let new: Vec<u32> = (0..n).map(|_| rng.gen_range(0..1000)).collect();
-                    lists.set(i, &new);
+                    lists.set(i, &new).unwrap();
                     model[i] = new;
                 }
                 3 if !model[i].is_empty() => {
@@ -464,6 +647,83 @@ mod tests {
         assert_eq!(sorted.get(0), &[1, 4, 12]);
     }
 
+    /// Compaction keeps every list and frees the rooms of moved and emptied lists; a
+    /// pool's limit turns growth past it into an error, and a list of 128 entries or more
+    /// gets a power-of-two room.
+    #[test]
+    fn compaction_keeps_the_lists_and_the_limit_is_an_error() {
+        let mut model: Vec<Vec<u32>> = (0..50).map(|i| (0..i % 7).collect()).collect();
+        let mut lists = Lists::from_vecs(&model);
+        for (i, list) in model.iter_mut().enumerate() {
+            if i % 3 == 0 {
+                for v in 0..10 {
+                    list.push(100 + v);
+                    lists.push(i, 100 + v).unwrap();
+                }
+            }
+        }
+        let mut out = Vec::new();
+        for i in (0..50).step_by(2) {
+            lists.take_into(i, &mut out);
+            model[i].clear();
+        }
+        let before = lists.data.len();
+        lists.compact();
+        assert_eq!(lists.to_vecs(), model);
+        let held: usize = model.iter().map(Vec::len).sum();
+        assert_eq!(lists.live, held);
+        assert_eq!(lists.data.len(), held, "exact rooms after compaction");
+        assert!(before > 2 * held, "{before} entries before, {held} held");
+        lists.push(0, 7).unwrap();
+        model[0].push(7);
+        assert_eq!(lists.to_vecs(), model);
+        assert_eq!(room_code(127), (127, 127));
+        assert_eq!(room_code(128), (135, 128));
+        assert_eq!(room(room_code(129).0), 256);
+        // The limit: a pool of more entries is refused, whichever way it would grow.
+        with_pool_limit(10, || {
+            let mut small = Lists::default();
+            small.push_list(&[1, 2, 3, 4, 5, 6]).unwrap();
+            assert_eq!(
+                small.push_list(&[1, 2, 3, 4, 5]),
+                Err(PoolOverflow {
+                    needed: 11,
+                    limit: 10
+                })
+            );
+            small.push_list(&[1]).unwrap();
+            assert!(small.push(1, 2).is_err());
+            assert!(small.set(0, &[0; 11]).is_err());
+            assert!(Lists::with_room(&[4, 7]).is_err());
+        });
+    }
+
+    /// Fill-in past the limit is an error of the elimination, the same matrices within it
+    /// the rank.
+    #[test]
+    fn elimination_over_the_pool_limit_is_an_error() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let columns: Vec<Vec<u32>> = (0..30)
+            .map(|_| (0..30u32).filter(|_| rng.gen_bool(0.5)).collect())
+            .collect();
+        let entries: usize = columns.iter().map(Vec::len).sum();
+        let (expected, _) = z2_rank(columns.clone(), 30);
+        let found = rank_by_elimination(Lists::from_vecs(&columns), 30).unwrap();
+        assert!(found.general > 5, "{} general pivots", found.general);
+        assert_eq!(found.rank, expected);
+        let lists = Lists::from_vecs(&columns);
+        let refused = with_pool_limit(entries + 2, || rank_by_elimination(lists, 30));
+        assert!(
+            matches!(refused, Err(PoolOverflow { limit, .. }) if limit == entries as u64 + 2),
+            "{refused:?}"
+        );
+        let lists = Lists::from_vecs(&columns);
+        assert_eq!(
+            with_pool_limit(1 << 20, || rank_by_elimination(lists, 30)),
+            Ok(found)
+        );
+    }
+
     /// Against plain column reduction on random matrices from sparse (mostly peeling) to
     /// dense (mostly general pivots), square and not, with duplicate and zero columns; the
     /// pivot rows must index a nonsingular submatrix (the rows alone have full rank).
@@ -486,7 +746,7 @@ mod tests {
                 columns[1] = columns[0].clone();
             }
             let (expected, _) = z2_rank(columns.clone(), n_rows);
-            let found = rank_by_elimination(Lists::from_vecs(&columns), n_rows);
+            let found = rank_by_elimination(Lists::from_vecs(&columns), n_rows).unwrap();
             general += found.general;
             let (rank, pivots) = (found.rank, found.pivots);
             assert_eq!(rank, expected, "trial {trial}");

@@ -68,11 +68,52 @@ impl Topology {
     }
 }
 
+/// Why [`try_topology`] computed no Betti numbers.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TopologyError {
+    /// The cells left after the reduction pairs are too many for the elimination's lists:
+    /// one of its pools would pass 2^32 - 1 entries (its places and lengths are 32-bit).
+    /// Only a huge rough 4D image gets there (hundreds of voxels a side, over 16 GiB of
+    /// lists); nothing is computed rather than something wrong.
+    #[error(
+        "the image is too large and rough for the exact rank: the cells left after the \
+         reduction pairs need a list pool of {needed} entries, over its limit of {limit} \
+         (crop or split the image)"
+    )]
+    TooRough {
+        /// The entries the pool would have needed.
+        needed: u64,
+        /// The most a pool holds.
+        limit: u64,
+    },
+}
+
+impl From<eliminate::PoolOverflow> for TopologyError {
+    fn from(overflow: eliminate::PoolOverflow) -> TopologyError {
+        TopologyError::TooRough {
+            needed: overflow.needed,
+            limit: overflow.limit,
+        }
+    }
+}
+
 /// The exact Betti numbers (over Z/2) and Euler characteristic of `image`.
+///
+/// # Panics
+///
+/// When [`try_topology`] returns an error: only on a 4D image too large and rough for the
+/// elimination's 32-bit lists ([`TopologyError::TooRough`]). Callers with images from
+/// outside (the CLI) call [`try_topology`].
 pub fn topology(image: &BinaryImage) -> Topology {
+    try_topology(image).unwrap_or_else(|error| panic!("{error}"))
+}
+
+/// The exact Betti numbers (over Z/2) and Euler characteristic of `image`, or an error when
+/// they cannot be computed exactly ([`TopologyError`]).
+pub fn try_topology(image: &BinaryImage) -> Result<Topology, TopologyError> {
     let padded = image.padded(1);
     match image.dim() {
-        Dim::Two | Dim::Three => topology_from_counts(&padded),
+        Dim::Two | Dim::Three => Ok(topology_from_counts(&padded)),
         Dim::Four => {
             // A solid cube with cavities (a foreground wall around everything that is
             // background inside it) goes through its background: the cavities thin to
@@ -109,13 +150,16 @@ fn topology_from_counts(padded: &BinaryImage) -> Topology {
 
 /// Any dimension: thin, then explicit homology of the remnant. `padded` must have a
 /// background border.
-fn topology_by_thinning(padded: BinaryImage) -> Topology {
-    topology_by_thinning_with(padded, FinalRank::Elimination).0
+fn topology_by_thinning(padded: BinaryImage) -> Result<Topology, TopologyError> {
+    Ok(topology_by_thinning_with(padded, FinalRank::Elimination)?.0)
 }
 
 /// [`topology_by_thinning`] with the remnant's final rank computed as `final_rank` says;
 /// also returns how many general pivots the elimination took.
-fn topology_by_thinning_with(mut padded: BinaryImage, final_rank: FinalRank) -> (Topology, u64) {
+fn topology_by_thinning_with(
+    mut padded: BinaryImage,
+    final_rank: FinalRank,
+) -> Result<(Topology, u64), TopologyError> {
     let d = padded.dim().get();
     let tester = simple::SimpleTester::new(padded.dim());
     let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
@@ -126,9 +170,9 @@ fn topology_by_thinning_with(mut padded: BinaryImage, final_rank: FinalRank) -> 
     // lists are built (a random image's peak).
     drop(remaining);
     drop(padded);
-    let (mut betti, general) = complex.betti_with(b0, final_rank);
+    let (mut betti, general) = complex.betti_with(b0, final_rank)?;
     betti.truncate(d);
-    (Topology::from_betti(betti), general)
+    Ok((Topology::from_betti(betti), general))
 }
 
 /// The complex of the union of the closed voxels `remaining` (the only foreground of
@@ -201,19 +245,19 @@ fn remnant_complex(
 /// (d-1)-sphere, and only the cores need an explicit complex: small, where thinning the
 /// object would leave a shell around every cavity. Otherwise the grown object (same
 /// topology) goes through [`topology_by_thinning`].
-fn topology_by_background(padded: BinaryImage) -> Topology {
-    match background_cores(padded, FinalRank::Elimination) {
-        Ok(topology) => topology,
+fn topology_by_background(padded: BinaryImage) -> Result<Topology, TopologyError> {
+    match background_cores(padded, FinalRank::Elimination)? {
+        Ok(topology) => Ok(topology),
         Err(grown) => topology_by_thinning(grown),
     }
 }
 
-/// [`topology_by_background`] up to the fallback: Err holds the grown object (same
-/// topology as the input) when a core of the background touches the frame.
+/// [`topology_by_background`] up to the fallback: the inner Err holds the grown object
+/// (same topology as the input) when a core of the background touches the frame.
 fn background_cores(
     mut padded: BinaryImage,
     final_rank: FinalRank,
-) -> Result<Topology, BinaryImage> {
+) -> Result<Result<Topology, BinaryImage>, TopologyError> {
     let d = padded.dim().get();
     let shape = padded.shape().to_vec();
     // Complement, and lock the outer layer (value 5).
@@ -234,7 +278,7 @@ fn background_cores(
         for v in padded.data_mut().iter_mut() {
             *v = (*v & 1 == 0) as u8;
         }
-        return Err(padded);
+        return Ok(Err(padded));
     }
     // The cores' cubical complex in the other construction: a cell (the unit cube spanned
     // by voxel centres v + {0,1}^S for a set S of axes) is present when all its corners
@@ -266,7 +310,7 @@ fn background_cores(
     // Vertices are the cores' voxels and edges join face neighbours.
     let face_steps = flat_offsets(&padded, &face_offsets(padded.dim()));
     let b0 = components::count_components_of(padded.data_mut(), &cores, &face_steps);
-    let inner = complex.betti_with(b0, final_rank).0;
+    let inner = complex.betti_with(b0, final_rank)?.0;
     // The background: the frame (a (d-1)-sphere) plus the cores.
     let mut background = inner;
     background[0] += 1;
@@ -277,7 +321,7 @@ fn background_cores(
         betti[k] = background[d - 1 - k];
     }
     betti[d - 1] = background[0] - 1;
-    Ok(Topology::from_betti(betti))
+    Ok(Ok(Topology::from_betti(betti)))
 }
 
 /// Whether the surface of some box nested in the image, at most a quarter of the side in

@@ -56,7 +56,7 @@ fn check(name: &str, image: &BinaryImage, object: &[u64], carved: &[u64]) {
     assert_eq!(found.betti, object, "{name} as an object");
     assert_eq!(
         found,
-        topology_by_thinning(image.padded(1)),
+        topology_by_thinning(image.padded(1)).unwrap(),
         "{name} by thinning"
     );
     let found = topology(&cavity(image));
@@ -236,19 +236,21 @@ fn every_route_agrees(name: &str, image: &BinaryImage, expected: &Topology) -> u
         );
     } else {
         assert_eq!(
-            &topology_by_background(image.padded(1)),
+            &topology_by_background(image.padded(1)).unwrap(),
             expected,
             "{name}: background route"
         );
         for final_rank in [FinalRank::Elimination, FinalRank::ColumnReduction] {
-            if let Ok(found) = background_cores(image.padded(1), final_rank) {
+            if let Ok(found) = background_cores(image.padded(1), final_rank).unwrap() {
                 assert_eq!(&found, expected, "{name}: background cores, {final_rank:?}");
             }
         }
     }
-    let (found, _) = topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction);
+    let (found, _) =
+        topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction).unwrap();
     assert_eq!(&found, expected, "{name}: thinning, column reduction");
-    let (found, general) = topology_by_thinning_with(image.padded(1), FinalRank::Elimination);
+    let (found, general) =
+        topology_by_thinning_with(image.padded(1), FinalRank::Elimination).unwrap();
     assert_eq!(&found, expected, "{name}: thinning, elimination");
     general
 }
@@ -264,7 +266,8 @@ fn every_4d_route_agrees_on_rough_images() {
     for (side, density) in [(10, 0.5), (12, 0.35), (12, 0.5), (12, 0.65), (16, 0.5)] {
         let image = random_image(&mut rng, &[side; 4], density);
         let name = format!("4D {side} density {density}");
-        let (expected, _) = topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction);
+        let (expected, _) =
+            topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction).unwrap();
         if side <= 10 {
             assert_eq!(
                 reference::topology_by_duality(&image),
@@ -277,6 +280,37 @@ fn every_4d_route_agrees_on_rough_images() {
     assert!(general > 1000, "{general} general pivots");
 }
 
+/// A pool that would pass its limit is an error of `try_topology`, not a panic or a wrong
+/// rank: the limit lowered on this thread (the elimination runs on the caller's thread) to
+/// below what a rough 4D image's remnant needs, then restored.
+#[test]
+fn a_pool_over_its_limit_is_an_error() {
+    let mut rng = ChaCha8Rng::seed_from_u64(91);
+    let image = random_image(&mut rng, &[12; 4], 0.5);
+    let expected = topology(&image);
+    assert!(expected.betti[2] > 0, "{:?}", expected.betti);
+    for limit in [0, 10, 100] {
+        let found = crate::eliminate::with_pool_limit(limit, || try_topology(&image));
+        match found {
+            Err(TopologyError::TooRough { needed, limit: l }) => {
+                assert_eq!(l, limit as u64);
+                assert!(needed > l, "{needed} > {l}");
+            }
+            other => panic!("limit {limit}: {other:?}"),
+        }
+    }
+    let message = crate::eliminate::with_pool_limit(0, || try_topology(&image))
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("over its limit of 0"), "{message}");
+    // The limit is back, and so is the answer; a limit the image fits in changes nothing.
+    assert_eq!(try_topology(&image), Ok(expected.clone()));
+    assert_eq!(
+        crate::eliminate::with_pool_limit(1 << 24, || try_topology(&image)),
+        Ok(expected)
+    );
+}
+
 #[test]
 fn thinning_agrees_with_counting_in_2d_and_3d() {
     let mut rng = ChaCha8Rng::seed_from_u64(50);
@@ -285,7 +319,7 @@ fn thinning_agrees_with_counting_in_2d_and_3d() {
             let density = rng.gen_range(0.2..0.8);
             let image = random_image(&mut rng, &vec![side; d], density);
             assert_eq!(
-                topology_by_thinning(image.padded(1)),
+                topology_by_thinning(image.padded(1)).unwrap(),
                 topology(&image),
                 "{image:?}"
             );
@@ -523,22 +557,25 @@ fn both_4d_routes_agree_with_reference() {
             assert!(has_foreground_wall(&image), "{name}");
         }
         walls += has_foreground_wall(&image) as usize;
-        if let Ok(found) = background_cores(image.padded(1), FinalRank::Elimination) {
+        if let Ok(found) = background_cores(image.padded(1), FinalRank::Elimination).unwrap() {
             assert_eq!(found, expected, "{name}: background cores");
             by_cores += 1;
         } else {
             assert!(!name.starts_with("carved"), "{name} fell back");
         }
-        let (found, pivots) = topology_by_thinning_with(image.padded(1), FinalRank::Elimination);
+        let (found, pivots) =
+            topology_by_thinning_with(image.padded(1), FinalRank::Elimination).unwrap();
         general += pivots;
         assert_eq!(found, expected, "{name}: object route");
         assert_eq!(
-            topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction).0,
+            topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction)
+                .unwrap()
+                .0,
             expected,
             "{name}: object route, column reduction"
         );
         assert_eq!(
-            topology_by_background(image.padded(1)),
+            topology_by_background(image.padded(1)).unwrap(),
             expected,
             "{name}: background route"
         );
