@@ -571,7 +571,13 @@ fn relabel_sample(dataset: &Dataset, shard: &str, key: &str, fields: &Fields) ->
                 continue;
             }
         };
-        let topology = bettimill_homology::topology(&image);
+        let topology = match bettimill_homology::try_topology(&image) {
+            Ok(topology) => topology,
+            Err(too_rough) => {
+                out.undecodable(member, too_rough.to_string());
+                continue;
+            }
+        };
         let hypervolume = image.count_foreground();
         if parsed.is_image() {
             let d = image.dim().get();

@@ -105,10 +105,12 @@ fn topology<'py>(
     let image = read_array(py, array, strict)?;
     let (topology, hypervolume) = py.detach(|| {
         (
-            bettimill_homology::topology(&image),
+            bettimill_homology::try_topology(&image),
             image.count_foreground(),
         )
     });
+    // A huge rough image the exact rank cannot hold is a ValueError, never a panic.
+    let topology = topology.map_err(|error| PyValueError::new_err(error.to_string()))?;
     let dict = PyDict::new(py);
     dict.set_item("betti", &topology.betti)?;
     dict.set_item("euler", topology.euler)?;
