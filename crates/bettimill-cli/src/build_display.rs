@@ -513,15 +513,21 @@ mod tests {
         assert_eq!(crate::progress::thousandths(12_340), "12.3");
     }
 
+    /// A quiet display of a one-worker build that has started.
+    fn started(shards: u64, samples: u64) -> Display {
+        let mut display = Display::new(true, Duration::from_secs(60));
+        display.event(BuildEvent::Started {
+            shards,
+            samples,
+            workers: 1,
+        });
+        display
+    }
+
     #[test]
     fn the_bar_advances_within_a_sample() {
         use bettimill_executor::protocol::Stage;
-        let mut display = Display::new(true, Duration::from_secs(60));
-        display.event(BuildEvent::Started {
-            shards: 1,
-            samples: 2,
-            workers: 1,
-        });
+        let mut display = started(1, 2);
         let position = |d: &Display| d.overall.as_ref().unwrap().position();
         assert_eq!(position(&display), 0);
         display.event(BuildEvent::Stage {
@@ -559,12 +565,7 @@ mod tests {
 
     #[test]
     fn shards_found_complete_leave_the_totals() {
-        let mut display = Display::new(true, Duration::from_secs(60));
-        display.event(BuildEvent::Started {
-            shards: 3,
-            samples: 6,
-            workers: 1,
-        });
+        let mut display = started(3, 6);
         let length = |d: &Display| d.overall.as_ref().unwrap().length();
         assert_eq!(length(&display), Some(6000));
         display.event(BuildEvent::ShardSkipped {

@@ -662,7 +662,8 @@ async fn run_slot(
 
 /// Whether the shard is complete on disk already (the record is read and the tar hashed
 /// against it on the blocking pool, so the other slots' pipes are served meanwhile). A
-/// shard without a record costs one failed open. An interrupt does not wait for the check.
+/// shard without a record costs one failed open. On an interrupt the slot stops at once;
+/// the check itself only reads, and the runtime's shutdown waits for it to return.
 async fn is_complete(
     context: &Arc<SlotContext>,
     shard: &ShardPlan,
