@@ -92,13 +92,18 @@ def expand(cls):
             for g in axes[0] for h in axes[1] for i in axes[2] for j in axes[3]]
 
 
-def reduced_manifest(bettimill, side, per_stratum, shard_samples, work):
-    """The preset at `side`, without resolutions and splits, with PER_STRATUM samples a
-    stratum. A class that cannot be built at all at this side is left out, and so are
-    the combinations the plan leaves out; both are returned, to be reported."""
+def reduced_manifest(bettimill, side, per_stratum, shard_samples, work, copies=False):
+    """The preset at `side`, without splits, with PER_STRATUM samples a stratum, and
+    without resolutions unless `copies` (then the preset's resolutions scaled to `side`:
+    since 0.3.0 copies make carved tubes thicker, so sizes differ with and without them).
+    A class that cannot be built at all at this side is left out, and so are the
+    combinations the plan leaves out; both are returned, to be reported."""
     doc = tomllib.loads(PRESET.read_text())
+    if copies:
+        doc["resolutions"] = [r * side // doc["side"] for r in doc.get("resolutions", [])]
+    else:
+        doc.pop("resolutions", None)
     doc["side"] = side
-    doc.pop("resolutions", None)
     doc.pop("splits", None)
     dropped = []
     path = work / "manifest.toml"
@@ -111,7 +116,8 @@ def reduced_manifest(bettimill, side, per_stratum, shard_samples, work):
             strata = len(plan["strata"])
             # Small shards (by default one sample a stratum: the plan deals each round of
             # the strata over consecutive shards), so a stopped build is already useful.
-            shard_bytes = (shard_samples or strata) * (side**4 + 16384)
+            per_sample = side**4 + sum(r**4 for r in doc.get("resolutions", [])) + 16384
+            shard_bytes = (shard_samples or strata) * per_sample
             if doc["samples"] != per_stratum * strata or doc["shard_bytes"] != shard_bytes:
                 doc["samples"] = per_stratum * strata
                 doc["shard_bytes"] = shard_bytes
@@ -365,6 +371,8 @@ def main():
     ap.add_argument("--bettimill", help="the bettimill binary that builds the samples")
     ap.add_argument("--side", type=int, default=128)
     ap.add_argument("--per-stratum", type=int, default=3)
+    ap.add_argument("--copies", action="store_true",
+                    help="keep the preset's resolutions, scaled to --side (sizes as the preset builds them)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--work", type=Path, help="scratch directory (kept; a finished build is reused)")
     ap.add_argument("--json", type=Path, help="write the per-sample statistics here")
@@ -383,7 +391,7 @@ def main():
         ap.error("--bettimill and --work are needed (or --compare)")
     args.work.mkdir(parents=True, exist_ok=True)
     manifest, strata, dropped = reduced_manifest(args.bettimill, args.side, args.per_stratum,
-                                                 args.shard_samples, args.work)
+                                                 args.shard_samples, args.work, args.copies)
     out = args.work / "dataset"
     build = [args.bettimill, "build", str(manifest), "--out", str(out), "--workers",
              str(args.workers), "--quiet"]

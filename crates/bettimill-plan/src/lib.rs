@@ -30,7 +30,7 @@ use bettimill_deform::DeformSettings;
 pub use bettimill_format::{ClassTable, StratumClass, TopologyClass};
 use bettimill_grid::{Dim, Mode};
 use bettimill_manifest::{ClassKind, ClassSpec, Manifest, ManifestError};
-use bettimill_shapes::Family;
+use bettimill_shapes::{Family, TubeFloor};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -62,6 +62,12 @@ pub struct Stratum {
     /// The `knot_type` every sample of the stratum records (`"trefoil"`, `"none"`, ...).
     #[serde(skip)]
     pub knot_type: String,
+    /// The thinnest tube of the stratum's constructions: thick enough for max pooling to
+    /// the manifest's largest `resolutions` copy in carve mode ([`tube_floor_for`]) where
+    /// the combination fits with it, else the usual 2 voxels. A function of the family,
+    /// dimension, side, mode and resolutions, which the plan hash covers.
+    #[serde(skip)]
+    pub tube_floor: TubeFloor,
     /// A short human-readable name.
     pub label: String,
 }
@@ -592,9 +598,21 @@ fn strata(
                 let family = class_with_copies(class, copies);
                 // Whether a combination can be built does not depend on the bin.
                 let dim = manifest.dimension;
+                // Thick enough for the copies where that fits, else the usual floor
+                // (the copies then record honestly whether they kept the topology).
+                let floor = tube_floor_for(manifest, mode);
+                let tube_floor = if family.check_fits_with(dim, side, mode, floor).is_ok() {
+                    floor
+                } else {
+                    TubeFloor::USUAL
+                };
                 let checked = family
                     .expected_label(dim, mode)
-                    .and_then(|label| family.check_fits(dim, side, mode).map(|_| label))
+                    .and_then(|label| {
+                        family
+                            .check_fits_with(dim, side, mode, tube_floor)
+                            .map(|_| label)
+                    })
                     .map_err(|err| err.to_string());
                 for &bin in &bins {
                     let mut label = format!("{}/{}", class.label(), mode_name(mode));
@@ -616,6 +634,7 @@ fn strata(
                             betti: betti.clone(),
                             betti_rational: rational.clone(),
                             knot_type: family.knot_type(dim, mode),
+                            tube_floor,
                         }),
                         Err(reason) => {
                             if !reasons.contains(reason) {
@@ -647,6 +666,21 @@ fn strata(
         }
     }
     Ok((strata, infeasible))
+}
+
+/// The tube floor a manifest's constructions in `mode` aim for: carve mode with
+/// downscaled copies pools them by max pooling ([`bettimill_format::Pooling`]), which fills a
+/// cavity thinner than a few blocks, so its cavities are at least
+/// [`TubeFloor::for_copies`] of the largest copy's pooling factor. Embed mode (objects grow
+/// under max pooling; what closes is background between them) and manifests without
+/// copies keep [`TubeFloor::USUAL`].
+pub fn tube_floor_for(manifest: &Manifest, mode: Mode) -> TubeFloor {
+    match manifest.resolutions.iter().max() {
+        Some(&largest) if mode == Mode::Carve => {
+            TubeFloor::for_copies(manifest.dimension, (manifest.side / largest) as usize)
+        }
+        _ => TubeFloor::USUAL,
+    }
 }
 
 /// The manifest spelling of a mode.
@@ -916,6 +950,49 @@ family = "ball"
             .map(|s| (s.betti.clone(), s.knot_type.clone()))
             .collect();
         assert_eq!(table.topology_classes, distinct.len());
+    }
+
+    #[test]
+    fn carve_strata_with_copies_get_tubes_the_largest_copy_keeps_where_they_fit() {
+        let text = r#"
+schema_version = 1
+name = "floors"
+dimension = 4
+side = 32
+mode = ["embed", "carve"]
+samples = 4
+shard_size = 4
+seed = 1
+resolutions = [16, 8]
+
+[[classes]]
+family = ["ball", "t2_x_b2"]
+"#;
+        let floors = |text: &str| -> Vec<(String, f64)> {
+            plan(text)
+                .unwrap()
+                .strata
+                .iter()
+                .map(|s| (s.label.clone(), s.tube_floor.radius()))
+                .collect()
+        };
+        // Pooled by 2 (the largest copy, 16): (2 * 2 - 1) * sqrt(4) / 2 = 3 voxels. A
+        // carved T2xB2 does not fit a 32^4 cube with 3-voxel tubes (it does with 2), so it
+        // keeps the usual floor; embed mode always does.
+        let s = |label: &str, floor: f64| (label.to_string(), floor);
+        assert_eq!(
+            floors(text),
+            [
+                s("ball/embed", 2.0),
+                s("ball/carve", 3.0),
+                s("t2_x_b2/embed", 2.0),
+                s("t2_x_b2/carve", 2.0),
+            ]
+        );
+        let without_copies = text.replace("resolutions = [16, 8]\n", "");
+        assert!(floors(&without_copies).iter().all(|(_, f)| *f == 2.0));
+        // The floor is a function of what the plan hash covers: same manifest, same floors.
+        assert_eq!(floors(text), floors(text));
     }
 
     #[test]

@@ -82,6 +82,7 @@ fn main() {
             side,
             stratum.mode,
             foreground,
+            stratum.tube_floor,
             &mut rng,
         )
         .expect("generate");

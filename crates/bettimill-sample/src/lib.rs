@@ -108,7 +108,8 @@ pub fn downscale(image: &BinaryImage, factor: usize, pooling: Pooling) -> Binary
 /// (BENCHMARKS.md, issue 17) max pooling kept more copies' topology than pooling the
 /// cavities ([`Pooling::BackgroundAny`]), because the binned constructions' cavities are
 /// thick tubes while the foreground between their parts can be a few voxels thin, and min
-/// pooling closes those gaps. The rule is in every copy's label either way.
+/// pooling closes those gaps. The rule is in every copy's label either way. The plan sizes
+/// carved tubes for this rule (`bettimill_plan::tube_floor_for`): change both together.
 pub fn pooling_for(mode: Mode) -> Pooling {
     match mode {
         Mode::Embed | Mode::Carve => Pooling::ForegroundAny,
@@ -303,6 +304,7 @@ pub fn make_sample_observed(
             side,
             stratum.mode,
             foreground,
+            stratum.tube_floor,
             &mut rng,
         ) {
             Ok(g) => g,

@@ -8,7 +8,7 @@
 //! with its JSON keys in sorted order so the record's bytes never depend on serde_json's
 //! features.
 
-use crate::geometry::{round6, uniform, uniform_int};
+use crate::geometry::{round6, uniform, uniform_int, TubeFloor};
 use crate::labels::{embed_betti, expected, knot_type_label, realised_as};
 use crate::place::{
     canonical_layout, grid_fits, place_objects, place_tunnel, PlacementArea, Region, CUBE_MARGIN,
@@ -25,15 +25,16 @@ fn objects_of(family: &Family) -> Vec<Family> {
     }
 }
 
-/// Plan-time feasibility ([`crate::Family::check_fits`]): the label exists, every object
-/// fits on its own, and all of them fit together.
+/// Plan-time feasibility ([`crate::Family::check_fits_with`]): the label exists, every
+/// object fits on its own with tubes at least `floor`, and all of them fit together.
 pub(crate) fn check_fits(
     family: &Family,
     dim: Dim,
     side: usize,
     mode: Mode,
+    floor: TubeFloor,
 ) -> Result<(), ShapeError> {
-    check_sizes(family, dim, side, mode, true)
+    check_sizes(family, dim, side, mode, floor, true)
 }
 
 /// Every object must fit the image on its own; with `packing`, all of them together
@@ -45,12 +46,13 @@ fn check_sizes(
     dim: Dim,
     side: usize,
     mode: Mode,
+    floor: TubeFloor,
     packing: bool,
 ) -> Result<(), ShapeError> {
     expected(family, dim, mode)?;
     if let Family::Betti { betti } = family {
         let realised = crate::betti_class::realise(betti, dim, mode)?;
-        return check_sizes(&realised, dim, side, mode, packing)
+        return check_sizes(&realised, dim, side, mode, floor, packing)
             .map_err(|err| realised_as(err, family, &realised));
     }
     let d = dim.get();
@@ -66,7 +68,7 @@ fn check_sizes(
     }
     let region = Region::for_mode(side, mode);
     if let Family::Tunnel { .. } = family {
-        let need = min_extent(family, d).unwrap_or(f64::INFINITY);
+        let need = min_extent(family, d, floor).unwrap_or(f64::INFINITY);
         let budget = region.budget();
         if need > budget {
             return Err(does_not_fit(format!(
@@ -76,7 +78,7 @@ fn check_sizes(
         return Ok(());
     }
     let objects = objects_of(family);
-    let minima = object_minima(&objects, d, &does_not_fit)?;
+    let minima = object_minima(&objects, d, floor, &does_not_fit)?;
     if let Some((label, need)) = objects
         .iter()
         .zip(&minima)
@@ -90,7 +92,7 @@ fn check_sizes(
     }
     if !packing
         || grid_fits(&minima, d, region)
-        || canonical_layout(&objects, &minima, d, side, region).is_some()
+        || canonical_layout(&objects, &minima, d, side, region, floor).is_some()
     {
         return Ok(());
     }
@@ -105,12 +107,13 @@ fn check_sizes(
 fn object_minima(
     objects: &[Family],
     dim: usize,
+    floor: TubeFloor,
     does_not_fit: &dyn Fn(String) -> ShapeError,
 ) -> Result<Vec<f64>, ShapeError> {
     objects
         .iter()
         .map(|o| {
-            min_extent(o, dim)
+            min_extent(o, dim, floor)
                 .ok_or_else(|| does_not_fit(format!("{} has no valid instance", o.label())))
         })
         .collect()
@@ -130,6 +133,7 @@ pub(crate) const CAVITY_SHARE: (f64, f64) = (0.002, 0.01);
 /// [`CAVITY_SHARE`] of the image, the cavities sized by bisection for the rest; in embed
 /// mode the objects sized for the count. Sizes that cannot reach it come as close as
 /// the room allows.
+#[allow(clippy::too_many_arguments)] // The crate's entry points name the same request.
 pub(crate) fn generate_for(
     family: &Family,
     dim: Dim,
@@ -138,11 +142,12 @@ pub(crate) fn generate_for(
     rng: &mut ChaCha8Rng,
     check: bool,
     foreground: Option<u64>,
+    floor: TubeFloor,
 ) -> Result<Generated, ShapeError> {
     if let Family::Betti { betti } = family {
         // The realisation is generated as itself; its record says which class it serves.
         let realised = crate::betti_class::realise(betti, dim, mode)?;
-        let mut generated = generate_for(&realised, dim, side, mode, rng, check, foreground)
+        let mut generated = generate_for(&realised, dim, side, mode, rng, check, foreground, floor)
             .map_err(|err| realised_as(err, family, &realised))?;
         if let Value::Object(map) = &mut generated.construction {
             map.insert("class".into(), json!(family.label()));
@@ -151,7 +156,7 @@ pub(crate) fn generate_for(
         return Ok(generated);
     }
     if check {
-        check_sizes(family, dim, side, mode, false)?;
+        check_sizes(family, dim, side, mode, floor, false)?;
     }
     let (betti, betti_rational) = expected(family, dim, mode)?;
     let d = dim.get();
@@ -173,7 +178,10 @@ pub(crate) fn generate_for(
     // samples use the mode's usual region.
     let placement = |region: Region, volume: Option<f64>, rng: &mut ChaCha8Rng| {
         if tunnel {
-            Ok((vec![place_tunnel(family, d, side, region, rng)?], "tunnel"))
+            Ok((
+                vec![place_tunnel(family, d, side, region, floor, rng)?],
+                "tunnel",
+            ))
         } else {
             let canvas = PlacementArea {
                 dim: d,
@@ -181,6 +189,7 @@ pub(crate) fn generate_for(
                 mode,
                 region,
                 volume,
+                floor,
             };
             place_objects(family, &objects, canvas, rng)
         }
@@ -252,6 +261,9 @@ pub(crate) fn generate_for(
             json!(if mode == Mode::Carve { CUBE_MARGIN } else { 0 }),
         ),
     ];
+    if floor != TubeFloor::USUAL {
+        entries.push(("tube_floor", json!(round6(floor.radius()))));
+    }
     if let Some(target) = foreground {
         entries.push(("foreground_target", json!(target)));
         if mode == Mode::Carve {
@@ -476,5 +488,6 @@ pub fn paper_scene_3d(side: usize, rng: &mut ChaCha8Rng) -> Result<Generated, Sh
         rng,
         true,
         None,
+        TubeFloor::USUAL,
     )
 }

@@ -10,6 +10,7 @@
 //! Only `+ - * /`, `f64::sqrt` and the `libm` crate are used, so every platform computes the
 //! same bits and rasterises the same voxels.
 
+use bettimill_grid::Dim;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
@@ -29,6 +30,51 @@ pub(crate) const ORIGIN: P = [0.0; 4];
 pub(crate) const TUBE_MIN: f64 = 2.0;
 /// Smallest half-thickness of a shell.
 pub(crate) const SHELL_MIN: f64 = 1.5;
+
+/// The thinnest tube (or shell half-thickness, or ball radius) a construction may have:
+/// [`TubeFloor::USUAL`] (the labels note's 2 voxels), or thicker so that a max-pooled
+/// downscaled copy keeps the construction's topology ([`TubeFloor::for_copies`]). Where a
+/// family's own range starts higher, its range is kept.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TubeFloor(f64);
+
+impl Default for TubeFloor {
+    fn default() -> TubeFloor {
+        TubeFloor::USUAL
+    }
+}
+
+impl TubeFloor {
+    /// Tubes of radius at least 2 voxels (shells 1.5): every construction's minimum.
+    pub const USUAL: TubeFloor = TubeFloor(TUBE_MIN);
+
+    /// The floor for a sample whose copies are max-pooled by `factor` (a block of
+    /// `factor^d` voxels is foreground when any of its voxels is): a cavity survives in the
+    /// copy only where whole blocks fit inside it. A block's voxel centres lie within
+    /// `(factor - 1) sqrt(d) / 2` of its centre, and block centres within
+    /// `factor sqrt(d) / 2` of any point, so a tube of radius `(2 factor - 1) sqrt(d) / 2`
+    /// holds a whole block near every point of its skeleton (3 voxels for a 4D sample
+    /// pooled by 2). Never below [`TubeFloor::USUAL`].
+    pub fn for_copies(dim: Dim, factor: usize) -> TubeFloor {
+        let d = dim.get() as f64;
+        let radius = (2.0 * factor as f64 - 1.0) * libm::sqrt(d) / 2.0;
+        TubeFloor(radius.max(TUBE_MIN))
+    }
+
+    /// The least tube radius, in voxels.
+    pub fn radius(self) -> f64 {
+        self.0
+    }
+
+    /// A family's `(minimum, cap)` tube range raised to this floor. The usual floor leaves
+    /// every range as it is (shells keep their 1.5-voxel half-thickness).
+    pub(crate) fn raise(self, (minimum, cap): (f64, f64)) -> (f64, f64) {
+        if self == TubeFloor::USUAL {
+            return (minimum, cap);
+        }
+        (minimum.max(self.0), cap.max(self.0))
+    }
+}
 /// Smallest gap between surfaces of two parts of one object that must not touch.
 pub(crate) const INNER_GAP: f64 = 2.5;
 
@@ -617,6 +663,27 @@ impl Rotation {
 mod tests {
     use super::*;
     use rand::SeedableRng;
+
+    #[test]
+    fn tube_floors_for_copies() {
+        let floor = |dim, factor| TubeFloor::for_copies(dim, factor).radius();
+        assert_eq!(floor(Dim::Four, 2), 3.0);
+        assert_eq!(floor(Dim::Four, 4), 7.0);
+        assert!((floor(Dim::Three, 2) - 1.5 * 3f64.sqrt()).abs() < 1e-12);
+        // Never below the usual 2 voxels.
+        assert_eq!(floor(Dim::Two, 1), TubeFloor::USUAL.radius());
+        assert_eq!(TubeFloor::default(), TubeFloor::USUAL);
+        // A family's range is raised, never lowered.
+        assert_eq!(
+            TubeFloor::for_copies(Dim::Four, 2).raise((2.0, 4.0)),
+            (3.0, 4.0)
+        );
+        assert_eq!(
+            TubeFloor::for_copies(Dim::Four, 2).raise((1.5, 3.0)),
+            (3.0, 3.0)
+        );
+        assert_eq!(TubeFloor::USUAL.raise((1.5, 3.0)), (1.5, 3.0));
+    }
 
     #[test]
     fn rotation_is_orthogonal() {

@@ -30,6 +30,7 @@ mod sizing;
 
 pub use bettimill_grid::{BinaryImage, Dim};
 pub use generate::{paper_scene_3d, paper_scene_family};
+pub use geometry::TubeFloor;
 
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -297,7 +298,19 @@ impl Family {
     /// Plan-time feasibility: Err with a clear reason if the construction cannot fit at
     /// this side length (never an endless retry later).
     pub fn check_fits(&self, dim: Dim, side: usize, mode: Mode) -> Result<(), ShapeError> {
-        generate::check_fits(self, dim, side, mode)
+        generate::check_fits(self, dim, side, mode, TubeFloor::USUAL)
+    }
+
+    /// [`Family::check_fits`] for instances whose tubes are at least `floor`
+    /// ([`generate_planned_for`] with the same floor then always builds).
+    pub fn check_fits_with(
+        &self,
+        dim: Dim,
+        side: usize,
+        mode: Mode,
+        floor: TubeFloor,
+    ) -> Result<(), ShapeError> {
+        generate::check_fits(self, dim, side, mode, floor)
     }
 
     /// The smallest side length at which [`Family::check_fits`] succeeds (up to 1024).
@@ -381,7 +394,7 @@ pub fn generate(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_for(family, dim, side, mode, rng, true, None)
+    generate::generate_for(family, dim, side, mode, rng, true, None, TubeFloor::USUAL)
 }
 
 /// [`generate`] for a request that [`Family::check_fits`] has accepted, as the plan does for
@@ -395,7 +408,7 @@ pub fn generate_planned(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_for(family, dim, side, mode, rng, false, None)
+    generate::generate_for(family, dim, side, mode, rng, false, None, TubeFloor::USUAL)
 }
 
 /// [`generate_planned`] sized for a hypervolume: the construction's sizes are chosen so
@@ -403,17 +416,19 @@ pub fn generate_planned(
 /// nearly equal sides around cavities of a random 0.2-1% of the image, the cavities' scale
 /// found by bisection on a cheap voxel count; embed mode: the objects' scale), as near as
 /// the room allows. The caller brings the count the rest of the way (the sample pipeline
-/// does it with topology-preserving flips) and verifies the result. `None` is
-/// [`generate_planned`].
+/// does it with topology-preserving flips) and verifies the result. Every tube is at least
+/// `floor` (the plan's [`Family::check_fits_with`] accepted that floor). `None` and
+/// [`TubeFloor::USUAL`] are [`generate_planned`].
 pub fn generate_planned_for(
     family: &Family,
     dim: Dim,
     side: usize,
     mode: Mode,
     foreground: Option<u64>,
+    floor: TubeFloor,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_for(family, dim, side, mode, rng, false, foreground)
+    generate::generate_for(family, dim, side, mode, rng, false, foreground, floor)
 }
 
 #[cfg(test)]

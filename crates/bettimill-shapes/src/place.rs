@@ -16,7 +16,7 @@
 //! passed plan-time feasibility always produces a sample. Tunnels, which run from face to
 //! face, have their own placement ([`place_tunnel`]).
 
-use crate::geometry::{add, round6, sub, uniform, uniform_int, Rotation, Solid, P};
+use crate::geometry::{add, round6, sub, uniform, uniform_int, Rotation, Solid, TubeFloor, P};
 use crate::sizing::{build, build_volume, draw_target, min_extent};
 use crate::{Family, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
@@ -318,6 +318,7 @@ pub(crate) fn canonical_layout(
     dim: usize,
     side: usize,
     region: Region,
+    floor: TubeFloor,
 ) -> Option<Vec<PlacedObject>> {
     use rand::SeedableRng;
     let mut order: Vec<usize> = (0..objects.len()).collect();
@@ -330,9 +331,7 @@ pub(crate) fn canonical_layout(
             &sorted_objects,
             &sorted_minima,
             None,
-            dim,
-            side,
-            region,
+            (dim, side, region, floor),
             &mut rng,
             true,
         )
@@ -354,6 +353,7 @@ pub(crate) fn place_tunnel(
     dim: usize,
     side: usize,
     region: Region,
+    floor: TubeFloor,
     rng: &mut ChaCha8Rng,
 ) -> Result<PlacedObject, ShapeError> {
     let Family::Tunnel { intervals, .. } = family else {
@@ -361,10 +361,10 @@ pub(crate) fn place_tunnel(
     };
     let a = *intervals as usize;
     let budget = region.budget();
-    let minimum = min_extent(family, dim).unwrap_or(f64::INFINITY);
+    let minimum = min_extent(family, dim, floor).unwrap_or(f64::INFINITY);
     let target = uniform(rng, minimum, budget);
     let (solid, params) =
-        build(family, dim, target, rng).ok_or_else(|| ShapeError::DoesNotFit {
+        build(family, dim, target, floor, rng).ok_or_else(|| ShapeError::DoesNotFit {
             family: family.label(),
             dim,
             side,
@@ -410,14 +410,11 @@ pub(crate) fn place_tunnel(
 /// while it meets the gap-dilation of those already placed. `at_minimum` draws every
 /// object at its minimum size (the canonical layout). `None` if some object found no
 /// place within `PLACEMENT_ATTEMPTS` tries.
-#[allow(clippy::too_many_arguments)] // A private search; bundling would only rename them.
 fn place_random(
     objects: &[Family],
     minima: &[f64],
     volumes: Option<&[f64]>,
-    dim: usize,
-    side: usize,
-    region: Region,
+    (dim, side, region, floor): (usize, usize, Region, TubeFloor),
     rng: &mut ChaCha8Rng,
     at_minimum: bool,
 ) -> Option<Vec<PlacedObject>> {
@@ -447,14 +444,16 @@ fn place_random(
             let upper = minimum + (share.max(minimum) - minimum) * shrink;
             let built = match volumes {
                 // Sized for a voxel count: the scale is solved for, within the room.
-                Some(volumes) if !at_minimum => build_volume(object, dim, upper, volumes[n], rng),
+                Some(volumes) if !at_minimum => {
+                    build_volume(object, dim, upper, volumes[n], floor, rng)
+                }
                 _ => {
                     let target = if at_minimum {
                         minimum
                     } else {
                         draw_target(object, minimum, upper, rng)
                     };
-                    build(object, dim, target, rng)
+                    build(object, dim, target, floor, rng)
                 }
             };
             let Some((solid, params)) = built else {
@@ -507,6 +506,8 @@ pub(crate) struct PlacementArea {
     /// The voxel count all objects together should have, when sized for a hypervolume
     /// (shared among several objects at random); `None` draws sizes as usual.
     pub(crate) volume: Option<f64>,
+    /// The thinnest tube any object may have.
+    pub(crate) floor: TubeFloor,
 }
 
 pub(crate) fn place_objects(
@@ -521,11 +522,12 @@ pub(crate) fn place_objects(
         mode,
         region,
         volume,
+        floor,
     } = canvas;
     let count = objects.len();
     let minima: Vec<f64> = objects
         .iter()
-        .map(|o| min_extent(o, dim).unwrap_or(f64::INFINITY))
+        .map(|o| min_extent(o, dim, floor).unwrap_or(f64::INFINITY))
         .collect();
     // Largest first: big objects find room in the empty image, small ones fit into the
     // gaps left. Several rounds, the later ones at minimum sizes, before the fallbacks,
@@ -546,9 +548,7 @@ pub(crate) fn place_objects(
             &sorted_objects,
             &sorted_minima,
             volumes.as_deref(),
-            dim,
-            side,
-            region,
+            (dim, side, region, floor),
             rng,
             at_minimum,
         ) {
@@ -557,7 +557,7 @@ pub(crate) fn place_objects(
     }
     let fits_grid = grid_fits(&minima, dim, region);
     if !fits_grid {
-        return canonical_layout(objects, &minima, dim, side, region)
+        return canonical_layout(objects, &minima, dim, side, region, floor)
             .map(|out| (out, "canonical"))
             .ok_or_else(|| ShapeError::DoesNotFit {
                 family: family.label(),
@@ -588,8 +588,8 @@ pub(crate) fn place_objects(
         }
         let (lo, hi) = grid_cell(region, per_axis, cell, dim);
         let target = draw_target(object, minimum, cell_budget.max(minimum), rng);
-        let (solid, params) = build(object, dim, target, rng)
-            .or_else(|| build(object, dim, minimum, rng))
+        let (solid, params) = build(object, dim, target, floor, rng)
+            .or_else(|| build(object, dim, minimum, floor, rng))
             .ok_or_else(|| ShapeError::DoesNotFit {
                 family: family.label(),
                 dim,

@@ -8,7 +8,7 @@
 //! here, in the room the host leaves.
 
 use crate::curves;
-use crate::geometry::{round6, uniform, Solid, INNER_GAP, TUBE_MIN};
+use crate::geometry::{round6, uniform, Solid, TubeFloor, INNER_GAP, TUBE_MIN};
 use crate::recipes::{make, share_count, tube_range, Shares};
 use crate::Family;
 use rand_chacha::ChaCha8Rng;
@@ -19,14 +19,15 @@ use serde_json::{json, Value};
 /// TUBE_MIN + 0.5.
 const TENTACLE_ROOM: f64 = 2.0 * (TUBE_MIN + 0.5) + INNER_GAP + 0.5 + 2.5;
 
-/// The smallest bounding radius of one object of the family (tentacles need none extra:
-/// they are added only where space remains; see [`draw_target`]).
-pub(crate) fn min_extent(family: &Family, dim: usize) -> Option<f64> {
+/// The smallest bounding radius of one object of the family with tubes at least `floor`
+/// (tentacles need none extra: they are added only where space remains; see
+/// [`draw_target`]).
+pub(crate) fn min_extent(family: &Family, dim: usize, floor: TubeFloor) -> Option<f64> {
     let family = match family {
         Family::Tentacled { object, .. } => object,
         other => other,
     };
-    let (tube, _) = tube_range(family);
+    let (tube, _) = floor.raise(tube_range(family));
     let shares = Shares::minimal(share_count(family));
     make(family, dim, tube, 0.0, &shares).map(|s| s.extent())
 }
@@ -44,28 +45,29 @@ pub(crate) fn draw_target(object: &Family, minimum: f64, upper: f64, rng: &mut C
 }
 
 /// A random instance with bounding radius at most `target` (which must be at least the
-/// minimum). Returns the solid and its parameters.
+/// minimum at `floor`) and tubes at least `floor`. Returns the solid and its parameters.
 pub(crate) fn build(
     family: &Family,
     dim: usize,
     target: f64,
+    floor: TubeFloor,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Solid, Value)> {
     if let Family::Tentacled { object, tentacles } = family {
         // The host takes a random part of the room; tentacles reach into the rest. A
         // tentacle must leave the host by a gap and a few steps before it counts, so the
         // host leaves that much room when the target allows it (see `draw_target`).
-        let minimum = min_extent(object, dim)?;
+        let minimum = min_extent(object, dim, floor)?;
         let host_cap = (0.75 * target).min(target - TENTACLE_ROOM);
         let host_target = uniform(rng, minimum, minimum.max(host_cap));
-        let (solid, params) = build(object, dim, host_target, rng)?;
+        let (solid, params) = build(object, dim, host_target, floor, rng)?;
         let (solid, placed) = curves::add_tentacles(solid, dim, *tentacles, target, rng);
         return Some((
             solid,
             json!({"host": params, "tentacles_requested": tentacles, "tentacles_placed": placed}),
         ));
     }
-    let (tube_min, tube_cap) = tube_range(family);
+    let (tube_min, tube_cap) = floor.raise(tube_range(family));
     let shares = Shares::draw(share_count(family), rng);
     let extent = |tube: f64, grow: f64| -> Option<f64> {
         make(family, dim, tube, grow, &shares).map(|s| s.extent())
@@ -112,6 +114,10 @@ pub(crate) fn build(
 /// bars and offsets by the recipe), so a thick tube never closes a hole to its minimum:
 /// holes that stay a few voxels wide survive downscaling.
 pub(crate) const VOLUME_GROW_MIN: f64 = 12.0;
+
+/// The range the scale of an instance sized for a volume is drawn from when the room, not
+/// the volume, limits it.
+const ROOM_SCALE: (f64, f64) = (0.3, 1.0);
 
 /// Bisection steps on the scale of an instance sized for a volume.
 const VOLUME_STEPS: usize = 12;
@@ -165,14 +171,15 @@ pub(crate) fn build_volume(
     dim: usize,
     upper: f64,
     volume: f64,
+    floor: TubeFloor,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Solid, Value)> {
     if let Family::Tentacled { .. } = family {
-        let minimum = min_extent(family, dim)?;
+        let minimum = min_extent(family, dim, floor)?;
         let target = draw_target(family, minimum, upper.max(minimum), rng);
-        return build(family, dim, target, rng);
+        return build(family, dim, target, floor, rng);
     }
-    let (tube_min, tube_cap) = tube_range(family);
+    let (tube_min, tube_cap) = floor.raise(tube_range(family));
     // A family with a fixed tube (a ball) grows by `grow`; the others may thicken up to
     // what fits, keeping `VOLUME_GROW_MIN` of growth.
     let fixed_tube = tube_cap <= tube_min;
@@ -221,8 +228,12 @@ pub(crate) fn build_volume(
     let volume_at = |s: f64, thickness: f64| {
         instance(s, thickness).map(|(solid, _, _)| estimate_volume(&solid, dim))
     };
-    // The scale first, at the drawn thickness; if the largest instance is still too
-    // small, the tube thickens (at the largest scale) towards what fits.
+    // The scale first, at the drawn thickness. Where even the largest instance the room
+    // allows stays below the volume (the room, not the volume, decides the size: most
+    // non-ball cavities of a binned carve sample), the scale is drawn from
+    // [`ROOM_SCALE`] and the thickness stays as drawn: taking the largest instance, as
+    // 0.2.0 did, gave every sample of a stratum the same size (scale 1, thickness 1),
+    // and the solid box around the cavities takes up the difference anyway.
     let bisect = |f: &dyn Fn(f64) -> Option<f64>, lo: f64, hi: f64| -> f64 {
         let (mut lo, mut hi) = (lo, hi);
         for _ in 0..VOLUME_STEPS {
@@ -235,12 +246,7 @@ pub(crate) fn build_volume(
         lo
     };
     let (s, thickness) = if volume_at(1.0, drawn_thickness).is_some_and(|v| v <= volume) {
-        let thicker = |t: f64| volume_at(1.0, t);
-        if fixed_tube || thicker(1.0).is_some_and(|v| v <= volume) {
-            (1.0, if fixed_tube { drawn_thickness } else { 1.0 })
-        } else {
-            (1.0, bisect(&thicker, drawn_thickness, 1.0))
-        }
+        (uniform(rng, ROOM_SCALE.0, ROOM_SCALE.1), drawn_thickness)
     } else {
         (
             bisect(&|s| volume_at(s, drawn_thickness), 0.0, 1.0),

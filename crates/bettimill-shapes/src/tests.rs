@@ -425,3 +425,53 @@ fn a_planned_request_draws_the_same_voxels_as_a_checked_one() {
         }
     }
 }
+
+#[test]
+fn a_raised_tube_floor_is_kept_by_every_object_and_recorded() {
+    let floor = TubeFloor::for_copies(Dim::Four, 2);
+    for (family, foreground) in [
+        (Family::Handle, None),
+        (Family::S2xB2, Some(20_000_000)),
+        (
+            Family::Scene {
+                objects: vec![Family::Ball, Family::Handle],
+            },
+            Some(18_000_000),
+        ),
+    ] {
+        family
+            .check_fits_with(Dim::Four, 72, Mode::Carve, floor)
+            .unwrap();
+        for seed in 0..2u64 {
+            let generated = generate_planned_for(
+                &family,
+                Dim::Four,
+                72,
+                Mode::Carve,
+                foreground,
+                floor,
+                &mut ChaCha8Rng::seed_from_u64(seed),
+            )
+            .unwrap();
+            let record = &generated.construction;
+            assert_eq!(record["tube_floor"], 3.0, "{family:?}");
+            for object in record["objects"].as_array().unwrap() {
+                let tube = object["params"]["tube_radius"].as_f64().unwrap();
+                assert!(tube >= 3.0, "{family:?} seed {seed}: tube {tube}");
+            }
+        }
+    }
+    // The usual floor is not recorded (the records of samples without copies are as
+    // before).
+    let usual = generate_planned_for(
+        &Family::Handle,
+        Dim::Four,
+        72,
+        Mode::Carve,
+        None,
+        TubeFloor::USUAL,
+        &mut ChaCha8Rng::seed_from_u64(0),
+    )
+    .unwrap();
+    assert!(usual.construction.get("tube_floor").is_none());
+}
