@@ -601,17 +601,16 @@ fn strata(
                 // Thick enough for the copies where that fits, else the usual floor
                 // (the copies then record honestly whether they kept the topology).
                 let floor = tube_floor_for(manifest, mode);
-                let tube_floor = if family.check_fits_with(dim, side, mode, floor).is_ok() {
-                    floor
-                } else {
-                    TubeFloor::USUAL
-                };
+                let mut tube_floor = floor;
                 let checked = family
                     .expected_label(dim, mode)
                     .and_then(|label| {
-                        family
-                            .check_fits_with(dim, side, mode, tube_floor)
-                            .map(|_| label)
+                        let fits = family.check_fits_with(dim, side, mode, floor);
+                        if fits.is_err() && floor != TubeFloor::USUAL {
+                            tube_floor = TubeFloor::USUAL;
+                            return family.check_fits(dim, side, mode).map(|_| label);
+                        }
+                        fits.map(|_| label)
                     })
                     .map_err(|err| err.to_string());
                 for &bin in &bins {
