@@ -1,9 +1,10 @@
 //! `bettimill plan`: the strata table, counts per split and shard, size and time estimates.
 
+use bettimill_grid::Mode;
 use bettimill_manifest::Manifest;
 use bettimill_plan::estimate::{self, Estimate};
 use bettimill_plan::memory::{self, WorkerMemory};
-use bettimill_plan::Plan;
+use bettimill_plan::{Plan, TubeFloor};
 
 /// A pilot keeps building samples of a stratum until they took this many CPU seconds (or
 /// [`PILOT_MAX_SAMPLES`]), so that small samples are timed above the clock's resolution.
@@ -375,6 +376,31 @@ pub fn show(
         first_shard += shards;
     }
     outln!("per-shard balance: stratum counts differ by at most {spread} within any shard");
+    // Carve-mode copies: which strata got cavities thick enough for the largest copy.
+    if let Some(largest) = plan.resolutions.iter().max() {
+        let carved: Vec<_> = plan
+            .strata
+            .iter()
+            .filter(|s| s.mode == Mode::Carve)
+            .collect();
+        let thick = carved
+            .iter()
+            .filter(|s| s.tube_floor != TubeFloor::USUAL)
+            .map(|s| s.tube_floor.radius())
+            .next();
+        if let Some(radius) = thick {
+            let n = carved
+                .iter()
+                .filter(|s| s.tube_floor != TubeFloor::USUAL)
+                .count();
+            outln!(
+                "copies: carved tubes at least {radius:.2} voxels for the {largest}-side copy in {} of {} (the others: {:.0})",
+                n,
+                count(carved.len() as u64, "carved stratum"),
+                TubeFloor::USUAL.radius()
+            );
+        }
+    }
     outln!(
         "estimated output: about {} with {} members (model), at most {} uncompressed ({} a sample)",
         human_bytes(model.compressed_bytes),

@@ -44,8 +44,9 @@ pub const NS_PER_VOXEL: [[f64; 2]; 3] = [[51.0, 81.0], [34.0, 105.0], [39.0, 46.
 /// binned samples are sized for their bin (the box and cavities are chosen to land in it),
 /// which measured cheaper than an unbinned sample of the same family (3D 64 carve ball
 /// 70.6 vs 108.7 ns/voxel, 4D 64 carve ball 34.9 vs 46.8; 4D 128 binned carve, the
-/// preset reduced to 8 samples, about 18 ns/voxel before its copies on an idle machine
-/// and twice that on a loaded one). 2D was not measured: the 3D factor is used.
+/// preset reduced to 8 samples, about 18.5 ns/voxel for the whole sample, copies included,
+/// on an idle machine and twice that on a loaded one). 2D was not measured: the 3D factor
+/// is used.
 pub const BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.5];
 
 /// Extra cost of each copy past the first in a scene of `components` copies (4D 48 carve

@@ -92,7 +92,7 @@ fn check_sizes(
     }
     if !packing
         || grid_fits(&minima, d, region)
-        || canonical_layout(&objects, &minima, d, side, region, floor).is_some()
+        || canonical_layout(&objects, &minima, (d, side, mode), region, floor).is_some()
     {
         return Ok(());
     }
@@ -176,40 +176,56 @@ pub(crate) fn generate_for(
     };
     // A binned carve sample keeps `BOX_WALL` between its cavities and the outside; other
     // samples use the mode's usual region.
-    let placement = |region: Region, volume: Option<f64>, rng: &mut ChaCha8Rng| {
-        if tunnel {
-            Ok((
-                vec![place_tunnel(family, d, side, region, floor, rng)?],
-                "tunnel",
-            ))
-        } else {
-            let canvas = PlacementArea {
-                dim: d,
-                side,
-                mode,
-                region,
-                volume,
-                floor,
-            };
-            place_objects(family, &objects, canvas, rng)
-        }
-    };
+    let placement =
+        |region: Region, volume: Option<f64>, floor: TubeFloor, rng: &mut ChaCha8Rng| {
+            if tunnel {
+                Ok((
+                    vec![place_tunnel(family, d, side, region, floor, rng)?],
+                    "tunnel",
+                ))
+            } else {
+                let canvas = PlacementArea {
+                    dim: d,
+                    side,
+                    mode,
+                    region,
+                    volume,
+                    floor,
+                };
+                place_objects(family, &objects, canvas, rng)
+            }
+        };
     let usual = Region::for_mode(side, mode);
     let region = if mode == Mode::Carve && volume.is_some() {
         solid.region()
     } else {
         usual
     };
-    // A box too small for the objects falls back to the full cube and the usual region.
-    let (solid, (placed, strategy)) = match placement(region, volume, rng) {
-        Ok(found) if mode == Mode::Carve && volume.is_some() => {
+    // A box too small for the objects falls back to the usual tubes in the same box (when
+    // the floor was raised for the copies: they may then not keep the topology, and their
+    // labels say so), then to the full cube and the usual region, whose foreground needs
+    // millions of flips to come down to the bin.
+    let mut floor = floor;
+    let binned_carve = mode == Mode::Carve && volume.is_some();
+    let in_box = match placement(region, volume, floor, rng) {
+        Err(_) if binned_carve && floor != TubeFloor::USUAL => {
+            let thin = placement(region, volume, TubeFloor::USUAL, rng);
+            if thin.is_ok() {
+                floor = TubeFloor::USUAL;
+            }
+            thin
+        }
+        other => other,
+    };
+    let (solid, (placed, strategy)) = match in_box {
+        Ok(found) if binned_carve => {
             let target = foreground.expect("sized for a foreground count");
             (refit_box(d, side, target, &found.0, &axes), found)
         }
         Ok(found) => (solid, found),
-        Err(_) if volume.is_some() && mode == Mode::Carve => {
+        Err(_) if binned_carve => {
             let volume = foreground.map(|t| full.count().saturating_sub(t) as f64);
-            (full, placement(usual, volume, rng)?)
+            (full, placement(usual, volume, floor, rng)?)
         }
         Err(err) => return Err(err),
     };

@@ -54,7 +54,9 @@ impl TubeFloor {
     /// `(factor - 1) sqrt(d) / 2` of its centre, and block centres within
     /// `factor sqrt(d) / 2` of any point, so a tube of radius `(2 factor - 1) sqrt(d) / 2`
     /// holds a whole block near every point of its skeleton (3 voxels for a 4D sample
-    /// pooled by 2). Never below [`TubeFloor::USUAL`].
+    /// pooled by 2). That aims at, but does not prove, a copy with the same topology: the
+    /// copies' labels are computed, and on the 4D mixed 128 preset every 64-side copy
+    /// measured kept it. Never below [`TubeFloor::USUAL`].
     pub fn for_copies(dim: Dim, factor: usize) -> TubeFloor {
         let d = dim.get() as f64;
         let radius = (2.0 * factor as f64 - 1.0) * libm::sqrt(d) / 2.0;

@@ -416,8 +416,10 @@ pub fn generate_planned(
 /// nearly equal sides around cavities of a random 0.2-1% of the image, the cavities' scale
 /// found by bisection on a cheap voxel count; embed mode: the objects' scale), as near as
 /// the room allows. The caller brings the count the rest of the way (the sample pipeline
-/// does it with topology-preserving flips) and verifies the result. Every tube is at least
-/// `floor` (the plan's [`Family::check_fits_with`] accepted that floor). `None` and
+/// does it with topology-preserving flips) and verifies the result. Tubes are at least
+/// `floor` (the plan's [`Family::check_fits_with`] accepted that floor; tentacles keep their
+/// own 2-2.5 voxels), except in a binned carve sample whose solid box cannot hold them: it
+/// gets the usual tubes in that box (the record's `tube_floor` says which). `None` and
 /// [`TubeFloor::USUAL`] are [`generate_planned`].
 pub fn generate_planned_for(
     family: &Family,

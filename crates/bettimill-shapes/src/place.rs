@@ -368,8 +368,7 @@ const CANONICAL_SEEDS: u64 = 6;
 pub(crate) fn canonical_layout(
     objects: &[Family],
     minima: &[f64],
-    dim: usize,
-    side: usize,
+    (dim, side, mode): (usize, usize, Mode),
     region: Region,
     floor: TubeFloor,
 ) -> Option<Vec<PlacedObject>> {
@@ -384,7 +383,7 @@ pub(crate) fn canonical_layout(
             &sorted_objects,
             &sorted_minima,
             None,
-            (dim, side, region, floor),
+            (dim, side, mode, region, floor),
             &mut rng,
             true,
         )
@@ -467,7 +466,7 @@ fn place_random(
     objects: &[Family],
     minima: &[f64],
     volumes: Option<&[f64]>,
-    (dim, side, region, floor): (usize, usize, Region, TubeFloor),
+    (dim, side, mode, region, floor): (usize, usize, Mode, Region, TubeFloor),
     rng: &mut ChaCha8Rng,
     at_minimum: bool,
 ) -> Option<Vec<PlacedObject>> {
@@ -497,8 +496,12 @@ fn place_random(
             let upper = minimum + (share.max(minimum) - minimum) * shrink;
             let built = match volumes {
                 // Sized for a voxel count: the scale is solved for, within the room.
+                // A carved cavity may come out below its volume (the solid box around it
+                // takes up the rest), so where the room limits it its scale is drawn; an
+                // embedded object is the foreground itself and takes the largest that fits.
                 Some(volumes) if !at_minimum => {
-                    build_volume(object, dim, upper, volumes[n], floor, rng)
+                    let draw_scale = mode == Mode::Carve;
+                    build_volume(object, dim, upper, volumes[n], floor, draw_scale, rng)
                 }
                 _ => {
                     let target = if at_minimum {
@@ -601,7 +604,7 @@ pub(crate) fn place_objects(
             &sorted_objects,
             &sorted_minima,
             volumes.as_deref(),
-            (dim, side, region, floor),
+            (dim, side, mode, region, floor),
             rng,
             at_minimum,
         ) {
@@ -610,7 +613,7 @@ pub(crate) fn place_objects(
     }
     let fits_grid = grid_fits(&minima, dim, region);
     if !fits_grid {
-        return canonical_layout(objects, &minima, dim, side, region, floor)
+        return canonical_layout(objects, &minima, (dim, side, mode), region, floor)
             .map(|out| (out, "canonical"))
             .ok_or_else(|| ShapeError::DoesNotFit {
                 family: family.label(),

@@ -164,14 +164,19 @@ pub(crate) fn estimate_volume(solid: &Solid, dim: usize) -> f64 {
 /// allows, with bounding radius at most `upper`: the sizes come from one scale
 /// parameter found by bisection on [`estimate_volume`]. How thick the tube is relative to
 /// what fits, and how the growth is shared, are drawn from `rng`, so instances of one
-/// volume still differ in shape. `None` where [`build`] would give none; tentacled
-/// objects (not sized by volume) are drawn as [`build`] draws them.
+/// volume still differ in shape. Where even the largest instance stays below `volume`,
+/// `draw_scale` draws the scale from [`ROOM_SCALE`] (a carved cavity, whose box takes up
+/// the rest); otherwise the largest instance is taken, its tube thickened towards the
+/// volume (an embedded object, which is the foreground itself). `None` where [`build`]
+/// would give none; tentacled objects (not sized by volume) are drawn as [`build`] draws
+/// them.
 pub(crate) fn build_volume(
     family: &Family,
     dim: usize,
     upper: f64,
     volume: f64,
     floor: TubeFloor,
+    draw_scale: bool,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Solid, Value)> {
     if let Family::Tentacled { .. } = family {
@@ -230,10 +235,10 @@ pub(crate) fn build_volume(
     };
     // The scale first, at the drawn thickness. Where even the largest instance the room
     // allows stays below the volume (the room, not the volume, decides the size: most
-    // non-ball cavities of a binned carve sample), the scale is drawn from
-    // [`ROOM_SCALE`] and the thickness stays as drawn: taking the largest instance, as
-    // 0.2.0 did, gave every sample of a stratum the same size (scale 1, thickness 1),
-    // and the solid box around the cavities takes up the difference anyway.
+    // non-ball cavities of a binned carve sample), a cavity's scale is drawn from
+    // [`ROOM_SCALE`] and its thickness stays as drawn: taking the largest instance, as
+    // 0.2.0 did, gave every sample of a stratum the same size (scale 1 and, for tubes,
+    // thickness 1), and the solid box around the cavities takes up the difference anyway.
     let bisect = |f: &dyn Fn(f64) -> Option<f64>, lo: f64, hi: f64| -> f64 {
         let (mut lo, mut hi) = (lo, hi);
         for _ in 0..VOLUME_STEPS {
@@ -246,7 +251,14 @@ pub(crate) fn build_volume(
         lo
     };
     let (s, thickness) = if volume_at(1.0, drawn_thickness).is_some_and(|v| v <= volume) {
-        (uniform(rng, ROOM_SCALE.0, ROOM_SCALE.1), drawn_thickness)
+        let thicker = |t: f64| volume_at(1.0, t);
+        if draw_scale {
+            (uniform(rng, ROOM_SCALE.0, ROOM_SCALE.1), drawn_thickness)
+        } else if fixed_tube || thicker(1.0).is_some_and(|v| v <= volume) {
+            (1.0, if fixed_tube { drawn_thickness } else { 1.0 })
+        } else {
+            (1.0, bisect(&thicker, drawn_thickness, 1.0))
+        }
     } else {
         (
             bisect(&|s| volume_at(s, drawn_thickness), 0.0, 1.0),
