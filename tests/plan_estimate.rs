@@ -1,7 +1,8 @@
 //! `bettimill plan`'s estimates (issue 17 item 5, issue 20 item 5): the cost model's fields
 //! in `--json`, `--pilot` building and measuring real samples, and the model's compressed
-//! size against a pilot's measured bytes. Nothing here compares times: CPU and wall seconds
-//! depend on the machine and its load, bytes do not.
+//! size against a pilot's measured bytes, and the line on carved tubes for the copies.
+//! Nothing here compares times: CPU and wall seconds depend on the machine and its load,
+//! bytes do not.
 
 use std::path::{Path, PathBuf};
 
@@ -113,4 +114,38 @@ fn model_bytes_are_within_2x_of_a_pilot() {
             "{dimension}D side {side} {compression}: model {model} bytes, pilot {pilot}"
         );
     }
+}
+
+#[test]
+fn plan_says_which_carved_strata_get_tubes_for_the_copies() {
+    let tmp = Dir::new();
+    // 4D side 32, copies at 16: a carved ball fits with 3-voxel tubes, a carved T2xB2
+    // only with the usual 2 (embed strata are not counted).
+    let path = tmp.path().join("copies.toml");
+    std::fs::write(
+        &path,
+        "schema_version = 1\nname = \"copies\"\ndimension = 4\nside = 32\n\
+         mode = [\"embed\", \"carve\"]\nsamples = 4\nshard_size = 4\nseed = 5\n\
+         resolutions = [16]\n\n[[classes]]\nfamily = [\"ball\", \"t2_x_b2\"]\n",
+    )
+    .unwrap();
+    let out = run_in(tmp.path(), &["plan", path.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains(
+            "copies: carved tubes at least 3.00 voxels for the 16-side copy in 1 of 2 carved strata (the others: 2)"
+        ),
+        "{stdout}"
+    );
+    // Without copies, no such line.
+    std::fs::write(
+        &path,
+        std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("resolutions = [16]\n", ""),
+    )
+    .unwrap();
+    let out = run_in(tmp.path(), &["plan", path.to_str().unwrap()]);
+    assert!(!text(&out.stdout).contains("carved tubes"));
 }

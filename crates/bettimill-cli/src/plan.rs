@@ -394,9 +394,8 @@ pub fn show(
                 .filter(|s| s.tube_floor != TubeFloor::USUAL)
                 .count();
             outln!(
-                "copies: carved tubes at least {radius:.2} voxels for the {largest}-side copy in {} of {} (the others: {:.0})",
-                n,
-                count(carved.len() as u64, "carved stratum"),
+                "copies: carved tubes at least {radius:.2} voxels for the {largest}-side copy in {n} of {} carved strata (the others: {:.0})",
+                carved.len(),
                 TubeFloor::USUAL.radius()
             );
         }
