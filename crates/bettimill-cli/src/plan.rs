@@ -378,24 +378,18 @@ pub fn show(
     outln!("per-shard balance: stratum counts differ by at most {spread} within any shard");
     // Carve-mode copies: which strata got cavities thick enough for the largest copy.
     if let Some(largest) = plan.resolutions.iter().max() {
-        let carved: Vec<_> = plan
-            .strata
-            .iter()
-            .filter(|s| s.mode == Mode::Carve)
+        let carved = plan.strata.iter().filter(|s| s.mode == Mode::Carve);
+        let thick: Vec<f64> = carved
+            .clone()
+            .map(|s| s.tube_floor)
+            .filter(|&floor| floor != TubeFloor::USUAL)
+            .map(TubeFloor::radius)
             .collect();
-        let thick = carved
-            .iter()
-            .filter(|s| s.tube_floor != TubeFloor::USUAL)
-            .map(|s| s.tube_floor.radius())
-            .next();
-        if let Some(radius) = thick {
-            let n = carved
-                .iter()
-                .filter(|s| s.tube_floor != TubeFloor::USUAL)
-                .count();
+        if let Some(radius) = thick.first() {
             outln!(
-                "copies: carved tubes at least {radius:.2} voxels for the {largest}-side copy in {n} of {} carved strata (the others: {:.0})",
-                carved.len(),
+                "copies: carved tubes at least {radius:.2} voxels for the {largest}-side copy in {} of {} carved strata (the others: {:.0})",
+                thick.len(),
+                carved.count(),
                 TubeFloor::USUAL.radius()
             );
         }

@@ -603,17 +603,15 @@ fn strata(
                 // Thick enough for the copies where that fits, else the usual floor
                 // (the copies then record honestly whether they kept the topology).
                 let floor = tube_floor_for(manifest, mode);
-                let mut tube_floor = floor;
+                let (tube_floor, fits) = match family.check_fits_with(dim, side, mode, floor) {
+                    Err(_) if floor != TubeFloor::USUAL => {
+                        (TubeFloor::USUAL, family.check_fits(dim, side, mode))
+                    }
+                    fits => (floor, fits),
+                };
                 let checked = family
                     .expected_label(dim, mode)
-                    .and_then(|label| {
-                        let fits = family.check_fits_with(dim, side, mode, floor);
-                        if fits.is_err() && floor != TubeFloor::USUAL {
-                            tube_floor = TubeFloor::USUAL;
-                            return family.check_fits(dim, side, mode).map(|_| label);
-                        }
-                        fits.map(|_| label)
-                    })
+                    .and_then(|label| fits.map(|_| label))
                     .map_err(|err| err.to_string());
                 for &bin in &bins {
                     let mut label = format!("{}/{}", class.label(), mode_name(mode));
@@ -953,22 +951,19 @@ family = "ball"
         assert_eq!(table.topology_classes, distinct.len());
     }
 
+    /// A 4D side-32 manifest in both modes, four samples, with `extra` top-level lines and
+    /// one class of `families` (a TOML list).
+    fn both_modes_4d_32(extra: &str, families: &str) -> String {
+        format!(
+            "schema_version = 1\nname = \"t4\"\ndimension = 4\nside = 32\n\
+             mode = [\"embed\", \"carve\"]\nsamples = 4\nshard_size = 4\nseed = 1\n{extra}\n\
+             [[classes]]\nfamily = {families}\n"
+        )
+    }
+
     #[test]
     fn carve_strata_with_copies_get_tubes_the_largest_copy_keeps_where_they_fit() {
-        let text = r#"
-schema_version = 1
-name = "floors"
-dimension = 4
-side = 32
-mode = ["embed", "carve"]
-samples = 4
-shard_size = 4
-seed = 1
-resolutions = [16, 8]
-
-[[classes]]
-family = ["ball", "t2_x_b2"]
-"#;
+        let text = &both_modes_4d_32("resolutions = [16, 8]\n", r#"["ball", "t2_x_b2"]"#);
         let floors = |text: &str| -> Vec<(String, f64)> {
             plan(text)
                 .unwrap()
@@ -996,20 +991,7 @@ family = ["ball", "t2_x_b2"]
 
     #[test]
     fn the_plan_decides_every_analytic_label_field_once() {
-        let text = r#"
-schema_version = 1
-name = "klein"
-dimension = 4
-side = 32
-mode = ["embed", "carve"]
-samples = 4
-shard_size = 4
-seed = 1
-
-[[classes]]
-family = ["klein_bottle", "handle"]
-"#;
-        let plan = plan(text).unwrap();
+        let plan = plan(&both_modes_4d_32("", r#"["klein_bottle", "handle"]"#)).unwrap();
         let labels: Vec<_> = plan
             .strata
             .iter()

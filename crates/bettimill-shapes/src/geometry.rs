@@ -30,6 +30,8 @@ pub(crate) const ORIGIN: P = [0.0; 4];
 pub(crate) const TUBE_MIN: f64 = 2.0;
 /// Smallest half-thickness of a shell.
 pub(crate) const SHELL_MIN: f64 = 1.5;
+/// Smallest gap between surfaces of two parts of one object that must not touch.
+pub(crate) const INNER_GAP: f64 = 2.5;
 
 /// The thinnest tube (or shell half-thickness, or ball radius) a construction may have:
 /// [`TubeFloor::USUAL`] (the labels note's 2 voxels), or thicker so that a max-pooled
@@ -77,8 +79,6 @@ impl TubeFloor {
         (minimum.max(self.0), cap.max(self.0))
     }
 }
-/// Smallest gap between surfaces of two parts of one object that must not touch.
-pub(crate) const INNER_GAP: f64 = 2.5;
 
 /// Greatest common divisor (the number of components of the torus link T(a, b)).
 pub(crate) fn gcd(a: u32, b: u32) -> u32 {

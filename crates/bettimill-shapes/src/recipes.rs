@@ -10,7 +10,7 @@
 
 use crate::curves;
 use crate::geometry::{
-    add, axis, uniform, Piece, Solid, INNER_GAP, ORIGIN, P, SHELL_MIN, TUBE_MIN,
+    add, axis, uniform, Piece, Solid, TubeFloor, INNER_GAP, ORIGIN, P, SHELL_MIN, TUBE_MIN,
 };
 use crate::labels::tunnel_cycles;
 use crate::Family;
@@ -197,9 +197,9 @@ fn connected_sum(
     out
 }
 
-/// The tube radius range of a family: `(minimum, cap)`.
-pub(crate) fn tube_range(family: &Family) -> (f64, f64) {
-    match family {
+/// The tube radius range of a family, `(minimum, cap)`, raised to `floor`.
+pub(crate) fn tube_range(family: &Family, floor: TubeFloor) -> (f64, f64) {
+    floor.raise(match family {
         Family::Ball => (TUBE_MIN, TUBE_MIN),
         Family::Shell | Family::TorusShell => (SHELL_MIN, 3.0),
         Family::Tunnel { .. } if tunnel_cycles(family) == 0 => (TUBE_MIN, TUBE_MIN),
@@ -210,7 +210,7 @@ pub(crate) fn tube_range(family: &Family) -> (f64, f64) {
         | Family::SpunLink { .. }
         | Family::Curve => (TUBE_MIN, 3.0),
         _ => (TUBE_MIN, 4.0),
-    }
+    })
 }
 
 /// How many random shares a family's recipe uses.

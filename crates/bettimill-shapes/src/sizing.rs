@@ -27,7 +27,7 @@ pub(crate) fn min_extent(family: &Family, dim: usize, floor: TubeFloor) -> Optio
         Family::Tentacled { object, .. } => object,
         other => other,
     };
-    let (tube, _) = floor.raise(tube_range(family));
+    let (tube, _) = tube_range(family, floor);
     let shares = Shares::minimal(share_count(family));
     make(family, dim, tube, 0.0, &shares).map(|s| s.extent())
 }
@@ -67,7 +67,7 @@ pub(crate) fn build(
             json!({"host": params, "tentacles_requested": tentacles, "tentacles_placed": placed}),
         ));
     }
-    let (tube_min, tube_cap) = floor.raise(tube_range(family));
+    let (tube_min, tube_cap) = tube_range(family, floor);
     let shares = Shares::draw(share_count(family), rng);
     let extent = |tube: f64, grow: f64| -> Option<f64> {
         make(family, dim, tube, grow, &shares).map(|s| s.extent())
@@ -184,7 +184,7 @@ pub(crate) fn build_volume(
         let target = draw_target(family, minimum, upper.max(minimum), rng);
         return build(family, dim, target, floor, rng);
     }
-    let (tube_min, tube_cap) = floor.raise(tube_range(family));
+    let (tube_min, tube_cap) = tube_range(family, floor);
     // A family with a fixed tube (a ball) grows by `grow`; the others may thicken up to
     // what fits, keeping `VOLUME_GROW_MIN` of growth.
     let fixed_tube = tube_cap <= tube_min;
