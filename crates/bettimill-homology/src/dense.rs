@@ -25,7 +25,9 @@
 //! Over Z/2 both preserve the homology of the remaining set of cells taken with the
 //! restricted boundary (an S-complex in the sense of Mrozek and Batko): the reduced chain
 //! complex differs from the old one only by the deleted pair. Coreductions need a start, so
-//! when no pair is left an alive vertex v is removed, which turns the homology into that of
+//! when no pair is left an alive vertex v is removed (the first time, the one nearest the
+//! centre of the grid: started from a corner, the waves stalled on a random 4D image with
+//! ten times the cells, issue 18), which turns the homology into that of
 //! the pair (X, V) with V the removed vertices. For k >= 2 the long exact sequence of (X, V)
 //! gives H_k(X, V) = H_k(X), and in low degrees dim H_0(X, V) = b_0 - c and
 //! dim H_1(X, V) = b_1 + m - c, where m = |V| and c is the number of components V meets.
@@ -75,6 +77,8 @@ pub(crate) struct DenseComplex {
     down_same: [u16; 16],
     /// The local codes' bits: 2^d - 1.
     all_codes: u32,
+    /// Twice the coordinates of the grid's centre.
+    doubled_centre: [usize; 4],
     /// Presence bits of the cells each voxel owns, by place.
     masks: Vec<u16>,
     /// The place of every voxel that has owned a cell, in the order of the first insertion.
@@ -116,6 +120,9 @@ impl DenseComplex {
             up_same,
             down_same,
             all_codes,
+            doubled_centre: std::array::from_fn(|axis| {
+                shape.get(axis).map_or(0, |&n| n.saturating_sub(1))
+            }),
             masks: vec![0; bricks << (2 * d)],
             owners: Vec::new(),
         }
@@ -296,6 +303,34 @@ impl DenseComplex {
         }
     }
 
+    /// The coordinates of the voxel at `place` (the inverse of [`DenseComplex::place`]).
+    fn coords(&self, place: usize) -> [usize; 4] {
+        let mut coords = [0usize; 4];
+        let mut brick = place >> (2 * self.d);
+        for axis in 0..self.d {
+            let bricks = self.brick_step[axis] >> (2 * self.d);
+            coords[axis] = 4 * (brick / bricks) + (place >> self.shift[axis] & 3);
+            brick %= bricks;
+        }
+        coords
+    }
+
+    /// The owner of the alive vertex nearest the centre of the grid (the first in owner
+    /// order among the nearest), if any vertex is alive.
+    fn central_vertex(&self) -> Option<usize> {
+        let top = self.all_codes;
+        self.owners
+            .iter()
+            .copied()
+            .filter(|&o| self.has(o, top))
+            .min_by_key(|&o| {
+                let c = self.coords(o);
+                (0..self.d)
+                    .map(|axis| (2 * c[axis]).abs_diff(self.doubled_centre[axis]).pow(2))
+                    .sum::<usize>()
+            })
+    }
+
     /// Betti numbers b_0..b_d over Z/2 (module docs for the method), given b_0, the
     /// number of connected components, which the caller counts on its voxels (far fewer
     /// than the complex's vertices). Consumes the complex: the reduction deletes cells as it
@@ -343,6 +378,7 @@ impl DenseComplex {
         }
         let mut removed_vertices = 0u64;
         let mut next = 0usize;
+        let mut first_wave = true;
         loop {
             while let Some(c) = queue.pop_front() {
                 let (o, code) = split(c);
@@ -364,11 +400,26 @@ impl DenseComplex {
                 self.queue_new_candidates(o, code, &mut queue);
                 self.queue_new_candidates(po, pcode, &mut queue);
             }
-            while next < self.owners.len() && !self.has(self.owners[next], top) {
-                next += 1;
-            }
-            let Some(&o) = self.owners.get(next) else {
-                break;
+            // The first wave starts at the centre: from a corner (the first owner) the
+            // waves of a rough image's coreductions stalled with ten times the cells
+            // (issue 18).
+            let central = if first_wave {
+                first_wave = false;
+                self.central_vertex()
+            } else {
+                None
+            };
+            let o = match central {
+                Some(o) => o,
+                None => {
+                    while next < self.owners.len() && !self.has(self.owners[next], top) {
+                        next += 1;
+                    }
+                    let Some(&o) = self.owners.get(next) else {
+                        break;
+                    };
+                    o
+                }
             };
             removed_vertices += 1;
             self.masks[o] &= !(1 << top);
@@ -532,6 +583,39 @@ mod tests {
                 .0,
             vec![0; 5]
         );
+    }
+
+    /// `coords` inverts `place` on a grid whose sides are not multiples of the brick, and
+    /// the first coreduction wave's vertex is the one nearest the centre, not the first
+    /// owner.
+    #[test]
+    fn places_invert_and_the_first_wave_starts_at_the_centre() {
+        let shape = [9, 6, 7, 5];
+        let complex = DenseComplex::new(&shape);
+        let mut seen = std::collections::BTreeSet::new();
+        for index in 0..shape.iter().product::<usize>() {
+            let mut rest = index;
+            let mut coords = [0usize; 4];
+            for axis in (0..4).rev() {
+                coords[axis] = rest % shape[axis];
+                rest /= shape[axis];
+            }
+            let place = complex.place(&coords);
+            assert!(seen.insert(place), "{coords:?}");
+            assert_eq!(complex.coords(place), coords);
+        }
+        // Three voxels: two at the ends of the first axis, one in the middle. A voxel's
+        // own vertex (every code axis even) is its far corner.
+        let mut image = BinaryImage::zeros(&[11, 5, 5, 5]).unwrap();
+        for x in [1, 5, 9] {
+            image.set(&[x, 2, 2, 2], true);
+        }
+        let complex = DenseComplex::of_image(&image);
+        let centre = complex.central_vertex().expect("vertices are alive");
+        let c = complex.coords(centre);
+        // The middle voxel's corners are owned by it or by its neighbours one step back.
+        assert!((4..=5).contains(&c[0]), "{c:?}");
+        assert_eq!(complex.owners[0], complex.place(&[1, 2, 2, 2]));
     }
 
     /// Every cell has one owner: a voxel's closure is 3^d distinct cells, and the closures

@@ -277,7 +277,9 @@ fn every_4d_route_agrees_on_rough_images() {
         }
         general += every_route_agrees(&name, &image, &expected);
     }
-    assert!(general > 1000, "{general} general pivots");
+    // Hundreds of general pivots (since the first coreduction wave starts at the centre,
+    // these remnants stall on a few thousand cells, not tens of thousands).
+    assert!(general > 500, "{general} general pivots");
 }
 
 /// A pool that would pass its limit is an error of `try_topology`, not a panic or a wrong
@@ -286,7 +288,7 @@ fn every_4d_route_agrees_on_rough_images() {
 #[test]
 fn a_pool_over_its_limit_is_an_error() {
     let mut rng = ChaCha8Rng::seed_from_u64(91);
-    let image = random_image(&mut rng, &[12; 4], 0.5);
+    let image = random_image(&mut rng, &[16; 4], 0.5);
     let expected = topology(&image);
     assert!(expected.betti[2] > 0, "{:?}", expected.betti);
     for limit in [0, 10, 100] {
