@@ -307,9 +307,9 @@ impl DenseComplex {
     fn coords(&self, place: usize) -> [usize; 4] {
         let mut coords = [0usize; 4];
         let mut brick = place >> (2 * self.d);
-        for axis in 0..self.d {
+        for (axis, coord) in coords.iter_mut().enumerate().take(self.d) {
             let bricks = self.brick_step[axis] >> (2 * self.d);
-            coords[axis] = 4 * (brick / bricks) + (place >> self.shift[axis] & 3);
+            *coord = 4 * (brick / bricks) + (place >> self.shift[axis] & 3);
             brick %= bricks;
         }
         coords
