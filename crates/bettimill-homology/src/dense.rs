@@ -81,13 +81,16 @@ pub(crate) struct DenseComplex {
     doubled_centre: [usize; 4],
     /// Presence bits of the cells each voxel owns, by place.
     masks: Vec<u16>,
-    /// The place of every voxel that has owned a cell, in the order of the first insertion.
-    owners: Vec<usize>,
+    /// The place of every voxel that has owned a cell, in the order of the first insertion
+    /// (places fit 32 bits: [`DenseComplex::new`] checks the grid).
+    owners: Vec<u32>,
 }
 
 impl DenseComplex {
-    /// An empty complex in the grid of an image of `shape` (1 to 4 axes, C order).
-    pub(crate) fn new(shape: &[usize]) -> DenseComplex {
+    /// An empty complex in the grid of an image of `shape` (1 to 4 axes, C order), or an
+    /// error when the grid has more than 2^32 places (a 4D image over about 250 voxels a
+    /// side): places are held in 32 bits, 4 bytes per owner and queued cell instead of 8.
+    pub(crate) fn new(shape: &[usize]) -> Result<DenseComplex, GridTooLarge> {
         let d = shape.len();
         assert!(
             (1..=4).contains(&d),
@@ -101,6 +104,8 @@ impl DenseComplex {
             brick_step[axis] = bricks << (2 * d);
             bricks *= shape[axis].div_ceil(4);
         }
+        let places = check_grid(shape)?;
+        debug_assert_eq!(places, bricks << (2 * d));
         let all_codes = (1u32 << d) - 1;
         let mut up_same = [0u16; 16];
         let mut down_same = [0u16; 16];
@@ -113,7 +118,7 @@ impl DenseComplex {
                 }
             }
         }
-        DenseComplex {
+        Ok(DenseComplex {
             d,
             shift,
             brick_step,
@@ -123,9 +128,9 @@ impl DenseComplex {
             doubled_centre: std::array::from_fn(|axis| {
                 shape.get(axis).map_or(0, |&n| n.saturating_sub(1))
             }),
-            masks: vec![0; bricks << (2 * d)],
+            masks: vec![0; places],
             owners: Vec::new(),
-        }
+        })
     }
 
     /// The place of the voxel at `coords`.
@@ -169,7 +174,7 @@ impl DenseComplex {
     pub(crate) fn insert(&mut self, owner: usize, code: u32) {
         let mask = &mut self.masks[owner];
         if *mask == 0 {
-            self.owners.push(owner);
+            self.owners.push(owner as u32);
         }
         *mask |= 1 << code;
     }
@@ -201,7 +206,7 @@ impl DenseComplex {
     /// be background.
     #[cfg(test)]
     pub(crate) fn of_image(image: &bettimill_grid::BinaryImage) -> DenseComplex {
-        let mut complex = DenseComplex::new(image.shape());
+        let mut complex = DenseComplex::new(image.shape()).expect("a small test grid");
         let offsets = bettimill_grid::neighbourhood::full_offsets(image.dim());
         let places = complex.face_places(&offsets);
         for (index, &v) in image.data().iter().enumerate() {
@@ -279,7 +284,7 @@ impl DenseComplex {
     /// cofacet (free faces now) and its alive cofacets that are left with one facet
     /// (coreducible now). A cell's counts only drop when a neighbour goes, so every cell
     /// that becomes a candidate is queued at that moment.
-    fn queue_new_candidates(&self, owner: usize, code: u32, queue: &mut VecDeque<u64>) {
+    fn queue_new_candidates(&self, owner: usize, code: u32, queue: &mut CellQueue) {
         for axis in 0..self.d {
             let c = code ^ 1 << axis;
             let upward = code >> axis & 1 == 1;
@@ -296,7 +301,7 @@ impl DenseComplex {
                         self.cofacet_count(o, c)
                     };
                     if count == 1 {
-                        queue.push_back(cell(o, c));
+                        queue.push(o, c);
                     }
                 }
             }
@@ -321,7 +326,7 @@ impl DenseComplex {
         let top = self.all_codes;
         self.owners
             .iter()
-            .copied()
+            .map(|&o| o as usize)
             .filter(|&o| self.has(o, top))
             .min_by_key(|&o| {
                 let c = self.coords(o);
@@ -355,7 +360,7 @@ impl DenseComplex {
             .owners
             .iter()
             .map(|&o| {
-                let mask = self.masks[o];
+                let mask = self.masks[o as usize];
                 (mask & even_codes).count_ones() as i64 - (mask & !even_codes).count_ones() as i64
             })
             .sum();
@@ -365,14 +370,15 @@ impl DenseComplex {
         // Free faces start the collapses; first in, first out, so that coreductions spread
         // from a removed vertex in waves, which leaves far fewer cells stuck than
         // depth-first order does.
-        let mut queue = VecDeque::new();
+        let mut queue = CellQueue::default();
         for &o in &self.owners {
+            let o = o as usize;
             let mut rest = self.masks[o];
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
                 if self.cofacet_count(o, code) == 1 {
-                    queue.push_back(cell(o, code));
+                    queue.push(o, code);
                 }
             }
         }
@@ -380,8 +386,7 @@ impl DenseComplex {
         let mut next = 0usize;
         let mut first_wave = true;
         loop {
-            while let Some(c) = queue.pop_front() {
-                let (o, code) = split(c);
+            while let Some((o, code)) = queue.pop() {
                 if !self.has(o, code) {
                     continue;
                 }
@@ -412,13 +417,13 @@ impl DenseComplex {
             let o = match central {
                 Some(o) => o,
                 None => {
-                    while next < self.owners.len() && !self.has(self.owners[next], top) {
+                    while next < self.owners.len() && !self.has(self.owners[next] as usize, top) {
                         next += 1;
                     }
                     let Some(&o) = self.owners.get(next) else {
                         break;
                     };
-                    o
+                    o as usize
                 }
             };
             removed_vertices += 1;
@@ -431,7 +436,7 @@ impl DenseComplex {
         // Counted first, so that each list is allocated once at its size.
         let mut counts = vec![0usize; d + 1];
         for &o in &self.owners {
-            let mut rest = self.masks[o];
+            let mut rest = self.masks[o as usize];
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
@@ -533,6 +538,91 @@ impl DenseComplex {
     }
 }
 
+/// [`DenseComplex::new`] refused a grid: its places would not fit 32 bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct GridTooLarge {
+    /// The places the grid needs (voxels, rounded up to whole bricks).
+    pub(crate) places: usize,
+}
+
+/// The places of the grid of an image of `shape` (its voxels, rounded up to whole bricks of
+/// 4^d), or an error when they would not fit 32 bits.
+pub(crate) fn check_grid(shape: &[usize]) -> Result<usize, GridTooLarge> {
+    let places = shape
+        .iter()
+        .try_fold(1usize, |n, &side| n.checked_mul(side.div_ceil(4) * 4))
+        .unwrap_or(usize::MAX);
+    if places > 1 << 32 {
+        Err(GridTooLarge { places })
+    } else {
+        Ok(places)
+    }
+}
+
+/// Cells in first-in, first-out order, 5 bytes each (a 32-bit place and a code) in blocks
+/// of [`CellQueue::BLOCK`], recycled as they empty: the queue's memory follows its
+/// length. On a random 4D image it holds about one cell per voxel at its peak; a
+/// `VecDeque<u64>` took 16 bytes per cell there (8 bytes, doubled capacity, and every page
+/// touched as the ring turns).
+#[derive(Default)]
+struct CellQueue {
+    blocks: VecDeque<(Vec<u32>, Vec<u8>)>,
+    /// The next cell to pop in the front block.
+    head: usize,
+    /// An emptied block, kept for the next one needed.
+    spare: Option<(Vec<u32>, Vec<u8>)>,
+}
+
+impl CellQueue {
+    const BLOCK: usize = 1 << 14;
+
+    #[inline]
+    fn push(&mut self, owner: usize, code: u32) {
+        if self
+            .blocks
+            .back()
+            .is_none_or(|(places, _)| places.len() == Self::BLOCK)
+        {
+            let block = self.spare.take().unwrap_or_else(|| {
+                (
+                    Vec::with_capacity(Self::BLOCK),
+                    Vec::with_capacity(Self::BLOCK),
+                )
+            });
+            self.blocks.push_back(block);
+        }
+        let (places, codes) = self.blocks.back_mut().expect("a block was pushed");
+        places.push(owner as u32);
+        codes.push(code as u8);
+    }
+
+    #[inline]
+    fn pop(&mut self) -> Option<(usize, u32)> {
+        loop {
+            let (places, codes) = self.blocks.front()?;
+            if self.head < places.len() {
+                let cell = (places[self.head] as usize, codes[self.head] as u32);
+                self.head += 1;
+                return Some(cell);
+            }
+            // The front block is used up: recycled if it is full (the back block goes on
+            // filling otherwise), and the queue is empty when it was the last one.
+            if places.len() < Self::BLOCK {
+                let (places, codes) = self.blocks.front_mut().expect("just read");
+                places.clear();
+                codes.clear();
+                self.head = 0;
+                return None;
+            }
+            let (mut places, mut codes) = self.blocks.pop_front().expect("just read");
+            places.clear();
+            codes.clear();
+            self.spare = Some((places, codes));
+            self.head = 0;
+        }
+    }
+}
+
 #[inline]
 fn cell(owner: usize, code: u32) -> u64 {
     (owner as u64) << 4 | code as u64
@@ -591,7 +681,7 @@ mod tests {
     #[test]
     fn places_invert_and_the_first_wave_starts_at_the_centre() {
         let shape = [9, 6, 7, 5];
-        let complex = DenseComplex::new(&shape);
+        let complex = DenseComplex::new(&shape).unwrap();
         let mut seen = std::collections::BTreeSet::new();
         for index in 0..shape.iter().product::<usize>() {
             let mut rest = index;
@@ -615,7 +705,49 @@ mod tests {
         let c = complex.coords(centre);
         // The middle voxel's corners are owned by it or by its neighbours one step back.
         assert!((4..=5).contains(&c[0]), "{c:?}");
-        assert_eq!(complex.owners[0], complex.place(&[1, 2, 2, 2]));
+        assert_eq!(complex.owners[0] as usize, complex.place(&[1, 2, 2, 2]));
+    }
+
+    /// Grids whose places fit 32 bits are accepted, larger ones (and shapes whose product
+    /// overflows) are an error, not a wrong place.
+    #[test]
+    fn grids_over_32_bit_places_are_refused() {
+        assert_eq!(check_grid(&[256; 4]), Ok(1 << 32));
+        assert_eq!(check_grid(&[253, 254, 255, 256]), Ok(1 << 32));
+        assert_eq!(
+            check_grid(&[257, 256, 256, 256]),
+            Err(GridTooLarge {
+                places: 260 * 256 * 256 * 256
+            })
+        );
+        assert!(check_grid(&[usize::MAX / 2; 4]).is_err());
+        assert!(DenseComplex::new(&[300; 4]).is_err());
+    }
+
+    /// A queue of cells gives them back in the order they came, across blocks, with pops
+    /// between the pushes and after it ran empty.
+    #[test]
+    fn the_cell_queue_is_first_in_first_out() {
+        let mut queue = CellQueue::default();
+        let mut expected = VecDeque::new();
+        let mut next = 0usize;
+        for round in 0..5 {
+            for _ in 0..(round * 7919) % (3 * CellQueue::BLOCK) + 1 {
+                queue.push(next, (next % 16) as u32);
+                expected.push_back((next, (next % 16) as u32));
+                next += 1;
+            }
+            for _ in 0..(round * 5003) % (2 * CellQueue::BLOCK) {
+                assert_eq!(queue.pop(), expected.pop_front());
+            }
+        }
+        while let Some(cell) = expected.pop_front() {
+            assert_eq!(queue.pop(), Some(cell));
+        }
+        assert_eq!(queue.pop(), None);
+        queue.push(7, 3);
+        assert_eq!(queue.pop(), Some((7, 3)));
+        assert_eq!(queue.pop(), None);
     }
 
     /// Every cell has one owner: a voxel's closure is 3^d distinct cells, and the closures

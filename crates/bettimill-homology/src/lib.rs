@@ -86,6 +86,25 @@ pub enum TopologyError {
         /// The most a pool holds.
         limit: u64,
     },
+    /// A 4D image too large for the exact route's 32-bit places: with its border, rounded
+    /// up to bricks of 4^4 voxels, it has more than 2^32 voxels (about 254 a side; such an
+    /// image is over 4 GiB of bytes).
+    #[error(
+        "the 4D image is too large for the exact route: {places} voxels with its border \
+         (rounded up to bricks of 4^4), over 2^32 (crop or split the image)"
+    )]
+    TooLarge {
+        /// The voxels the complex's grid would have.
+        places: u64,
+    },
+}
+
+impl From<dense::GridTooLarge> for TopologyError {
+    fn from(grid: dense::GridTooLarge) -> TopologyError {
+        TopologyError::TooLarge {
+            places: grid.places as u64,
+        }
+    }
 }
 
 impl From<eliminate::PoolOverflow> for TopologyError {
@@ -111,6 +130,11 @@ pub fn topology(image: &BinaryImage) -> Topology {
 /// The exact Betti numbers (over Z/2) and Euler characteristic of `image`, or an error when
 /// they cannot be computed exactly ([`TopologyError`]).
 pub fn try_topology(image: &BinaryImage) -> Result<Topology, TopologyError> {
+    if image.dim() == Dim::Four {
+        // Checked before the padded copy and the thinning, which would be wasted.
+        let padded_shape: Vec<usize> = image.shape().iter().map(|&n| n + 2).collect();
+        dense::check_grid(&padded_shape)?;
+    }
     let padded = image.padded(1);
     match image.dim() {
         Dim::Two | Dim::Three => Ok(topology_from_counts(&padded)),
@@ -165,7 +189,7 @@ fn topology_by_thinning_with(
     let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
     let steps = flat_offsets(&padded, tester.offsets());
     let b0 = components::count_components_of(padded.data_mut(), &remaining, &steps);
-    let complex = remnant_complex(&padded, &remaining, &tester);
+    let complex = remnant_complex(&padded, &remaining, &tester)?;
     // The image and the survivors' list are not needed by the reduction: freed before its
     // lists are built (a random image's peak).
     drop(remaining);
@@ -187,13 +211,13 @@ fn remnant_complex(
     padded: &BinaryImage,
     remaining: &[usize],
     tester: &simple::SimpleTester,
-) -> DenseComplex {
+) -> Result<DenseComplex, dense::GridTooLarge> {
     let offsets = tester.offsets();
     let n = offsets.len();
     let cell_bit = 1u128 << n;
     let every_face = cell_bit - 1;
     let cofaces = tester.cofaces_with_cell();
-    let mut complex = DenseComplex::new(padded.shape());
+    let mut complex = DenseComplex::new(padded.shape())?;
     let places = complex.face_places(offsets);
     let strides = padded.strides().to_vec();
     let data = padded.data();
@@ -231,7 +255,7 @@ fn remnant_complex(
             complex.insert(around[0], 0);
         }
     }
-    complex
+    Ok(complex)
 }
 
 /// Any dimension, through the background: the object's Betti numbers are those of the
@@ -284,7 +308,7 @@ fn background_cores(
     // by voxel centres v + {0,1}^S for a set S of axes) is present when all its corners
     // are. Its Khalimsky coordinates are 2 v_a + 1 along the axes of S and 2 v_a (even,
     // owned one voxel back: see `dense`) along the others.
-    let mut complex = DenseComplex::new(&shape);
+    let mut complex = DenseComplex::new(&shape)?;
     for &i in &cores {
         let around = complex.owners_around(complex.place(&padded.coords(i)));
         'cubes: for subset in 0usize..1 << d {
