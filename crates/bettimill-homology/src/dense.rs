@@ -564,61 +564,83 @@ pub(crate) fn check_grid(shape: &[usize]) -> Result<usize, GridTooLarge> {
 /// length. On a random 4D image it holds about one cell per voxel at its peak; a
 /// `VecDeque<u64>` took 16 bytes per cell there (8 bytes, doubled capacity, and every page
 /// touched as the ring turns).
-#[derive(Default)]
 struct CellQueue {
-    blocks: VecDeque<(Vec<u32>, Vec<u8>)>,
-    /// The next cell to pop in the front block.
+    /// Full blocks, oldest first.
+    full: VecDeque<Block>,
+    /// The block being filled.
+    tail: Block,
+    /// The next cell to pop: in the front full block, or in `tail` when there is none.
     head: usize,
     /// An emptied block, kept for the next one needed.
-    spare: Option<(Vec<u32>, Vec<u8>)>,
+    spare: Option<Block>,
+}
+
+/// A block of [`CellQueue`]: places and codes.
+type Block = (Vec<u32>, Vec<u8>);
+
+impl Default for CellQueue {
+    fn default() -> CellQueue {
+        CellQueue {
+            full: VecDeque::new(),
+            tail: CellQueue::block(),
+            head: 0,
+            spare: None,
+        }
+    }
 }
 
 impl CellQueue {
     const BLOCK: usize = 1 << 14;
 
+    fn block() -> Block {
+        (
+            Vec::with_capacity(Self::BLOCK),
+            Vec::with_capacity(Self::BLOCK),
+        )
+    }
+
     #[inline]
     fn push(&mut self, owner: usize, code: u32) {
-        if self
-            .blocks
-            .back()
-            .is_none_or(|(places, _)| places.len() == Self::BLOCK)
-        {
-            let block = self.spare.take().unwrap_or_else(|| {
-                (
-                    Vec::with_capacity(Self::BLOCK),
-                    Vec::with_capacity(Self::BLOCK),
-                )
-            });
-            self.blocks.push_back(block);
+        if self.tail.0.len() == Self::BLOCK {
+            self.start_block();
         }
-        let (places, codes) = self.blocks.back_mut().expect("a block was pushed");
-        places.push(owner as u32);
-        codes.push(code as u8);
+        self.tail.0.push(owner as u32);
+        self.tail.1.push(code as u8);
+    }
+
+    /// Files the full tail block and starts another.
+    #[cold]
+    fn start_block(&mut self) {
+        let block = self.spare.take().unwrap_or_else(CellQueue::block);
+        let full = std::mem::replace(&mut self.tail, block);
+        self.full.push_back(full);
     }
 
     #[inline]
     fn pop(&mut self) -> Option<(usize, u32)> {
         loop {
-            let (places, codes) = self.blocks.front()?;
+            let (places, codes) = self.full.front().unwrap_or(&self.tail);
             if self.head < places.len() {
                 let cell = (places[self.head] as usize, codes[self.head] as u32);
                 self.head += 1;
                 return Some(cell);
             }
-            // The front block is used up: recycled if it is full (the back block goes on
-            // filling otherwise), and the queue is empty when it was the last one.
-            if places.len() < Self::BLOCK {
-                let (places, codes) = self.blocks.front_mut().expect("just read");
-                places.clear();
-                codes.clear();
-                self.head = 0;
-                return None;
-            }
-            let (mut places, mut codes) = self.blocks.pop_front().expect("just read");
-            places.clear();
-            codes.clear();
-            self.spare = Some((places, codes));
             self.head = 0;
+            match self.full.pop_front() {
+                // A used-up full block is kept for reuse; the tail comes next.
+                Some((mut places, mut codes)) => {
+                    places.clear();
+                    codes.clear();
+                    self.spare = Some((places, codes));
+                }
+                // The tail is used up too: the queue is empty, and the tail fills again
+                // from its start.
+                None => {
+                    self.tail.0.clear();
+                    self.tail.1.clear();
+                    return None;
+                }
+            }
         }
     }
 }

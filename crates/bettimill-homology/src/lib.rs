@@ -120,8 +120,9 @@ impl From<eliminate::PoolOverflow> for TopologyError {
 ///
 /// # Panics
 ///
-/// When [`try_topology`] returns an error: only on a 4D image too large and rough for the
-/// elimination's 32-bit lists ([`TopologyError::TooRough`]). Callers with images from
+/// When [`try_topology`] returns an error: only on a 4D image too large for 32-bit places
+/// ([`TopologyError::TooLarge`]) or too large and rough for the elimination's 32-bit lists
+/// ([`TopologyError::TooRough`]). Callers with images from
 /// outside (the CLI) call [`try_topology`].
 pub fn topology(image: &BinaryImage) -> Topology {
     try_topology(image).unwrap_or_else(|error| panic!("{error}"))
