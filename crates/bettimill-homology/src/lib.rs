@@ -26,8 +26,9 @@
 //!   1 GB instead of ~50 s and ~7 GB.
 //!
 //! Memory: the padded copy (one byte per voxel) plus the remnant's complex (two bytes per
-//! voxel of address space, written only where the remnant is); a 128^4 blob peaked at
-//! about 620 MB including the caller's copy of the image.
+//! voxel of address space, written only where the remnant is, four per owner voxel and five
+//! per queued cell); a 128^4 blob peaked at 1.15 GB, a random 64^4 image (whose remnant is
+//! most of it) at 343 MB, both including the caller's copy of the image (BENCHMARKS.md).
 //!
 //! [`simple`] decides whether one voxel can be flipped without changing the topology; it is
 //! the kernel of both deformations and of the thinning.
