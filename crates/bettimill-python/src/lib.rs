@@ -109,7 +109,8 @@ fn topology<'py>(
             image.count_foreground(),
         )
     });
-    // A huge rough image the exact rank cannot hold is a ValueError, never a panic.
+    // An image too large (or too large and rough) for the exact route is a ValueError,
+    // never a panic.
     let topology = topology.map_err(|error| PyValueError::new_err(error.to_string()))?;
     let dict = PyDict::new(py);
     dict.set_item("betti", &topology.betti)?;
