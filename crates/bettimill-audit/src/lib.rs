@@ -573,8 +573,8 @@ fn relabel_sample(dataset: &Dataset, shard: &str, key: &str, fields: &Fields) ->
         };
         let topology = match bettimill_homology::try_topology(&image) {
             Ok(topology) => topology,
-            Err(too_large) => {
-                out.undecodable(member, too_large.to_string());
+            Err(error) => {
+                out.undecodable(member, error.to_string());
                 continue;
             }
         };

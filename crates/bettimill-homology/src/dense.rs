@@ -37,8 +37,9 @@
 //! mismatch panics rather than returning a wrong answer. The cells left are ranked
 //! explicitly (boundary matrices, top dimension first, with clearing) by elimination with
 //! free pivots first ([`crate::eliminate`]). That matters on rough images: the pairs can
-//! stall with over a million edges and squares left (a random 32^4 image, issue 18), where
-//! a plain column reduction filled in quadratically (over 1000 s).
+//! stall with over a million edges and squares left (a random 48^4 image, issue 18), where
+//! a plain column reduction filled in quadratically (over 1000 s at 32^4 when the waves
+//! started in a corner).
 //!
 //! [`crate::reference`] reduces the plain boundary matrices of the whole, unreduced complex
 //! (`CellComplex::betti_by_boundaries`), so the two check each other.
@@ -88,14 +89,16 @@ pub(crate) struct DenseComplex {
 
 impl DenseComplex {
     /// An empty complex in the grid of an image of `shape` (1 to 4 axes, C order), or an
-    /// error when the grid has more than 2^32 places (a 4D image over about 250 voxels a
-    /// side): places are held in 32 bits, 4 bytes per owner and queued cell instead of 8.
+    /// error when the grid has more than 2^32 places ([`check_grid`]): places are held in
+    /// 32 bits, 4 bytes per owner and 5 per queued cell instead of 8 and 8.
     pub(crate) fn new(shape: &[usize]) -> Result<DenseComplex, GridTooLarge> {
         let d = shape.len();
         assert!(
             (1..=4).contains(&d),
             "{d} axes: dense complexes have 1 to 4"
         );
+        // Checked first: the brick counts below cannot overflow once the places fit.
+        let places = check_grid(shape)?;
         let mut shift = [0u32; 4];
         let mut brick_step = [0usize; 4];
         let mut bricks = 1;
@@ -104,7 +107,6 @@ impl DenseComplex {
             brick_step[axis] = bricks << (2 * d);
             bricks *= shape[axis].div_ceil(4);
         }
-        let places = check_grid(shape)?;
         debug_assert_eq!(places, bricks << (2 * d));
         let all_codes = (1u32 << d) - 1;
         let mut up_same = [0u16; 16];
@@ -320,8 +322,9 @@ impl DenseComplex {
         coords
     }
 
-    /// The owner of the alive vertex nearest the centre of the grid (the first in owner
-    /// order among the nearest), if any vertex is alive.
+    /// The owner of an alive vertex whose owner voxel is nearest the centre of the grid
+    /// (the first in owner order among the nearest; the vertex itself is half a voxel
+    /// further along every axis), if any vertex is alive.
     fn central_vertex(&self) -> Option<usize> {
         let top = self.all_codes;
         self.owners
@@ -448,6 +451,15 @@ impl DenseComplex {
         // already in that order; when they are few (a smooth image), from the owners, and
         // sorted: the scan would cost more than the sort (a 64^4 blob has 21 million places
         // and a few thousand cells left).
+        let few = counts.iter().sum::<usize>() < self.masks.len() / 64;
+        // The ranks only look cells up in the masks: the owners go before the lists grow
+        // (unless the lists come from them).
+        let owners = if few {
+            std::mem::take(&mut self.owners)
+        } else {
+            self.owners = Vec::new();
+            Vec::new()
+        };
         let mut by_dim: Vec<Vec<u64>> = counts.iter().map(|&n| Vec::with_capacity(n)).collect();
         let mut push_cells = |o: usize, mask: u16| {
             let mut rest = mask;
@@ -457,8 +469,8 @@ impl DenseComplex {
                 by_dim[d - code.count_ones() as usize].push(cell(o, code));
             }
         };
-        if counts.iter().sum::<usize>() < self.masks.len() / 64 {
-            for &o in &self.owners {
+        if few {
+            for o in owners {
                 push_cells(o as usize, self.masks[o as usize]);
             }
             for cells in &mut by_dim {
@@ -469,8 +481,6 @@ impl DenseComplex {
                 push_cells(o, mask);
             }
         }
-        // The ranks only look cells up in the masks.
-        self.owners = Vec::new();
         debug_assert!(by_dim
             .iter()
             .all(|cells| cells.windows(2).all(|w| w[0] < w[1])));
@@ -556,21 +566,23 @@ impl DenseComplex {
 /// [`DenseComplex::new`] refused a grid: its places would not fit 32 bits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct GridTooLarge {
-    /// The places the grid needs (voxels, rounded up to whole bricks).
-    pub(crate) places: usize,
+    /// The places the grid needs (voxels, each side rounded up to a multiple of 4; at most
+    /// `u64::MAX`).
+    pub(crate) places: u64,
 }
 
 /// The places of the grid of an image of `shape` (its voxels, rounded up to whole bricks of
 /// 4^d), or an error when they would not fit 32 bits.
 pub(crate) fn check_grid(shape: &[usize]) -> Result<usize, GridTooLarge> {
-    let places = shape
-        .iter()
-        .try_fold(1usize, |n, &side| n.checked_mul(side.div_ceil(4) * 4))
-        .unwrap_or(usize::MAX);
+    let places = shape.iter().fold(1u128, |n, &side| {
+        n.saturating_mul((side as u128).next_multiple_of(4))
+    });
     if places > 1 << 32 {
-        Err(GridTooLarge { places })
+        Err(GridTooLarge {
+            places: u64::try_from(places).unwrap_or(u64::MAX),
+        })
     } else {
-        Ok(places)
+        Ok(places as usize)
     }
 }
 
@@ -590,14 +602,31 @@ struct CellQueue {
     spare: Option<Block>,
 }
 
-/// A block of [`CellQueue`]: places and codes.
-type Block = (Vec<u32>, Vec<u8>);
+/// A block of [`CellQueue`]: the cells' places and codes.
+struct Block {
+    places: Vec<u32>,
+    codes: Vec<u8>,
+}
+
+impl Block {
+    fn new() -> Block {
+        Block {
+            places: Vec::with_capacity(CellQueue::BLOCK),
+            codes: Vec::with_capacity(CellQueue::BLOCK),
+        }
+    }
+
+    fn clear(&mut self) {
+        self.places.clear();
+        self.codes.clear();
+    }
+}
 
 impl Default for CellQueue {
     fn default() -> CellQueue {
         CellQueue {
             full: VecDeque::new(),
-            tail: CellQueue::block(),
+            tail: Block::new(),
             head: 0,
             spare: None,
         }
@@ -607,26 +636,19 @@ impl Default for CellQueue {
 impl CellQueue {
     const BLOCK: usize = 1 << 14;
 
-    fn block() -> Block {
-        (
-            Vec::with_capacity(Self::BLOCK),
-            Vec::with_capacity(Self::BLOCK),
-        )
-    }
-
     #[inline]
     fn push(&mut self, owner: usize, code: u32) {
-        if self.tail.0.len() == Self::BLOCK {
+        if self.tail.places.len() == Self::BLOCK {
             self.start_block();
         }
-        self.tail.0.push(owner as u32);
-        self.tail.1.push(code as u8);
+        self.tail.places.push(owner as u32);
+        self.tail.codes.push(code as u8);
     }
 
     /// Files the full tail block and starts another.
     #[cold]
     fn start_block(&mut self) {
-        let block = self.spare.take().unwrap_or_else(CellQueue::block);
+        let block = self.spare.take().unwrap_or_else(Block::new);
         let full = std::mem::replace(&mut self.tail, block);
         self.full.push_back(full);
     }
@@ -634,25 +656,26 @@ impl CellQueue {
     #[inline]
     fn pop(&mut self) -> Option<(usize, u32)> {
         loop {
-            let (places, codes) = self.full.front().unwrap_or(&self.tail);
-            if self.head < places.len() {
-                let cell = (places[self.head] as usize, codes[self.head] as u32);
+            let block = self.full.front().unwrap_or(&self.tail);
+            if self.head < block.places.len() {
+                let cell = (
+                    block.places[self.head] as usize,
+                    block.codes[self.head] as u32,
+                );
                 self.head += 1;
                 return Some(cell);
             }
             self.head = 0;
             match self.full.pop_front() {
                 // A used-up full block is kept for reuse; the tail comes next.
-                Some((mut places, mut codes)) => {
-                    places.clear();
-                    codes.clear();
-                    self.spare = Some((places, codes));
+                Some(mut block) => {
+                    block.clear();
+                    self.spare = Some(block);
                 }
                 // The tail is used up too: the queue is empty, and the tail fills again
                 // from its start.
                 None => {
-                    self.tail.0.clear();
-                    self.tail.1.clear();
+                    self.tail.clear();
                     return None;
                 }
             }
@@ -757,7 +780,14 @@ mod tests {
                 places: 260 * 256 * 256 * 256
             })
         );
-        assert!(check_grid(&[usize::MAX / 2; 4]).is_err());
+        assert_eq!(
+            check_grid(&[usize::MAX / 2; 4]),
+            Err(GridTooLarge { places: u64::MAX })
+        );
+        // The largest 4D cube manifests accept fits with its border; one more does not.
+        let side = crate::MAX_4D_SIDE;
+        assert!(check_grid(&[side + 2; 4]).is_ok());
+        assert!(check_grid(&[side + 3; 4]).is_err());
         assert!(DenseComplex::new(&[300; 4]).is_err());
     }
 

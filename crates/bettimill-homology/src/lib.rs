@@ -69,6 +69,12 @@ impl Topology {
     }
 }
 
+/// The largest side of a 4D cube whose Betti numbers [`try_topology`] computes: with a
+/// border of one voxel and each side rounded up to a multiple of 4, the image must have at
+/// most 2^32 voxels (32-bit places; (254 + 2)^4 = 2^32). Larger is
+/// [`TopologyError::TooLarge`]; manifests refuse larger 4D sides.
+pub const MAX_4D_SIDE: usize = 254;
+
 /// Why [`try_topology`] computed no Betti numbers.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum TopologyError {
@@ -87,12 +93,12 @@ pub enum TopologyError {
         /// The most a pool holds.
         limit: u64,
     },
-    /// A 4D image too large for the exact route's 32-bit places: with its border, rounded
-    /// up to bricks of 4^4 voxels, it has more than 2^32 voxels (about 254 a side; such an
-    /// image is over 4 GiB of bytes).
+    /// A 4D image too large for the exact route's 32-bit places: with a border of one voxel
+    /// and each side rounded up to a multiple of 4, it has more than 2^32 voxels (a cube
+    /// over [`MAX_4D_SIDE`] a side, or a very long thin image).
     #[error(
-        "the 4D image is too large for the exact route: {places} voxels with its border \
-         (rounded up to bricks of 4^4), over 2^32 (crop or split the image)"
+        "the 4D image is too large for the exact route: {places} voxels with its border, \
+         each side rounded up to a multiple of 4, over 2^32 (crop or split the image)"
     )]
     TooLarge {
         /// The voxels the complex's grid would have.
@@ -103,7 +109,7 @@ pub enum TopologyError {
 impl From<dense::GridTooLarge> for TopologyError {
     fn from(grid: dense::GridTooLarge) -> TopologyError {
         TopologyError::TooLarge {
-            places: grid.places as u64,
+            places: grid.places,
         }
     }
 }

@@ -30,6 +30,7 @@
 
 use bettimill_deform::DeformSettings;
 use bettimill_grid::{Dim, Mode};
+use bettimill_homology::MAX_4D_SIDE;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -471,6 +472,19 @@ impl Manifest {
                 source,
                 "side",
                 format!("{} is outside the supported range 8..=1024", self.side),
+            ));
+        }
+        // The exact Betti numbers of a larger 4D sample would be
+        // `TopologyError::TooLarge` in a worker.
+        if self.dimension.get() == 4 && self.side as usize > MAX_4D_SIDE {
+            return Err(ManifestError::invalid(
+                source,
+                "side",
+                format!(
+                    "{} is over {MAX_4D_SIDE}, the largest 4D side whose exact Betti numbers \
+                     bettimill computes (its places are 32-bit)",
+                    self.side
+                ),
             ));
         }
         let voxels = (self.side as u128).pow(self.dimension.get() as u32);

@@ -172,6 +172,27 @@ fn unreachable_hypervolume_bins_are_refused() {
     check_refused(&text, "bins", 15);
 }
 
+/// A 4D side the exact homology cannot address is refused when the manifest is read, not
+/// by a worker; 254 is accepted, and 3D keeps its range.
+#[test]
+fn a_4d_side_over_254_is_refused() {
+    let four = GOOD.replace("dimension = 3", "dimension = 4");
+    check_refused(&four.replace("side = 24", "side = 255"), "side", 4);
+    check_refused(&four.replace("side = 24", "side = 256"), "side", 4);
+    assert_eq!(
+        parse(&four.replace("side = 24", "side = 254"))
+            .unwrap()
+            .side,
+        254
+    );
+    assert_eq!(
+        parse(&GOOD.replace("side = 24", "side = 1000"))
+            .unwrap()
+            .side,
+        1000
+    );
+}
+
 #[test]
 fn resolutions_must_divide_the_side() {
     check_refused(
