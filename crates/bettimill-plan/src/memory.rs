@@ -226,20 +226,21 @@ mod tests {
         // Compressed members: the one sample being compressed.
         let zstd = plan_compressed(4, 32, 4, "zstd");
         assert_eq!(WorkerMemory::of(&zstd).shard_bytes, zstd.sample_bytes);
-        // 4D side 256 is 2^32 voxels: far beyond any workstation.
-        let huge = WorkerMemory::of(&plan(4, 256, 1));
-        assert_eq!(huge.voxels, 1 << 32);
-        assert!(huge.total(1) > 64 << 30);
+        // 4D side 254 (the largest a manifest accepts) is 4.16 billion voxels: far beyond
+        // any workstation.
+        let huge = WorkerMemory::of(&plan(4, 254, 1));
+        assert_eq!(huge.voxels, 254u64.pow(4));
+        assert!(huge.total(1) > 62 << 30);
     }
 
     #[test]
     fn a_sample_above_the_limit_is_refused_with_the_numbers() {
-        let p = plan(4, 256, 1);
+        let p = plan(4, 254, 1);
         let err = check(&p, 1, 8 << 30, "--max-memory 8G").unwrap_err();
         let text = err.to_string();
         for needle in [
-            "side 256",
-            "4294967296 voxels",
+            "side 254",
+            "4162314256 voxels",
             "8.0 GiB allowed per worker (--max-memory 8G)",
             "raise --max-memory",
         ] {
