@@ -354,14 +354,17 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
 }
 
 fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<ExitStatus> {
-    let npy = crate::image::read_image(path, strict)?;
-    let topology = bettimill_homology::try_topology(&npy.image)?;
+    let image = crate::image::read_image(path, strict)?.image;
+    let shape = image.shape().to_vec();
+    let hypervolume = image.count_foreground();
+    // The image is not needed afterwards: padded in place, one copy at the peak.
+    let topology = bettimill_homology::try_topology_owned(image)?;
     if json {
         let value = serde_json::json!({
             "betti": topology.betti,
             "euler": topology.euler,
-            "shape": npy.image.shape(),
-            "hypervolume": npy.image.count_foreground(),
+            "shape": shape,
+            "hypervolume": hypervolume,
             "field": "Z/2",
         });
         outln!("{value}");

@@ -177,8 +177,10 @@ fn checked_len(shape: &[usize]) -> Result<(Dim, usize), GridError> {
 impl BinaryImage {
     /// An all-background image of the given shape.
     pub fn zeros(shape: &[usize]) -> Result<BinaryImage, GridError> {
-        let (_, len) = checked_len(shape)?;
-        BinaryImage::from_vec(shape, vec![0; len])
+        let (dim, len) = checked_len(shape)?;
+        // Not through `from_vec`: its scan for values over 1 would read every page of the
+        // fresh zeroed buffer, mapping it once to read and once more on the first write.
+        Ok(BinaryImage::with_layout(dim, shape, vec![0; len]))
     }
 
     /// An all-background hypercube of side `side`.
@@ -202,6 +204,12 @@ impl BinaryImage {
                 value: data[index],
             });
         }
+        Ok(BinaryImage::with_layout(dim, shape, data))
+    }
+
+    /// The image of a checked `shape` (`checked_len`) over `data` of its length, 0s and 1s.
+    fn with_layout(dim: Dim, shape: &[usize], data: Vec<u8>) -> BinaryImage {
+        debug_assert_eq!(data.len(), shape.iter().product::<usize>());
         let mut full = [1usize; 4];
         full[..shape.len()].copy_from_slice(shape);
         let mut strides = [0usize; 4];
@@ -210,12 +218,12 @@ impl BinaryImage {
             strides[axis] = stride;
             stride *= shape[axis];
         }
-        Ok(BinaryImage {
+        BinaryImage {
             dim,
             shape: full,
             strides,
             data,
-        })
+        }
     }
 
     /// The number of axes.
@@ -335,6 +343,52 @@ impl BinaryImage {
         out
     }
 
+    /// [`BinaryImage::padded`] without a second buffer: the data grows in place and every
+    /// row moves to its padded position, last row first (a row only moves forward, onto
+    /// rows already moved), then the gaps between rows are cleared. For callers that do not
+    /// need the image afterwards: the peak is the padded image alone, where a copy holds
+    /// both.
+    pub fn into_padded(self, width: usize) -> BinaryImage {
+        let d = self.dim.get();
+        let new_shape: Vec<usize> = self.shape().iter().map(|&n| n + 2 * width).collect();
+        let (dim, new_len) = checked_len(&new_shape).expect("padding a valid image stays valid");
+        let old_shape = self.shape;
+        let row = old_shape[d - 1];
+        let rows = self.len() / row;
+        let mut data = self.data;
+        data.resize(new_len, 0);
+        let mut strides = [0usize; 4];
+        let mut stride = 1;
+        for axis in (0..d).rev() {
+            strides[axis] = stride;
+            stride *= new_shape[axis];
+        }
+        // The padded start of row r (its coordinates along the first d - 1 axes are r's
+        // digits in the old shape).
+        let start = |r: usize| -> usize {
+            let mut rest = r;
+            let mut index = width;
+            for axis in (0..d - 1).rev() {
+                index += (rest % old_shape[axis] + width) * strides[axis];
+                rest /= old_shape[axis];
+            }
+            index
+        };
+        for r in (0..rows).rev() {
+            let dst = start(r);
+            data.copy_within(r * row..(r + 1) * row, dst);
+        }
+        // Clear what lies between the moved rows (old data or zeros alike).
+        let mut cleared_to = 0;
+        for r in 0..rows {
+            let dst = start(r);
+            data[cleared_to..dst].fill(0);
+            cleared_to = dst + row;
+        }
+        data[cleared_to..].fill(0);
+        BinaryImage::with_layout(dim, &new_shape, data)
+    }
+
     /// The inverse of [`BinaryImage::padded`]: drops `width` layers on every side.
     /// Panics if an axis is not longer than `2 * width` (a caller bug).
     pub fn cropped(&self, width: usize) -> BinaryImage {
@@ -409,13 +463,20 @@ mod tests {
     /// shapes whose axes all differ.
     #[test]
     fn padding_moves_every_voxel_by_the_width() {
-        for shape in [&[3usize, 5][..], &[2, 3, 4], &[2, 3, 4, 5], &[1, 1, 1, 6]] {
+        for shape in [
+            &[3usize, 5][..],
+            &[2, 3, 4],
+            &[2, 3, 4, 5],
+            &[1, 1, 1, 6],
+            &[4, 1, 3, 1],
+        ] {
             let mut img = BinaryImage::zeros(shape).unwrap();
             for index in 0..img.len() {
                 img.data_mut()[index] = ((index * 7 + index / 3) % 3 == 0) as u8;
             }
             for width in [1, 2] {
                 let padded = img.padded(width);
+                assert_eq!(img.clone().into_padded(width), padded, "{shape:?} {width}");
                 assert_eq!(padded.count_foreground(), img.count_foreground());
                 for index in 0..img.len() {
                     let c = img.coords(index);

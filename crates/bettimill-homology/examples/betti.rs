@@ -16,7 +16,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for path in paths {
         let image = bettimill_grid::npy::read_path(Path::new(&path), false)?.image;
         let start = Instant::now();
-        let topology = bettimill_homology::topology(&image);
+        let topology = bettimill_homology::try_topology_owned(image)?;
         let seconds = start.elapsed().as_secs_f64();
         println!(
             "{{\"path\":{},\"betti\":{},\"euler\":{},\"seconds\":{seconds:.6}}}",

@@ -61,6 +61,12 @@ fn check(name: &str, image: &BinaryImage, object: &[u64], carved: &[u64]) {
     );
     let found = topology(&cavity(image));
     assert_eq!(found.betti, carved, "{name} as a cavity");
+    // Padded in place (a carved 4D cube takes the background route).
+    assert_eq!(
+        try_topology_owned(cavity(image)).as_ref(),
+        Ok(&found),
+        "{name} as a cavity, owned"
+    );
     // labels.md duality, checked on the computed numbers too.
     let d = object.len();
     let b = &topology(image).betti;
@@ -178,6 +184,12 @@ fn agree_with_reference(d: usize, side: usize, n: usize, seed: u64) {
         let image = random_image(&mut rng, &shape, density);
         let expected = reference::topology(&image);
         assert_eq!(topology(&image), expected, "{d}D trial {trial}: {image:?}");
+        // The image padded in place goes the same way.
+        assert_eq!(
+            try_topology_owned(image.clone()).as_ref(),
+            Ok(&expected),
+            "{d}D trial {trial}: owned"
+        );
         assert_eq!(
             euler::euler_characteristic(&image.padded(1)),
             expected.euler,

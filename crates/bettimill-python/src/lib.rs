@@ -103,11 +103,11 @@ fn topology<'py>(
     strict: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let image = read_array(py, array, strict)?;
+    let shape = image.shape().to_vec();
+    // The image is not needed afterwards: padded in place, one copy at the peak.
     let (topology, hypervolume) = py.detach(|| {
-        (
-            bettimill_homology::try_topology(&image),
-            image.count_foreground(),
-        )
+        let hypervolume = image.count_foreground();
+        (bettimill_homology::try_topology_owned(image), hypervolume)
     });
     // An image too large (or too large and rough) for the exact route is a ValueError,
     // never a panic.
@@ -115,7 +115,7 @@ fn topology<'py>(
     let dict = PyDict::new(py);
     dict.set_item("betti", &topology.betti)?;
     dict.set_item("euler", topology.euler)?;
-    dict.set_item("shape", image.shape())?;
+    dict.set_item("shape", shape)?;
     dict.set_item("hypervolume", hypervolume)?;
     dict.set_item("field", "Z/2")?;
     dict.set_item("components", topology.betti[0])?;
