@@ -168,6 +168,8 @@ pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<Npy
         .read_to_end(&mut prefix)
         .map_err(io)?;
     let (header, data_start) = split_header(&prefix)?;
+    // Exactly the header was read: the data comes next from the reader.
+    debug_assert_eq!(data_start, prefix.len());
     let (dtype, shape) = parse_header(header)?;
     let expected = shape
         .iter()
@@ -176,12 +178,52 @@ pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<Npy
     if expected > limit {
         return Err(NpyError::TooLarge { expected, limit });
     }
-    let mut bytes = prefix;
-    (&mut reader)
-        .take(expected)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
-    let found = (bytes.len() - data_start) as u64;
+    // The data goes straight into the voxels as it arrives, a chunk at a time: no buffer
+    // of the file's bytes beside the image (half the peak for a one-byte dtype), and the
+    // voxels grow only with what was received. Errors come in the order `read_bytes`
+    // gives them: truncation and overlong data first, then the shape, then a value.
+    let size = dtype.size;
+    let mut voxels: Vec<u8> = Vec::new();
+    let mut chunk = vec![0u8; (1 << 16) / size * size];
+    let mut filled = 0usize;
+    let mut found = 0u64;
+    let mut not_binary: Option<(usize, i128)> = None;
+    let mut data = (&mut reader).take(expected);
+    loop {
+        let n = match data.read(&mut chunk[filled..]) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(io(e)),
+        };
+        filled += n;
+        found += n as u64;
+        // Whole elements are converted; a partial one waits at the front for its rest.
+        let whole = filled - filled % size;
+        let first = voxels.len();
+        if size == 1 {
+            voxels.extend(chunk[..whole].iter().map(|&b| (b != 0) as u8));
+        } else {
+            voxels.extend(
+                chunk[..whole]
+                    .chunks_exact(size)
+                    .map(|c| (element_value(c, dtype) != 0) as u8),
+            );
+        }
+        if strict && not_binary.is_none() {
+            not_binary = chunk[..whole]
+                .chunks_exact(size)
+                .position(|c| !matches!(element_value(c, dtype), 0 | 1))
+                .map(|j| {
+                    (
+                        first + j,
+                        element_value(&chunk[j * size..(j + 1) * size], dtype),
+                    )
+                });
+        }
+        chunk.copy_within(whole..filled, 0);
+        filled -= whole;
+    }
     if found < expected {
         return Err(NpyError::Truncated { expected, found });
     }
@@ -194,7 +236,12 @@ pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<Npy
             Err(e) => return Err(io(e)),
         }
     }
-    read_bytes(&bytes, strict)
+    check_shape(&shape)?;
+    if let Some((index, value)) = not_binary {
+        return Err(NpyError::NotBinary { index, value });
+    }
+    let image = BinaryImage::from_vec(&shape, voxels)?;
+    Ok(NpyImage { image, dtype })
 }
 
 /// Parses `.npy` bytes. With `strict`, values other than 0 and 1 are an error; otherwise
@@ -534,6 +581,55 @@ mod tests {
             }
             let trickled = read_from(Trickle(&bytes), true, 1 << 20).unwrap();
             assert_eq!(trickled.image, img, "{descr}");
+        }
+    }
+
+    /// A stream is read, and refused, exactly as its bytes are: values over 1 in every
+    /// dtype, in the first and in a later chunk, with truncation (reported first), and
+    /// delivered a byte at a time (elements split across reads).
+    #[test]
+    fn a_stream_gives_the_answers_and_errors_of_its_bytes() {
+        struct Trickle<'a>(&'a [u8]);
+        impl std::io::Read for Trickle<'_> {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                let Some((first, rest)) = self.0.split_first() else {
+                    return Ok(0);
+                };
+                buf[0] = *first;
+                self.0 = rest;
+                Ok(1)
+            }
+        }
+        let mut img = BinaryImage::zeros(&[40, 41, 43]).unwrap();
+        for index in (0..img.len()).step_by(7) {
+            img.data_mut()[index] = 1;
+        }
+        for descr in ["|u1", "|i1", "<u2", ">i2", "<i4", ">u8"] {
+            let dtype = parse_descr(descr).unwrap();
+            let good = write_bytes(&img, dtype);
+            let data_start = good.len() - img.len() * dtype.size;
+            let mut cases = vec![good.clone(), good[..good.len() - 3].to_vec()];
+            for element in [5, 70_000 / dtype.size, img.len() - 1] {
+                let mut bad = good.clone();
+                // The element's most significant byte: a value over 1 (or negative).
+                let at = data_start
+                    + element * dtype.size
+                    + if dtype.big_endian { 0 } else { dtype.size - 1 };
+                bad[at] = 0x80;
+                cases.push(bad.clone());
+                cases.push(bad[..bad.len() - 1].to_vec());
+            }
+            for (case, bytes) in cases.iter().enumerate() {
+                for strict in [false, true] {
+                    let expected = format!("{:?}", read_bytes(bytes, strict));
+                    let streamed = format!("{:?}", read_from(&bytes[..], strict, 1 << 30));
+                    assert_eq!(streamed, expected, "{descr} case {case} strict {strict}");
+                    if case < 3 {
+                        let trickled = read_from(Trickle(bytes), strict, 1 << 30);
+                        assert_eq!(format!("{trickled:?}"), expected, "{descr} case {case}");
+                    }
+                }
+            }
         }
     }
 
