@@ -27,8 +27,10 @@
 //! complex differs from the old one only by the deleted pair. Coreductions need a start, so
 //! when no pair is left an alive vertex v is removed (the first time, the one nearest the
 //! centre of the grid: started from a corner, the waves stalled on a random 4D image with
-//! ten times the cells, issue 18), which turns the homology into that of
-//! the pair (X, V) with V the removed vertices. For k >= 2 the long exact sequence of (X, V)
+//! ten times the cells, issue 18; on a grid long enough, one start per half of the grid,
+//! the halves reduced on two threads, see [`DenseComplex::betti_with`]), which turns the
+//! homology into that of the pair (X, V) with V the removed vertices. For k >= 2 the long
+//! exact sequence of (X, V)
 //! gives H_k(X, V) = H_k(X), and in low degrees dim H_0(X, V) = b_0 - c and
 //! dim H_1(X, V) = b_1 + m - c, where m = |V| and c is the number of components V meets.
 //! b_0 is counted by the caller on its voxels before anything is removed, so b_1 follows
@@ -69,6 +71,20 @@ pub(crate) enum FinalRank {
 /// (as the cells of a padded image's foreground do): then every facet and cofacet the
 /// reduction looks up is owned by a voxel inside the grid.
 pub(crate) struct DenseComplex {
+    grid: Grid,
+    /// The grid's sides (1 for the axes past the last).
+    sides: [usize; 4],
+    /// Presence bits of the cells each voxel owns, by place.
+    masks: Vec<u16>,
+    /// The place of every voxel that has owned a cell, in the order of the first insertion
+    /// (places fit 32 bits: [`DenseComplex::new`] checks the grid).
+    owners: Vec<u32>,
+}
+
+/// How places are laid out (module docs), and the steps from a cell to its facets and
+/// cofacets: small and `Copy`, so that each half of a split reduction holds its own.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Grid {
     d: usize,
     /// Per axis: the shift of its two local bits, and the step from one brick to the next.
     shift: [u32; 4],
@@ -78,63 +94,9 @@ pub(crate) struct DenseComplex {
     down_same: [u16; 16],
     /// The local codes' bits: 2^d - 1.
     all_codes: u32,
-    /// Twice the coordinates of the grid's centre.
-    doubled_centre: [usize; 4],
-    /// Presence bits of the cells each voxel owns, by place.
-    masks: Vec<u16>,
-    /// The place of every voxel that has owned a cell, in the order of the first insertion
-    /// (places fit 32 bits: [`DenseComplex::new`] checks the grid).
-    owners: Vec<u32>,
 }
 
-impl DenseComplex {
-    /// An empty complex in the grid of an image of `shape` (1 to 4 axes, C order), or an
-    /// error when the grid has more than 2^32 places ([`check_grid`]): places are held in
-    /// 32 bits, 4 bytes per owner and 5 per queued cell instead of 8 and 8.
-    pub(crate) fn new(shape: &[usize]) -> Result<DenseComplex, GridTooLarge> {
-        let d = shape.len();
-        assert!(
-            (1..=4).contains(&d),
-            "{d} axes: dense complexes have 1 to 4"
-        );
-        // Checked first: the brick counts below cannot overflow once the places fit.
-        let places = check_grid(shape)?;
-        let mut shift = [0u32; 4];
-        let mut brick_step = [0usize; 4];
-        let mut bricks = 1;
-        for axis in (0..d).rev() {
-            shift[axis] = 2 * (d - 1 - axis) as u32;
-            brick_step[axis] = bricks << (2 * d);
-            bricks *= shape[axis].div_ceil(4);
-        }
-        debug_assert_eq!(places, bricks << (2 * d));
-        let all_codes = (1u32 << d) - 1;
-        let mut up_same = [0u16; 16];
-        let mut down_same = [0u16; 16];
-        for code in 0..=all_codes {
-            for axis in 0..d {
-                if code >> axis & 1 == 1 {
-                    up_same[code as usize] |= 1 << (code ^ 1 << axis);
-                } else {
-                    down_same[code as usize] |= 1 << (code | 1 << axis);
-                }
-            }
-        }
-        Ok(DenseComplex {
-            d,
-            shift,
-            brick_step,
-            up_same,
-            down_same,
-            all_codes,
-            doubled_centre: std::array::from_fn(|axis| {
-                shape.get(axis).map_or(0, |&n| n.saturating_sub(1))
-            }),
-            masks: vec![0; places],
-            owners: Vec::new(),
-        })
-    }
-
+impl Grid {
     /// The place of the voxel at `coords`.
     pub(crate) fn place(&self, coords: &[usize]) -> usize {
         (0..self.d)
@@ -171,20 +133,10 @@ impl DenseComplex {
         around
     }
 
-    /// Adds the cell with local code `code` owned by the voxel at `owner` (a place).
-    #[inline]
-    pub(crate) fn insert(&mut self, owner: usize, code: u32) {
-        let mask = &mut self.masks[owner];
-        if *mask == 0 {
-            self.owners.push(owner as u32);
-        }
-        *mask |= 1 << code;
-    }
-
     /// For each boundary face of a voxel, named by the offset of the neighbour that shares
-    /// it (each component -1, 0 or 1), its owner as an entry of
-    /// [`DenseComplex::owners_around`] (the axes where the offset is -1) and its local code
-    /// (every nonzero component is an even axis).
+    /// it (each component -1, 0 or 1), its owner as an entry of [`Grid::owners_around`]
+    /// (the axes where the offset is -1) and its local code (every nonzero component is an
+    /// even axis).
     pub(crate) fn face_places(&self, offsets: &[[i8; 4]]) -> Vec<(usize, u32)> {
         offsets
             .iter()
@@ -204,113 +156,7 @@ impl DenseComplex {
             .collect()
     }
 
-    /// The closed cubical complex of the foreground voxels of `image`, whose border must
-    /// be background.
-    #[cfg(test)]
-    pub(crate) fn of_image(image: &bettimill_grid::BinaryImage) -> DenseComplex {
-        let mut complex = DenseComplex::new(image.shape()).expect("a small test grid");
-        let offsets = bettimill_grid::neighbourhood::full_offsets(image.dim());
-        let places = complex.face_places(&offsets);
-        for (index, &v) in image.data().iter().enumerate() {
-            if v != 0 {
-                let around = complex.owners_around(complex.place(&image.coords(index)));
-                complex.insert(around[0], 0);
-                for &(back, code) in &places {
-                    complex.insert(around[back], code);
-                }
-            }
-        }
-        complex
-    }
-
-    #[inline]
-    fn has(&self, owner: usize, code: u32) -> bool {
-        self.masks[owner] >> code & 1 == 1
-    }
-
-    /// The number of alive cofacets of (owner, code): those the owner holds are one mask
-    /// test, the others one bit each from the next voxel along an even axis.
-    #[inline]
-    fn cofacet_count(&self, owner: usize, code: u32) -> u32 {
-        let mut count = (self.masks[owner] & self.up_same[code as usize]).count_ones();
-        let mut axes = code;
-        while axes != 0 {
-            let axis = axes.trailing_zeros() as usize;
-            axes &= axes - 1;
-            count += self.has(self.forward(owner, axis), code ^ 1 << axis) as u32;
-        }
-        count
-    }
-
-    /// The number of alive facets of (owner, code) (as [`DenseComplex::cofacet_count`],
-    /// one voxel back along the odd axes).
-    #[inline]
-    fn facet_count(&self, owner: usize, code: u32) -> u32 {
-        let mut count = (self.masks[owner] & self.down_same[code as usize]).count_ones();
-        let mut axes = !code & self.all_codes;
-        while axes != 0 {
-            let axis = axes.trailing_zeros() as usize;
-            axes &= axes - 1;
-            count += self.has(self.back(owner, axis), code | 1 << axis) as u32;
-        }
-        count
-    }
-
-    /// An alive cofacet of (owner, code), the only one when the count is one.
-    fn some_cofacet(&self, owner: usize, code: u32) -> u64 {
-        let same = self.masks[owner] & self.up_same[code as usize];
-        if same != 0 {
-            return cell(owner, same.trailing_zeros());
-        }
-        (0..self.d)
-            .filter(|&axis| code >> axis & 1 == 1)
-            .map(|axis| (self.forward(owner, axis), code ^ 1 << axis))
-            .find(|&(o, c)| self.has(o, c))
-            .map_or(u64::MAX, |(o, c)| cell(o, c))
-    }
-
-    /// An alive facet of (owner, code), the only one when the count is one.
-    fn some_facet(&self, owner: usize, code: u32) -> u64 {
-        let same = self.masks[owner] & self.down_same[code as usize];
-        if same != 0 {
-            return cell(owner, same.trailing_zeros());
-        }
-        (0..self.d)
-            .filter(|&axis| code >> axis & 1 == 0)
-            .map(|axis| (self.back(owner, axis), code | 1 << axis))
-            .find(|&(o, c)| self.has(o, c))
-            .map_or(u64::MAX, |(o, c)| cell(o, c))
-    }
-
-    /// After (owner, code) was removed: queues its alive facets that are left with one
-    /// cofacet (free faces now) and its alive cofacets that are left with one facet
-    /// (coreducible now). A cell's counts only drop when a neighbour goes, so every cell
-    /// that becomes a candidate is queued at that moment.
-    fn queue_new_candidates(&self, owner: usize, code: u32, queue: &mut CellQueue) {
-        for axis in 0..self.d {
-            let c = code ^ 1 << axis;
-            let upward = code >> axis & 1 == 1;
-            let other = if upward {
-                self.forward(owner, axis)
-            } else {
-                self.back(owner, axis)
-            };
-            for o in [owner, other] {
-                if self.has(o, c) {
-                    let count = if upward {
-                        self.facet_count(o, c)
-                    } else {
-                        self.cofacet_count(o, c)
-                    };
-                    if count == 1 {
-                        queue.push(o, c);
-                    }
-                }
-            }
-        }
-    }
-
-    /// The coordinates of the voxel at `place` (the inverse of [`DenseComplex::place`]).
+    /// The coordinates of the voxel at `place` (the inverse of [`Grid::place`]).
     fn coords(&self, place: usize) -> [usize; 4] {
         let mut coords = [0usize; 4];
         let mut brick = place >> (2 * self.d);
@@ -321,22 +167,168 @@ impl DenseComplex {
         }
         coords
     }
+}
 
-    /// The owner of an alive vertex whose owner voxel is nearest the centre of the grid
-    /// (the first in owner order among the nearest; the vertex itself is half a voxel
-    /// further along every axis), if any vertex is alive.
-    fn central_vertex(&self) -> Option<usize> {
-        let top = self.all_codes;
-        self.owners
+/// How a reduction splits across the first axis (see [`DenseComplex::betti_with`]): brick
+/// rows (4 planes each) below `half` are the lower part, the rest the upper part; the
+/// brick rows `half - 1` and `half` are the seam, reduced after both.
+#[derive(Clone, Copy, Debug)]
+struct Halves {
+    half: usize,
+    /// Places per brick row.
+    row: usize,
+}
+
+impl Halves {
+    /// The lower part's places, and those of its cells a reduction step started from
+    /// reaches no further than (three steps: a cell, its partner, their neighbours'
+    /// counts).
+    fn lower(&self) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+        (0..self.half * self.row, 0..(self.half - 1) * self.row)
+    }
+
+    /// The upper part's (as [`Halves::lower`]), up to `end`, the number of places.
+    fn upper(&self, end: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+        (self.half * self.row..end, (self.half + 1) * self.row..end)
+    }
+}
+
+impl DenseComplex {
+    /// An empty complex in the grid of an image of `shape` (1 to 4 axes, C order), or an
+    /// error when the grid has more than 2^32 places ([`check_grid`]): places are held in
+    /// 32 bits, 4 bytes per owner and 5 per queued cell instead of 8 and 8.
+    pub(crate) fn new(shape: &[usize]) -> Result<DenseComplex, GridTooLarge> {
+        let d = shape.len();
+        assert!(
+            (1..=4).contains(&d),
+            "{d} axes: dense complexes have 1 to 4"
+        );
+        // Checked first: the brick counts below cannot overflow once the places fit.
+        let places = check_grid(shape)?;
+        let mut shift = [0u32; 4];
+        let mut brick_step = [0usize; 4];
+        let mut bricks = 1;
+        for axis in (0..d).rev() {
+            shift[axis] = 2 * (d - 1 - axis) as u32;
+            brick_step[axis] = bricks << (2 * d);
+            bricks *= shape[axis].div_ceil(4);
+        }
+        debug_assert_eq!(places, bricks << (2 * d));
+        let all_codes = (1u32 << d) - 1;
+        let mut up_same = [0u16; 16];
+        let mut down_same = [0u16; 16];
+        for code in 0..=all_codes {
+            for axis in 0..d {
+                if code >> axis & 1 == 1 {
+                    up_same[code as usize] |= 1 << (code ^ 1 << axis);
+                } else {
+                    down_same[code as usize] |= 1 << (code | 1 << axis);
+                }
+            }
+        }
+        Ok(DenseComplex {
+            grid: Grid {
+                d,
+                shift,
+                brick_step,
+                up_same,
+                down_same,
+                all_codes,
+            },
+            sides: std::array::from_fn(|axis| shape.get(axis).copied().unwrap_or(1)),
+            masks: vec![0; places],
+            owners: Vec::new(),
+        })
+    }
+
+    /// The layout of the complex's places.
+    pub(crate) fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// How to split work on the grid across its first axis, given how much of it lies in
+    /// each brick row (`weights`, one per row): at the row where the weight before it
+    /// passes half, kept two rows from either end. None when the grid has fewer than six
+    /// brick rows (a first side of 20 or less with the border: a 4D cube of side 18 or
+    /// less), or no weight.
+    fn halves(&self, weights: &[usize]) -> Option<Halves> {
+        let rows = weights.len();
+        let total: usize = weights.iter().sum();
+        if self.grid.d < 2 || rows < 6 || total == 0 {
+            return None;
+        }
+        let mut before = 0;
+        let half = weights
             .iter()
-            .map(|&o| o as usize)
-            .filter(|&o| self.has(o, top))
-            .min_by_key(|&o| {
-                let c = self.coords(o);
-                (0..self.d)
-                    .map(|axis| (2 * c[axis]).abs_diff(self.doubled_centre[axis]).pow(2))
-                    .sum::<usize>()
+            .position(|&w| {
+                before += w;
+                2 * before >= total
             })
+            .unwrap_or(rows);
+        Some(Halves {
+            half: half.clamp(2, rows - 2),
+            row: self.grid.brick_step[0],
+        })
+    }
+
+    /// The number of brick rows along the first axis.
+    fn rows(&self) -> usize {
+        self.sides[0].div_ceil(4)
+    }
+
+    /// Adds the cell with local code `code` owned by the voxel at `owner` (a place).
+    #[inline]
+    pub(crate) fn insert(&mut self, owner: usize, code: u32) {
+        let mask = &mut self.masks[owner];
+        if *mask == 0 {
+            self.owners.push(owner as u32);
+        }
+        *mask |= 1 << code;
+    }
+
+    /// The closed cubical complex of the foreground voxels of `image`, whose border must
+    /// be background.
+    #[cfg(test)]
+    pub(crate) fn of_image(image: &bettimill_grid::BinaryImage) -> DenseComplex {
+        let mut complex = DenseComplex::new(image.shape()).expect("a small test grid");
+        let offsets = bettimill_grid::neighbourhood::full_offsets(image.dim());
+        let grid = *complex.grid();
+        let places = grid.face_places(&offsets);
+        for (index, &v) in image.data().iter().enumerate() {
+            if v != 0 {
+                let around = grid.owners_around(grid.place(&image.coords(index)));
+                complex.insert(around[0], 0);
+                for &(back, code) in &places {
+                    complex.insert(around[back], code);
+                }
+            }
+        }
+        complex
+    }
+
+    /// A view of all the masks, for a reduction.
+    fn cells(&mut self) -> Cells<'_, false> {
+        Cells {
+            grid: self.grid,
+            masks: &mut self.masks,
+            base: 0,
+        }
+    }
+
+    /// Twice the coordinates of the centre of the grid's places from `start` (a place at
+    /// the start of a brick row) to `end` along the first axis, and of the whole grid
+    /// along the others.
+    fn doubled_centre(&self, rows: std::ops::Range<usize>) -> [usize; 4] {
+        let row = self.grid.brick_step[0];
+        let first = 4 * (rows.start / row);
+        let last = (4 * rows.end.div_ceil(row)).min(self.sides[0]) - 1;
+        std::array::from_fn(|axis| {
+            if axis == 0 {
+                first + last
+            } else {
+                self.sides[axis].saturating_sub(1)
+            }
+        })
     }
 
     /// Betti numbers b_0..b_d over Z/2 (module docs for the method), given b_0, the
@@ -344,17 +336,68 @@ impl DenseComplex {
     /// than the complex's vertices). Consumes the complex: the reduction deletes cells as it
     /// goes.
     ///
+    /// When the grid splits ([`DenseComplex::halves`], at the brick row that halves the
+    /// owners), the pairs run on two threads first: each part removes the pairs it reaches
+    /// (its free faces, then coreductions from its own vertex nearest its centre, and from
+    /// one more vertex for each piece of it those waves miss) among the cells owned at
+    /// least a brick row away from the other part, and leaves the rest queued. A step
+    /// reaches three voxels from the cell it starts at, less than a brick row, so each part
+    /// reads and writes only its own part's masks (a slice of them): the two never meet,
+    /// and the cells left do not depend on the threads' timing. Then the seam (the two
+    /// brick rows between the parts) and whatever was left queued go on one thread. The
+    /// extra vertices are more vertices in V, which the bookkeeping below counts anyway;
+    /// where the waves of the two parts meet, a few more cells stall (issue 18 measured the
+    /// trade: BENCHMARKS.md).
+    ///
     /// The final rank is computed as `final_rank` says; also returns how many general
     /// (fill-in) pivots the elimination took. An error when the elimination's lists would
     /// pass their limit ([`PoolOverflow`]).
     pub(crate) fn betti_with(
-        mut self,
+        self,
         b0: u64,
         final_rank: FinalRank,
     ) -> Result<(Vec<u64>, u64), PoolOverflow> {
-        let d = self.d;
+        // Two threads pay off from 65,536 owners and eight brick rows (the seam two of
+        // them): a 32^4 blob (34,417 owners, nine rows) took 14% longer split, a 48^4 blob
+        // 6% less, a 64^4 blob 15% less, a random 48^4 image 16% less (BENCHMARKS.md).
+        let split = self.split();
+        self.betti_split(b0, final_rank, split)
+    }
+
+    /// How [`DenseComplex::betti_with`] splits the reduction, if it does.
+    fn split(&self) -> Option<Halves> {
+        if self.owners.len() < 1 << 16 || self.rows() < 8 {
+            return None;
+        }
+        let mut weights = vec![0; self.rows()];
+        for &o in &self.owners {
+            weights[o as usize / self.grid.brick_step[0]] += 1;
+        }
+        self.halves(&weights)
+    }
+
+    /// Whether [`DenseComplex::betti_with`] splits this complex's reduction.
+    #[cfg(test)]
+    pub(crate) fn splits(&self) -> bool {
+        self.split().is_some()
+    }
+
+    /// [`DenseComplex::betti_with`] without the split (both routes agree: tests).
+    #[cfg(test)]
+    pub(crate) fn betti_unsplit(self, b0: u64) -> Result<(Vec<u64>, u64), PoolOverflow> {
+        self.betti_split(b0, FinalRank::Elimination, None)
+    }
+
+    /// [`DenseComplex::betti_with`], split as `halves` says (or not at all).
+    fn betti_split(
+        mut self,
+        b0: u64,
+        final_rank: FinalRank,
+        halves: Option<Halves>,
+    ) -> Result<(Vec<u64>, u64), PoolOverflow> {
+        let d = self.grid.d;
         // The vertex code: every axis even.
-        let top = self.all_codes;
+        let top = self.grid.all_codes;
         // Local codes of even dimension: dimension d - popcount(code).
         let even_codes = (0..=top)
             .filter(|&code| (d as u32 - code.count_ones()) % 2 == 0)
@@ -370,75 +413,63 @@ impl DenseComplex {
         if self.owners.is_empty() {
             return Ok((vec![0; d + 1], 0));
         }
-        // Free faces start the collapses; first in, first out, so that coreductions spread
-        // from a removed vertex in waves, which leaves far fewer cells stuck than
-        // depth-first order does.
-        let mut queue = CellQueue::default();
-        for &o in &self.owners {
-            let o = o as usize;
-            let mut rest = self.masks[o];
-            while rest != 0 {
-                let code = rest.trailing_zeros();
-                rest &= rest - 1;
-                if self.cofacet_count(o, code) == 1 {
-                    queue.push(o, code);
-                }
-            }
-        }
+        let owners = std::mem::take(&mut self.owners);
         let mut removed_vertices = 0u64;
-        let mut next = 0usize;
-        let mut first_wave = true;
-        loop {
-            while let Some((o, code)) = queue.pop() {
-                if !self.has(o, code) {
-                    continue;
-                }
-                // Free face: c is the facet and its only cofacet goes with it; coreduction:
-                // c is the cell and its only facet goes with it.
-                let partner = if self.cofacet_count(o, code) == 1 {
-                    self.some_cofacet(o, code)
-                } else if self.facet_count(o, code) == 1 {
-                    self.some_facet(o, code)
-                } else {
-                    continue;
-                };
-                let (po, pcode) = split(partner);
-                self.masks[o] &= !(1 << code);
-                self.masks[po] &= !(1 << pcode);
-                self.queue_new_candidates(o, code, &mut queue);
-                self.queue_new_candidates(po, pcode, &mut queue);
+        let mut queue = CellQueue::default();
+        let everywhere = 0..usize::MAX;
+        match halves {
+            None => {
+                let centre = self.doubled_centre(0..self.masks.len());
+                let mut cells = self.cells();
+                cells.queue_free_faces(&owners, &everywhere, &mut queue);
+                removed_vertices +=
+                    cells.reduce(&mut queue, &everywhere, &everywhere, &owners, Some(centre));
             }
-            // The first wave starts at the centre: from a corner (the first owner) the
-            // waves of a rough image's coreductions stalled with ten times the cells
-            // (issue 18).
-            let central = if first_wave {
-                first_wave = false;
-                self.central_vertex()
-            } else {
-                None
-            };
-            let o = match central {
-                Some(o) => o,
-                None => {
-                    while next < self.owners.len() && !self.has(self.owners[next] as usize, top) {
-                        next += 1;
+            Some(halves) => {
+                let end = self.masks.len();
+                let ((lower, lower_inside), (upper, upper_inside)) =
+                    (halves.lower(), halves.upper(end));
+                let centres = [
+                    self.doubled_centre(lower_inside.clone()),
+                    self.doubled_centre(upper_inside.clone()),
+                ];
+                let grid = self.grid;
+                let (lower_masks, upper_masks) = self.masks.split_at_mut(lower.end);
+                let part = |masks: &mut [u16],
+                            base: usize,
+                            inside: std::ops::Range<usize>,
+                            centre: [usize; 4]| {
+                    let mut cells: Cells<true> = Cells { grid, masks, base };
+                    let mut queue = CellQueue::default();
+                    cells.queue_free_faces(&owners, &inside, &mut queue);
+                    let removed = cells.reduce(&mut queue, &inside, &inside, &owners, Some(centre));
+                    (queue, removed)
+                };
+                let ((mut left_lower, a), (mut left_upper, b)) = rayon::join(
+                    || part(lower_masks, 0, lower_inside.clone(), centres[0]),
+                    || part(upper_masks, upper.start, upper_inside.clone(), centres[1]),
+                );
+                removed_vertices += a + b;
+                // What the parts left queued (cells in or next to the seam), then the seam's
+                // own candidates.
+                for left in [&mut left_lower, &mut left_upper] {
+                    while let Some((o, code)) = left.pop() {
+                        queue.push(o, code);
                     }
-                    let Some(&o) = self.owners.get(next) else {
-                        break;
-                    };
-                    o as usize
                 }
-            };
-            removed_vertices += 1;
-            self.masks[o] &= !(1 << top);
-            self.queue_new_candidates(o, top, &mut queue);
+                let seam = lower_inside.end..upper_inside.start;
+                let mut cells = self.cells();
+                cells.queue_free_faces(&owners, &seam, &mut queue);
+                // The parts removed every vertex they own: only the seam's are left.
+                removed_vertices += cells.reduce(&mut queue, &everywhere, &seam, &owners, None);
+            }
         }
         // Explicit reduction of what is left, top dimension first; a k-cell that is the
         // lowest row of a reduced (k+1)-column has a boundary column reducing to zero.
         drop(queue);
         // Counted first, so that each list is allocated once at its size.
         let mut counts = vec![0usize; d + 1];
-        for &o in &self.owners {
+        for &o in &owners {
             let mut rest = self.masks[o as usize];
             while rest != 0 {
                 let code = rest.trailing_zeros();
@@ -455,9 +486,9 @@ impl DenseComplex {
         // The ranks only look cells up in the masks: the owners go before the lists grow
         // (unless the lists come from them).
         let owners = if few {
-            std::mem::take(&mut self.owners)
+            owners
         } else {
-            self.owners = Vec::new();
+            drop(owners);
             Vec::new()
         };
         let mut by_dim: Vec<Vec<u64>> = counts.iter().map(|&n| Vec::with_capacity(n)).collect();
@@ -484,6 +515,7 @@ impl DenseComplex {
         debug_assert!(by_dim
             .iter()
             .all(|cells| cells.windows(2).all(|w| w[0] < w[1])));
+        let cells = self.cells();
         let mut rank = vec![0u64; d + 2];
         let mut general = 0u64;
         let mut cleared = vec![false; by_dim[d].len()];
@@ -499,8 +531,8 @@ impl DenseComplex {
                     for axis in 0..d {
                         if code >> axis & 1 == 0 {
                             let f = code | 1 << axis;
-                            for fo in [o, self.back(o, axis)] {
-                                if self.has(fo, f) {
+                            for fo in [o, cells.grid.back(o, axis)] {
+                                if cells.has(fo, f) {
                                     let row = rows
                                         .binary_search(&cell(fo, f))
                                         .expect("an alive facet is a listed cell");
@@ -560,6 +592,241 @@ impl DenseComplex {
              characteristic {chi}"
         );
         Ok((betti, general))
+    }
+}
+
+/// The masks of the places from `base` on, as a reduction sees them: every place it
+/// looks up must be among them. `PART` is whether they are a part of the grid (with a
+/// range of owners to reduce): a constant, so that the whole grid's reduction pays no
+/// offset and no range test in its inner loop (they cost it 5% of its instructions).
+struct Cells<'a, const PART: bool> {
+    grid: Grid,
+    masks: &'a mut [u16],
+    base: usize,
+}
+
+impl<const PART: bool> Cells<'_, PART> {
+    /// The index in `masks` of the place `owner`.
+    #[inline]
+    fn at(&self, owner: usize) -> usize {
+        if PART {
+            owner - self.base
+        } else {
+            owner
+        }
+    }
+
+    #[inline]
+    fn has(&self, owner: usize, code: u32) -> bool {
+        self.masks[self.at(owner)] >> code & 1 == 1
+    }
+
+    #[inline]
+    fn remove(&mut self, owner: usize, code: u32) {
+        self.masks[self.at(owner)] &= !(1 << code);
+    }
+
+    /// The number of alive cofacets of (owner, code): those the owner holds are one mask
+    /// test, the others one bit each from the next voxel along an even axis.
+    #[inline]
+    fn cofacet_count(&self, owner: usize, code: u32) -> u32 {
+        let same = self.masks[self.at(owner)] & self.grid.up_same[code as usize];
+        let mut count = same.count_ones();
+        let mut axes = code;
+        while axes != 0 {
+            let axis = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            count += self.has(self.grid.forward(owner, axis), code ^ 1 << axis) as u32;
+        }
+        count
+    }
+
+    /// The number of alive facets of (owner, code) (as [`Cells::cofacet_count`], one
+    /// voxel back along the odd axes).
+    #[inline]
+    fn facet_count(&self, owner: usize, code: u32) -> u32 {
+        let same = self.masks[self.at(owner)] & self.grid.down_same[code as usize];
+        let mut count = same.count_ones();
+        let mut axes = !code & self.grid.all_codes;
+        while axes != 0 {
+            let axis = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            count += self.has(self.grid.back(owner, axis), code | 1 << axis) as u32;
+        }
+        count
+    }
+
+    /// An alive cofacet of (owner, code), the only one when the count is one.
+    fn some_cofacet(&self, owner: usize, code: u32) -> u64 {
+        let same = self.masks[self.at(owner)] & self.grid.up_same[code as usize];
+        if same != 0 {
+            return cell(owner, same.trailing_zeros());
+        }
+        (0..self.grid.d)
+            .filter(|&axis| code >> axis & 1 == 1)
+            .map(|axis| (self.grid.forward(owner, axis), code ^ 1 << axis))
+            .find(|&(o, c)| self.has(o, c))
+            .map_or(u64::MAX, |(o, c)| cell(o, c))
+    }
+
+    /// An alive facet of (owner, code), the only one when the count is one.
+    fn some_facet(&self, owner: usize, code: u32) -> u64 {
+        let same = self.masks[self.at(owner)] & self.grid.down_same[code as usize];
+        if same != 0 {
+            return cell(owner, same.trailing_zeros());
+        }
+        (0..self.grid.d)
+            .filter(|&axis| code >> axis & 1 == 0)
+            .map(|axis| (self.grid.back(owner, axis), code | 1 << axis))
+            .find(|&(o, c)| self.has(o, c))
+            .map_or(u64::MAX, |(o, c)| cell(o, c))
+    }
+
+    /// Queues the cells of the owners in `inside` that are free faces (one alive
+    /// cofacet). Coreducible cells (one alive facet) only appear when a cell goes, and are
+    /// queued then.
+    fn queue_free_faces(
+        &self,
+        owners: &[u32],
+        inside: &std::ops::Range<usize>,
+        queue: &mut CellQueue,
+    ) {
+        for &o in owners {
+            let o = o as usize;
+            if !inside.contains(&o) {
+                continue;
+            }
+            let mut rest = self.masks[self.at(o)];
+            while rest != 0 {
+                let code = rest.trailing_zeros();
+                rest &= rest - 1;
+                if self.cofacet_count(o, code) == 1 {
+                    queue.push(o, code);
+                }
+            }
+        }
+    }
+
+    /// After (owner, code) was removed: queues its alive facets that are left with one
+    /// cofacet (free faces now) and its alive cofacets that are left with one facet
+    /// (coreducible now). A cell's counts only drop when a neighbour goes, so every cell
+    /// that becomes a candidate is queued at that moment.
+    fn queue_new_candidates(&self, owner: usize, code: u32, queue: &mut CellQueue) {
+        for axis in 0..self.grid.d {
+            let c = code ^ 1 << axis;
+            let upward = code >> axis & 1 == 1;
+            let other = if upward {
+                self.grid.forward(owner, axis)
+            } else {
+                self.grid.back(owner, axis)
+            };
+            for o in [owner, other] {
+                if self.has(o, c) {
+                    let count = if upward {
+                        self.facet_count(o, c)
+                    } else {
+                        self.cofacet_count(o, c)
+                    };
+                    if count == 1 {
+                        queue.push(o, c);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Removes reduction pairs from `queue` (free faces and coreductions) and, whenever it
+    /// runs empty, an alive vertex of the owners in `inside`: first the one nearest the
+    /// centre `centre` (twice its coordinates) when given, then the first in owner order.
+    /// Only cells owned in `inside` are reduced; queued cells outside stay in `queue`,
+    /// which holds just them at the end. Returns the number of vertices removed.
+    ///
+    /// The first wave starts at the centre: from a corner (the first owner) the waves of
+    /// a rough image's coreductions stalled with ten times the cells (issue 18).
+    fn reduce(
+        &mut self,
+        queue: &mut CellQueue,
+        inside: &std::ops::Range<usize>,
+        vertices: &std::ops::Range<usize>,
+        owners: &[u32],
+        centre: Option<[usize; 4]>,
+    ) -> u64 {
+        let top = self.grid.all_codes;
+        let mut left = CellQueue::default();
+        let mut removed_vertices = 0u64;
+        let mut next = 0usize;
+        let mut centre = centre;
+        loop {
+            while let Some((o, code)) = queue.pop() {
+                if PART && !inside.contains(&o) {
+                    left.push(o, code);
+                    continue;
+                }
+                if !self.has(o, code) {
+                    continue;
+                }
+                // Free face: c is the facet and its only cofacet goes with it; coreduction:
+                // c is the cell and its only facet goes with it.
+                let partner = if self.cofacet_count(o, code) == 1 {
+                    self.some_cofacet(o, code)
+                } else if self.facet_count(o, code) == 1 {
+                    self.some_facet(o, code)
+                } else {
+                    continue;
+                };
+                let (po, pcode) = split(partner);
+                self.remove(o, code);
+                self.remove(po, pcode);
+                self.queue_new_candidates(o, code, queue);
+                self.queue_new_candidates(po, pcode, queue);
+            }
+            let central = centre
+                .take()
+                .and_then(|c| self.central_vertex(owners, vertices, c));
+            let o = match central {
+                Some(o) => o,
+                None => {
+                    while next < owners.len() {
+                        let o = owners[next] as usize;
+                        if vertices.contains(&o) && self.has(o, top) {
+                            break;
+                        }
+                        next += 1;
+                    }
+                    let Some(&o) = owners.get(next) else {
+                        break;
+                    };
+                    o as usize
+                }
+            };
+            removed_vertices += 1;
+            self.remove(o, top);
+            self.queue_new_candidates(o, top, queue);
+        }
+        *queue = left;
+        removed_vertices
+    }
+
+    /// The owner in `inside` of an alive vertex whose owner voxel is nearest the point
+    /// with doubled coordinates `centre` (the first in owner order among the nearest; the
+    /// vertex itself is half a voxel further along every axis), if any vertex is alive.
+    fn central_vertex(
+        &self,
+        owners: &[u32],
+        inside: &std::ops::Range<usize>,
+        centre: [usize; 4],
+    ) -> Option<usize> {
+        let top = self.grid.all_codes;
+        owners
+            .iter()
+            .map(|&o| o as usize)
+            .filter(|&o| inside.contains(&o) && self.has(o, top))
+            .min_by_key(|&o| {
+                let c = self.grid.coords(o);
+                (0..self.grid.d)
+                    .map(|axis| (2 * c[axis]).abs_diff(centre[axis]).pow(2))
+                    .sum::<usize>()
+            })
     }
 }
 
@@ -653,7 +920,9 @@ impl CellQueue {
         self.full.push_back(full);
     }
 
-    #[inline]
+    // Always inlined: the reduction's loop is large enough that it was not, which cost
+    // 3% of a random 24^4 image's instructions.
+    #[inline(always)]
     fn pop(&mut self) -> Option<(usize, u32)> {
         loop {
             let block = self.full.front().unwrap_or(&self.tail);
@@ -741,7 +1010,7 @@ mod tests {
     #[test]
     fn places_invert_and_the_first_wave_starts_at_the_centre() {
         let shape = [9, 6, 7, 5];
-        let complex = DenseComplex::new(&shape).unwrap();
+        let grid = *DenseComplex::new(&shape).unwrap().grid();
         let mut seen = std::collections::BTreeSet::new();
         for index in 0..shape.iter().product::<usize>() {
             let mut rest = index;
@@ -750,9 +1019,9 @@ mod tests {
                 coords[axis] = rest % shape[axis];
                 rest /= shape[axis];
             }
-            let place = complex.place(&coords);
+            let place = grid.place(&coords);
             assert!(seen.insert(place), "{coords:?}");
-            assert_eq!(complex.coords(place), coords);
+            assert_eq!(grid.coords(place), coords);
         }
         // Three voxels: two at the ends of the first axis, one in the middle. A voxel's
         // own vertex (every code axis even) is its far corner.
@@ -760,12 +1029,18 @@ mod tests {
         for x in [1, 5, 9] {
             image.set(&[x, 2, 2, 2], true);
         }
-        let complex = DenseComplex::of_image(&image);
-        let centre = complex.central_vertex().expect("vertices are alive");
-        let c = complex.coords(centre);
+        let mut complex = DenseComplex::of_image(&image);
+        let owners = complex.owners.clone();
+        let centre = complex.doubled_centre(0..complex.masks.len());
+        let grid = complex.grid;
+        let centre = complex
+            .cells()
+            .central_vertex(&owners, &(0..usize::MAX), centre)
+            .expect("vertices are alive");
+        let c = grid.coords(centre);
         // The middle voxel's corners are owned by it or by its neighbours one step back.
         assert!((4..=5).contains(&c[0]), "{c:?}");
-        assert_eq!(complex.owners[0] as usize, complex.place(&[1, 2, 2, 2]));
+        assert_eq!(owners[0] as usize, grid.place(&[1, 2, 2, 2]));
     }
 
     /// Grids whose places fit 32 bits are accepted, larger ones (and shapes whose product
@@ -837,6 +1112,78 @@ mod tests {
                 2 * 3u32.pow(d as u32) - 3u32.pow(d as u32 - 1)
             );
         }
+    }
+
+    /// The reduction split in two parts (first on two threads, then the seam) against the
+    /// same reduction unsplit and against plain boundary ranks, on random 4D images long
+    /// enough along the first axis to split, sparse to dense, and on a loop that crosses
+    /// the seam; every split point from the first possible to the last.
+    #[test]
+    fn split_reductions_agree_with_boundary_ranks() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(44);
+        let shape = [28, 6, 5, 5];
+        let mut images = Vec::new();
+        for trial in 0..24 {
+            let density = 0.15 + 0.7 * trial as f64 / 23.0;
+            let mut image = BinaryImage::zeros(&shape).unwrap();
+            for index in 0..image.len() {
+                let c = image.coords(index);
+                if (0..4).all(|a| c[a] > 0 && c[a] + 1 < shape[a]) {
+                    image.data_mut()[index] = rng.gen_bool(density) as u8;
+                }
+            }
+            images.push(image);
+        }
+        // A rectangle loop in the plane of the first two axes, across every split point.
+        let mut ring = BinaryImage::zeros(&shape).unwrap();
+        for x in 2..26 {
+            ring.set(&[x, 1, 2, 2], true);
+            ring.set(&[x, 4, 2, 2], true);
+        }
+        for y in 1..5 {
+            ring.set(&[2, y, 2, 2], true);
+            ring.set(&[25, y, 2, 2], true);
+        }
+        images.push(ring);
+        let mut checked = 0;
+        for (trial, image) in images.iter().enumerate() {
+            let b0 = crate::components::count_components(image, 1);
+            let expected = CellComplex::of_image(image).betti_by_boundaries();
+            let whole = DenseComplex::of_image(image);
+            let row = whole.grid.brick_step[0];
+            let balanced = {
+                let mut weights = vec![0; whole.rows()];
+                for &o in &whole.owners {
+                    weights[o as usize / row] += 1;
+                }
+                whole.halves(&weights).expect("seven brick rows split")
+            };
+            assert_eq!(
+                whole
+                    .betti_split(b0, FinalRank::Elimination, None)
+                    .unwrap()
+                    .0,
+                expected,
+                "trial {trial} unsplit"
+            );
+            for half in 2..=5 {
+                let halves = Halves { half, row };
+                assert!(balanced.half >= 2 && balanced.half <= 5);
+                let found = DenseComplex::of_image(image)
+                    .betti_split(b0, FinalRank::Elimination, Some(halves))
+                    .unwrap()
+                    .0;
+                assert_eq!(found, expected, "trial {trial} split at brick row {half}");
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 4 * 25);
+        // Both parts start a wave of their own on the ring, and the seam joins them.
+        assert_eq!(
+            CellComplex::of_image(&images[24]).betti_by_boundaries(),
+            vec![1, 1, 0, 0, 0]
+        );
     }
 
     /// Reduction pairs against plain boundary ranks on random complexes of every dimension,

@@ -258,11 +258,12 @@ fn remnant_complex(
     let every_face = cell_bit - 1;
     let cofaces = tester.cofaces_with_cell();
     let mut complex = DenseComplex::new(padded.shape())?;
-    let places = complex.face_places(offsets);
+    let grid = *complex.grid();
+    let places = grid.face_places(offsets);
     let strides = padded.strides().to_vec();
     let data = padded.data();
     for &index in remaining {
-        let around = complex.owners_around(complex.place(&padded.coords(index)));
+        let around = grid.owners_around(grid.place(&padded.coords(index)));
         let config = tester.configuration_in(data, &strides, index);
         let shared = tester.attachment_of(config);
         // Private cells: the voxel itself and the boundary faces no neighbour shares.
@@ -349,8 +350,9 @@ fn background_cores(
     // are. Its Khalimsky coordinates are 2 v_a + 1 along the axes of S and 2 v_a (even,
     // owned one voxel back: see `dense`) along the others.
     let mut complex = DenseComplex::new(&shape)?;
+    let grid = *complex.grid();
     for &i in &cores {
-        let around = complex.owners_around(complex.place(&padded.coords(i)));
+        let around = grid.owners_around(grid.place(&padded.coords(i)));
         'cubes: for subset in 0usize..1 << d {
             // Every corner v + sum of a subset T of S.
             let mut t = subset;

@@ -294,6 +294,50 @@ fn every_4d_route_agrees_on_rough_images() {
     assert!(general > 500, "{general} general pivots");
 }
 
+/// Images large enough for the reduction to split across two threads: the split and the
+/// unsplit reduction of the same remnant agree (and `topology`, which splits, with them),
+/// on a random image and on a smooth one (a blob: a few loops and spheres, found by
+/// waves that start in both parts and meet in the seam).
+#[test]
+fn the_split_reduction_agrees_with_the_whole_one() {
+    let mut rng = ChaCha8Rng::seed_from_u64(92);
+    let side = 30;
+    let noise = random_image(&mut rng, &[side; 4], 0.5);
+    // The blob: the noise summed over a box of radius 2 (one axis at a time, clamped at
+    // the border), thresholded at half the box.
+    let mut field: Vec<u32> = noise.data().iter().map(|&v| v as u32).collect();
+    for axis in 0..4 {
+        let stride = noise.strides()[axis];
+        let before = field.clone();
+        for (index, sum) in field.iter_mut().enumerate() {
+            let x = noise.coords(index)[axis];
+            *sum = (x.saturating_sub(2)..(x + 3).min(side))
+                .map(|y| before[index - x * stride + y * stride])
+                .sum();
+        }
+    }
+    let mut blob = BinaryImage::zeros(&[side; 4]).unwrap();
+    for (v, &sum) in blob.data_mut().iter_mut().zip(&field) {
+        *v = (2 * sum > 625) as u8;
+    }
+    for (name, image) in [("random", &noise), ("blob", &blob)] {
+        let mut padded = image.padded(1);
+        let tester = simple::SimpleTester::new(padded.dim());
+        let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
+        let steps = flat_offsets(&padded, tester.offsets());
+        let b0 = components::count_components_of(padded.data_mut(), &remaining, &steps);
+        let split = remnant_complex(&padded, &remaining, &tester).unwrap();
+        let whole = remnant_complex(&padded, &remaining, &tester).unwrap();
+        assert!(split.splits(), "{name}: large enough to split");
+        let found = split.betti_with(b0, FinalRank::Elimination).unwrap().0;
+        assert_eq!(found, whole.betti_unsplit(b0).unwrap().0, "{name}");
+        let mut betti = found;
+        betti.truncate(4);
+        assert_eq!(topology(image).betti, betti, "{name}: topology");
+        assert!(betti[1] + betti[2] > 10, "{name}: {betti:?}");
+    }
+}
+
 /// A pool that would pass its limit is an error of `try_topology`, not a panic or a wrong
 /// rank: the limit lowered on this thread (the elimination runs on the caller's thread) to
 /// below what a rough 4D image's remnant needs, then restored.
