@@ -338,6 +338,28 @@ fn the_split_reduction_agrees_with_the_whole_one() {
     }
 }
 
+/// The thinning's slabs and the reduction's halves run on rayon's threads, and neither the
+/// Betti numbers nor the work left to the elimination (its general pivots, which follow
+/// the cells the pairs leave) depend on how many there are.
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let mut rng = ChaCha8Rng::seed_from_u64(93);
+    let image = random_image(&mut rng, &[30; 4], 0.5);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| topology_by_thinning_with(image.padded(1), FinalRank::Elimination))
+            .unwrap()
+    };
+    let one = run(1);
+    assert!(one.1 > 0, "the elimination met general pivots");
+    for threads in [2, 4] {
+        assert_eq!(run(threads), one, "{threads} threads");
+    }
+}
+
 /// A pool that would pass its limit is an error of `try_topology`, not a panic or a wrong
 /// rank: the limit lowered on this thread (the elimination runs on the caller's thread) to
 /// below what a rough 4D image's remnant needs, then restored.
