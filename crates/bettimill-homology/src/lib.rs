@@ -25,10 +25,13 @@
 //!   construction into the object's. A carved 128^4 cube takes seconds and well under
 //!   1 GB instead of ~50 s and ~7 GB.
 //!
-//! Memory: the padded copy (one byte per voxel) plus the remnant's complex (two bytes per
-//! voxel of address space, written only where the remnant is, four per owner voxel and five
-//! per queued cell); a 128^4 blob peaked at 1.15 GB, a random 64^4 image (whose remnant is
-//! most of it) at 343 MB, both including the caller's copy of the image (BENCHMARKS.md).
+//! Memory: the padded copy (one byte per voxel; [`try_topology_owned`] makes it from the
+//! caller's image in place, [`try_topology`] beside it) plus the remnant's complex (two
+//! bytes per voxel of address space, written only where the remnant is, four per owner
+//! voxel and five per queued cell); `bettimill betti` (the owned route) peaked at 896 MB on
+//! a 128^4 blob and at 375 MB on a random 64^4 image, whose remnant is most of it
+//! (BENCHMARKS.md). On a large remnant the reduction pairs run on two threads, one half of
+//! the grid each (module `dense`).
 //!
 //! [`simple`] decides whether one voxel can be flipped without changing the topology; it is
 //! the kernel of both deformations and of the thinning.
