@@ -560,6 +560,20 @@ mod tests {
         img
     }
 
+    /// A reader that gives one byte per read, as a slow pipe may.
+    struct Trickle<'a>(&'a [u8]);
+
+    impl std::io::Read for Trickle<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let Some((first, rest)) = self.0.split_first() else {
+                return Ok(0);
+            };
+            buf[0] = *first;
+            self.0 = rest;
+            Ok(1)
+        }
+    }
+
     #[test]
     fn reads_a_stream_exactly_as_bytes() {
         let img = sample();
@@ -568,17 +582,6 @@ mod tests {
             let streamed = read_from(&bytes[..], true, 1 << 20).unwrap();
             assert_eq!(streamed.image, img, "{descr}");
             // One byte at a time, as a slow pipe delivers it.
-            struct Trickle<'a>(&'a [u8]);
-            impl std::io::Read for Trickle<'_> {
-                fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-                    let Some((first, rest)) = self.0.split_first() else {
-                        return Ok(0);
-                    };
-                    buf[0] = *first;
-                    self.0 = rest;
-                    Ok(1)
-                }
-            }
             let trickled = read_from(Trickle(&bytes), true, 1 << 20).unwrap();
             assert_eq!(trickled.image, img, "{descr}");
         }
@@ -589,17 +592,6 @@ mod tests {
     /// delivered a byte at a time (elements split across reads).
     #[test]
     fn a_stream_gives_the_answers_and_errors_of_its_bytes() {
-        struct Trickle<'a>(&'a [u8]);
-        impl std::io::Read for Trickle<'_> {
-            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-                let Some((first, rest)) = self.0.split_first() else {
-                    return Ok(0);
-                };
-                buf[0] = *first;
-                self.0 = rest;
-                Ok(1)
-            }
-        }
         let mut img = BinaryImage::zeros(&[40, 41, 43]).unwrap();
         for index in (0..img.len()).step_by(7) {
             img.data_mut()[index] = 1;
