@@ -345,7 +345,7 @@ impl BinaryImage {
 
     /// [`BinaryImage::padded`] without a second buffer: the data grows in place and every
     /// row moves to its padded position, last row first (a row only moves forward, onto
-    /// rows already moved), then the gaps between rows are cleared. For callers that do not
+    /// the old places of rows already moved), then the gaps between rows are cleared. For callers that do not
     /// need the image afterwards: the peak is the padded image alone, where a copy holds
     /// both.
     pub fn into_padded(self, width: usize) -> BinaryImage {

@@ -240,6 +240,8 @@ pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<Npy
     if let Some((index, value)) = not_binary {
         return Err(NpyError::NotBinary { index, value });
     }
+    // Grown by doubling as the data came: the room past the image goes back.
+    voxels.shrink_to_fit();
     let image = BinaryImage::from_vec(&shape, voxels)?;
     Ok(NpyImage { image, dtype })
 }

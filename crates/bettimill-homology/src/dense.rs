@@ -180,9 +180,10 @@ struct Halves {
 }
 
 impl Halves {
-    /// The lower part's places, and those of its cells a reduction step started from
-    /// reaches no further than (three steps: a cell, its partner, their neighbours'
-    /// counts).
+    /// The lower part's places, and the places whose cells it reduces: those at least a
+    /// brick row (four voxels) from the split, since a reduction step reaches three
+    /// voxels from the cell it starts at (the cell's facets and cofacets, its partner, and
+    /// the counts of their neighbours), so it stays in the part's own places.
     fn lower(&self) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
         (0..self.half * self.row, 0..(self.half - 1) * self.row)
     }
@@ -249,8 +250,9 @@ impl DenseComplex {
     /// How to split work on the grid across its first axis, given how much of it lies in
     /// each brick row (`weights`, one per row): at the row where the weight before it
     /// passes half, kept two rows from either end. None when the grid has fewer than six
-    /// brick rows (a first side of 20 or less with the border: a 4D cube of side 18 or
-    /// less), or no weight.
+    /// brick rows (a first side of 20 or less with the border), the fewest a split can
+    /// have, or no weight. Whether a split is worth it is [`DenseComplex::split`]'s rule
+    /// (eight brick rows and 65,536 owners).
     fn halves(&self, weights: &[usize]) -> Option<Halves> {
         let rows = weights.len();
         let total: usize = weights.iter().sum();
@@ -315,9 +317,10 @@ impl DenseComplex {
         }
     }
 
-    /// Twice the coordinates of the centre of the grid's places from `start` (a place at
-    /// the start of a brick row) to `end` along the first axis, and of the whole grid
-    /// along the others.
+    /// Twice the coordinates of the centre of a slab of the grid: along the first axis,
+    /// of the voxels of the brick rows that the places `rows` cover (a range starting at a
+    /// brick row, its end rounded up to one and cut at the grid's side); along the others,
+    /// of the whole grid.
     fn doubled_centre(&self, rows: std::ops::Range<usize>) -> [usize; 4] {
         let row = self.grid.brick_step[0];
         let first = 4 * (rows.start / row);

@@ -100,7 +100,7 @@ struct Tables {
     offsets: Vec<[i8; 4]>,
     /// `closure[k]`: the faces (as neighbour bits) in the closure of neighbour k's face.
     closure: Vec<u128>,
-    /// closure_low/high[j][b]: the union of the closures of the neighbours whose
+    /// `closure_low/high[j][b]`: the union of the closures of the neighbours whose
     /// bits are set in byte value b at bits 8j..8j+8 (its bits 0-63 and 64-79), so A(x)
     /// is one lookup per byte. Split so that the 4D tables take 25 KiB and stay in the
     /// first-level cache, where one 128-bit table took 40 KiB and did not.
@@ -657,7 +657,7 @@ impl SimpleTester {
     /// [`SimpleTester::is_simple_configuration`] (the tests check it), tens of times slower;
     /// meant for other crates' tests.
     pub fn is_simple_by_collapse(&self, config: u128) -> bool {
-        let config = config & ((1u128 << self.tables.n_neighbours) - 1);
+        let config = config & self.tables.neighbour_bits;
         self.tables.collapses_to_a_point(config)
     }
 }
