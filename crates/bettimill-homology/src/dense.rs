@@ -418,15 +418,14 @@ impl DenseComplex {
         }
         let owners = std::mem::take(&mut self.owners);
         let mut removed_vertices = 0u64;
-        let mut queue = CellQueue::default();
         let everywhere = 0..usize::MAX;
         match halves {
             None => {
                 let centre = self.doubled_centre(0..self.masks.len());
-                let mut cells = self.cells();
-                cells.queue_free_faces(&owners, &everywhere, &mut queue);
-                removed_vertices +=
-                    cells.reduce(&mut queue, &everywhere, &everywhere, &owners, Some(centre));
+                let (_, removed) =
+                    self.cells()
+                        .reduce_from_free_faces(&owners, &everywhere, centre);
+                removed_vertices += removed;
             }
             Some(halves) => {
                 let end = self.masks.len();
@@ -443,22 +442,17 @@ impl DenseComplex {
                             inside: std::ops::Range<usize>,
                             centre: [usize; 4]| {
                     let mut cells: Cells<true> = Cells { grid, masks, base };
-                    let mut queue = CellQueue::default();
-                    cells.queue_free_faces(&owners, &inside, &mut queue);
-                    let removed = cells.reduce(&mut queue, &inside, &inside, &owners, Some(centre));
-                    (queue, removed)
+                    cells.reduce_from_free_faces(&owners, &inside, centre)
                 };
-                let ((mut left_lower, a), (mut left_upper, b)) = rayon::join(
+                let ((mut queue, a), (mut left_upper, b)) = rayon::join(
                     || part(lower_masks, 0, lower_inside.clone(), centres[0]),
                     || part(upper_masks, upper.start, upper_inside.clone(), centres[1]),
                 );
                 removed_vertices += a + b;
                 // What the parts left queued (cells in or next to the seam), then the seam's
                 // own candidates.
-                for left in [&mut left_lower, &mut left_upper] {
-                    while let Some((o, code)) = left.pop() {
-                        queue.push(o, code);
-                    }
+                while let Some((o, code)) = left_upper.pop() {
+                    queue.push(o, code);
                 }
                 let seam = lower_inside.end..upper_inside.start;
                 let mut cells = self.cells();
@@ -468,8 +462,8 @@ impl DenseComplex {
             }
         }
         // Explicit reduction of what is left, top dimension first; a k-cell that is the
-        // lowest row of a reduced (k+1)-column has a boundary column reducing to zero.
-        drop(queue);
+        // lowest row of a reduced (k+1)-column has a boundary column reducing to zero. (The
+        // queues went with the match above.)
         // Counted first, so that each list is allocated once at its size.
         let mut counts = vec![0usize; d + 1];
         for &o in &owners {
@@ -736,6 +730,21 @@ impl<const PART: bool> Cells<'_, PART> {
                 }
             }
         }
+    }
+
+    /// Queues the free faces of the owners in `inside`, then [`Cells::reduce`]s from them
+    /// with the first wave at `centre`, removing vertices in `inside` only: the cells left
+    /// queued (those outside `inside`) and the number of vertices removed.
+    fn reduce_from_free_faces(
+        &mut self,
+        owners: &[u32],
+        inside: &std::ops::Range<usize>,
+        centre: [usize; 4],
+    ) -> (CellQueue, u64) {
+        let mut queue = CellQueue::default();
+        self.queue_free_faces(owners, inside, &mut queue);
+        let removed = self.reduce(&mut queue, inside, inside, owners, Some(centre));
+        (queue, removed)
     }
 
     /// Removes reduction pairs from `queue` (free faces and coreductions) and, whenever it
