@@ -70,7 +70,13 @@ impl SimpleCache {
     /// simple for `tester`, memoised on what the answer depends on.
     #[inline]
     pub fn is_simple(&mut self, tester: &SimpleTester, config: u128) -> bool {
-        let key = tester.memo_key(config);
+        self.is_simple_by_key(tester, tester.memo_key(config))
+    }
+
+    /// [`SimpleCache::is_simple`] of a configuration whose [`SimpleTester::memo_key`] is
+    /// `key`.
+    #[inline]
+    pub(crate) fn is_simple_by_key(&mut self, tester: &SimpleTester, key: u128) -> bool {
         let slot = self.slot(key);
         let entry = self.entries[slot];
         if entry & !Self::ANSWER == key | Self::USED {
@@ -106,6 +112,12 @@ struct Tables {
     /// first-level cache, where one 128-bit table took 40 KiB and did not.
     closure_low: Vec<[u64; 256]>,
     closure_high: Vec<[u16; 256]>,
+    /// `key_low/high[j][b]`: the memo key (as [`SimpleTester::memo_key`]) of the
+    /// neighbours whose bits are set in byte value b at bits 8j..8j+8 of a configuration
+    /// in column order ([`SimpleTester::key_of_column_block`]), so that the thinning sweep
+    /// never reorders its block.
+    key_low: Vec<[u64; 256]>,
+    key_high: Vec<[u16; 256]>,
     /// `adjacency[k]`: the other neighbours within one step of neighbour k in every axis.
     adjacency: Vec<u128>,
     /// `cofaces[k]`: faces of one dimension more whose closure contains face k.
@@ -124,6 +136,21 @@ struct Tables {
     edge_faces: Vec<(u128, u8, u8)>,
     /// The 2D answers, bit c of the 256-bit table (4 words).
     table_2d: Option<[u64; 4]>,
+}
+
+/// The union of the entries of per-byte tables (`low` for bits 0-63 of the result, `high`
+/// for bits 64-79) picked by the bytes of `bits`: one lookup per byte, read from its two
+/// 64-bit halves (a loop shifting the 128-bit value took twice the instructions).
+#[inline]
+fn by_bytes(low: &[[u64; 256]], high: &[[u16; 256]], bits: u128) -> u128 {
+    let (mut result_low, mut result_high) = (0u64, 0u16);
+    let words = [bits as u64, (bits >> 64) as u64];
+    for (j, (table_low, table_high)) in low.iter().zip(high).enumerate() {
+        let byte = (words[j >> 3] >> (8 * (j & 7))) as u8 as usize;
+        result_low |= table_low[byte];
+        result_high |= table_high[byte];
+    }
+    (result_high as u128) << 64 | result_low as u128
 }
 
 /// The 3D table is 8 MiB and identical for every tester, so one copy serves the process.
@@ -216,6 +243,36 @@ impl Tables {
                     .fold(0u128, |faces, b| faces | closure[8 * j + b])
             })
             .collect();
+        // Bit b of a configuration in column order is bit b of the block in column order
+        // below the centre, b + 1 above it; block bit R c + r is position c along the last
+        // axis of row r (R rows), the neighbour at raster index 3 r + c.
+        let rows = n.div_ceil(3);
+        let key_bytes: Vec<u128> = (0..n.div_ceil(8) * 256)
+            .map(|entry| {
+                let (j, byte) = (entry / 256, entry % 256);
+                (0..8)
+                    .filter(|&b| byte >> b & 1 == 1 && 8 * j + b < n)
+                    .fold(0u128, |key, b| {
+                        let bit = 8 * j + b;
+                        let block_bit = if bit < centre { bit } else { bit + 1 };
+                        let raster = 3 * (block_bit % rows) + block_bit / rows;
+                        let k = if raster < centre { raster } else { raster - 1 };
+                        key | if dim == Dim::Four { closure[k] } else { 1 << k }
+                    })
+            })
+            .collect();
+        let low_words = |bytes: &[u128]| -> Vec<[u64; 256]> {
+            bytes
+                .chunks_exact(256)
+                .map(|byte| std::array::from_fn(|b| byte[b] as u64))
+                .collect()
+        };
+        let high_words = |bytes: &[u128]| -> Vec<[u16; 256]> {
+            bytes
+                .chunks_exact(256)
+                .map(|byte| std::array::from_fn(|b| (byte[b] >> 64) as u16))
+                .collect()
+        };
         let mut tables = Tables {
             dim,
             n_neighbours: n,
@@ -223,14 +280,10 @@ impl Tables {
             centre,
             offsets,
             closure,
-            closure_low: closure_bytes
-                .chunks_exact(256)
-                .map(|byte| std::array::from_fn(|b| byte[b] as u64))
-                .collect(),
-            closure_high: closure_bytes
-                .chunks_exact(256)
-                .map(|byte| std::array::from_fn(|b| (byte[b] >> 64) as u16))
-                .collect(),
+            closure_low: low_words(&closure_bytes),
+            closure_high: high_words(&closure_bytes),
+            key_low: low_words(&key_bytes),
+            key_high: high_words(&key_bytes),
             adjacency,
             cofaces,
             even_faces,
@@ -256,18 +309,7 @@ impl Tables {
     /// The attachment set A(x) as a face mask: byte-wise lookups of the closures.
     #[inline]
     fn attachment(&self, config: u128) -> u128 {
-        let (mut low, mut high) = (0u64, 0u16);
-        // One lookup per byte of the configuration, read from its two 64-bit halves (a
-        // loop shifting the 128-bit value took twice the instructions).
-        let words = [config as u64, (config >> 64) as u64];
-        for (j, (table_low, table_high)) in
-            self.closure_low.iter().zip(&self.closure_high).enumerate()
-        {
-            let byte = (words[j >> 3] >> (8 * (j & 7))) as u8 as usize;
-            low |= table_low[byte];
-            high |= table_high[byte];
-        }
-        (high as u128) << 64 | low as u128
+        by_bytes(&self.closure_low, &self.closure_high, config)
     }
 
     /// [`Tables::attachment`] by the definition, one closure per foreground neighbour (the
@@ -487,25 +529,27 @@ impl SimpleTester {
         self.configuration_in(image.data(), image.strides(), index)
     }
 
-    /// The configuration of a voxel from its whole 3^d block (bit 3r + c = row r of the
-    /// 3^(d-1) rows along the last axis in lexicographic order, position c = 0, 1, 2 for
-    /// offsets -1, 0, +1): drops the centre bit, as [`SimpleTester::configuration_in`] does.
+    /// The memo key ([`SimpleTester::memo_key`]) of a voxel from its whole 3^d block in
+    /// column order: bit R c + r is row r of the R = 3^(d-1) rows along the last axis (in
+    /// lexicographic order), at position c = 0, 1, 2 for offsets -1, 0, +1. The thinning
+    /// sweep slides its block one column at a time in that order; the key is read from it
+    /// with per-byte tables, without putting it back in raster order.
     #[inline]
-    pub(crate) fn configuration_of_block(&self, block: u128) -> u128 {
-        // The centre's bit is 3^d / 2: a constant per dimension, so that the 128-bit
-        // shifts are by constants (by a variable they took three times the instructions).
+    pub(crate) fn key_of_column_block(&self, block: u128) -> u128 {
+        // The centre's bit is R + (R - 1) / 2 = 3^d / 2, as in raster order: a constant
+        // per dimension, so that the 128-bit shifts are by constants (by a variable they
+        // took three times the instructions).
         fn without<const CENTRE: u32>(block: u128) -> u128 {
             (block & ((1u128 << CENTRE) - 1)) | ((block >> (CENTRE + 1)) << CENTRE)
         }
-        debug_assert_eq!(
-            self.tables.centre,
-            3usize.pow(self.tables.dim.get() as u32) / 2
-        );
-        match self.tables.dim {
+        let tables = &*self.tables;
+        debug_assert_eq!(tables.centre, 3usize.pow(tables.dim.get() as u32) / 2);
+        let config = match tables.dim {
             Dim::Two => without::<4>(block),
             Dim::Three => without::<13>(block),
             Dim::Four => without::<40>(block),
-        }
+        };
+        by_bytes(&tables.key_low, &tables.key_high, config)
     }
 
     /// The configuration of voxel `index` of C-order voxel bytes `data` laid out with
@@ -722,6 +766,33 @@ mod tests {
                 simple += answer as u32;
             }
             assert!(simple > 1000, "{dim:?}: {simple}");
+        }
+    }
+
+    /// The key of a block in column order is the key of the same block's configuration
+    /// in raster order.
+    #[test]
+    fn column_order_keys_match_raster_order_keys() {
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        for dim in Dim::ALL {
+            let tester = SimpleTester::new(dim);
+            let n = tester.offsets().len();
+            let (cells, rows, centre) = (n + 1, (n + 1) / 3, n / 2);
+            for trial in 0..20_000 {
+                let density = [0.1, 0.5, 0.9][trial % 3];
+                let raster: Vec<bool> = (0..cells).map(|_| rng.gen_bool(density)).collect();
+                let column = (0..cells).fold(0u128, |block, b| {
+                    block | (raster[3 * (b % rows) + b / rows] as u128) << b
+                });
+                let config = (0..cells)
+                    .filter(|&i| i != centre && raster[i])
+                    .fold(0u128, |c, i| c | 1 << if i < centre { i } else { i - 1 });
+                assert_eq!(
+                    tester.key_of_column_block(column),
+                    tester.memo_key(config),
+                    "{dim:?} {config:#x}"
+                );
+            }
         }
     }
 

@@ -42,8 +42,8 @@ fn sweep(
     // The block of a voxel whose earlier neighbours (in raster order) are all gone and
     // later ones all present: its attachment set is a closed half of the voxel's boundary,
     // a ball, so it is simple. A third of a blob's voxels look like this in the first
-    // sweep; they skip the configuration and the memo.
-    let half = window.all_bits & !(window.centre_bit - 1);
+    // sweep; they skip the memo.
+    let half = window.half;
     for i in range {
         // Skips the other phase, and locked voxels (bit 2), which are never flipped.
         if data[i] & 5 != 1 {
@@ -62,19 +62,19 @@ fn sweep(
             block &= !window.centre_bit;
             continue;
         }
-        let (exposed, config) = match phase {
+        let (exposed, key) = match phase {
             Phase::Foreground => (
                 block & window.face_bits != window.face_bits,
-                tester.configuration_of_block(block),
+                tester.key_of_column_block(block),
             ),
             // Adding a background voxel to the object needs an object voxel among its
             // neighbours; the object's configuration is the complement.
             Phase::Background => (
                 block & neighbours != neighbours,
-                tester.configuration_of_block(!block & neighbours),
+                tester.key_of_column_block(!block & neighbours),
             ),
         };
-        if exposed && cache.is_simple(tester, config) {
+        if exposed && cache.is_simple_by_key(tester, key) {
             data[i] = 0;
             block &= !window.centre_bit;
         } else {
@@ -83,31 +83,31 @@ fn sweep(
     }
 }
 
-/// The 3^d block of a voxel as 3^(d-1) rows of three bits along the last axis (bit 3r + c,
-/// rows in lexicographic order of the other axes, c = 0, 1, 2 for offsets -1, 0, +1), read
-/// whole or slid by one voxel along the last axis (one new column of 3^(d-1) voxels
-/// instead of the whole block).
+/// The 3^d block of a voxel in column order: three columns of R = 3^(d-1) bits, one per
+/// position along the last axis (bit R c + r, rows r in lexicographic order of the other
+/// axes, c = 0, 1, 2 for offsets -1, 0, +1), read whole or slid by one voxel along the last
+/// axis (one new column of R voxels instead of the whole block, shifted in whole).
 ///
 /// Columns are read sixteen at a time ([`Window::load`]). That is exact because while a
 /// sweep crosses one line of the image, no other line changes: the lines around it are
-/// either swept already or not yet reached. In the line itself only voxels already visited change, and a column is only
-/// read at a voxel whose predecessor was not visited (the block of a visited one is kept
-/// current instead). So a column read ahead is the column it would have been read fresh,
-/// as long as it stays within its line.
+/// either swept already or not yet reached. In the line itself only voxels already visited
+/// change, and a column is only read at a voxel whose predecessor was not visited (the
+/// block of a visited one is kept current instead). So a column read ahead is the column
+/// it would have been read fresh, as long as it stays within its line.
 struct Window {
     /// Flat offset of each row's middle voxel.
     rows: Vec<isize>,
+    /// R, the bits of a column.
+    column_bits: u32,
     /// The number of voxels of a line along the last axis.
     line: usize,
-    /// Bits 0 and 1 of every row.
-    low_two: u128,
     /// The bits of the 2d face neighbours.
     face_bits: u128,
     centre_bit: u128,
     /// Every bit of the 3^d block.
     all_bits: u128,
-    /// Bit r of a 9-bit value moved to bit 3r.
-    spread: Vec<u32>,
+    /// The centre and the neighbours after it in raster order.
+    half: u128,
 }
 
 /// Columns read ahead for flat indices `base..end` (at most sixteen): byte j of
@@ -132,27 +132,28 @@ impl Window {
         }
         let n_rows = rows.len();
         let middle_row = n_rows / 2;
-        let low_two = (0..n_rows).fold(0u128, |m, r| m | 0b011 << (3 * r));
-        let centre_bit = 1u128 << (3 * middle_row + 1);
-        let mut face_bits = (centre_bit >> 1) | (centre_bit << 1);
+        let bit = |c: usize, r: usize| 1u128 << (n_rows * c + r);
+        let centre_bit = bit(1, middle_row);
+        let mut face_bits = bit(0, middle_row) | bit(2, middle_row);
         // Along axis a < d - 1 the rows one step away are 3^(d-2-a) rows apart.
         for axis in 0..d - 1 {
             let apart = 3usize.pow((d - 2 - axis) as u32);
-            face_bits |= 1u128 << (3 * (middle_row - apart) + 1);
-            face_bits |= 1u128 << (3 * (middle_row + apart) + 1);
+            face_bits |= bit(1, middle_row - apart) | bit(1, middle_row + apart);
         }
         let all_bits = (1u128 << (3 * n_rows)) - 1;
-        let spread = (0..512u32)
-            .map(|v| (0..9).fold(0, |s, r| s | (v >> r & 1) << (3 * r)))
-            .collect();
+        // Bit R c + r has raster index 3 r + c; the centre's is 3^d / 2.
+        let centre = 3 * n_rows / 2;
+        let half = (0..3 * n_rows)
+            .filter(|&b| 3 * (b % n_rows) + b / n_rows >= centre)
+            .fold(0u128, |m, b| m | 1 << b);
         Window {
             rows,
+            column_bits: n_rows as u32,
             line: strides[d - 2],
-            low_two,
             face_bits,
             centre_bit,
             all_bits,
-            spread,
+            half,
         }
     }
 
@@ -160,29 +161,43 @@ impl Window {
     /// `columns`. Each row contributes two 8-byte words (byte j = voxel p + j); masked to
     /// bit 0 of every byte and shifted by r mod 8, the words of eight rows OR into one word
     /// whose byte j holds those rows' bits of column j, with no carries between bytes.
+    #[inline(never)]
     fn load(&self, data: &[u8], p: usize, columns: &mut Columns) {
         let mut packed = [0u64; 8];
-        for (r, &o) in self.rows.iter().enumerate() {
-            let q = (p as isize + o) as usize;
-            let (low, high) = match data.get(q..q + 16) {
-                Some(slice) => (
-                    u64::from_le_bytes(slice[..8].try_into().expect("eight bytes")),
-                    u64::from_le_bytes(slice[8..].try_into().expect("eight bytes")),
-                ),
-                None => (word_at_end(data, q), word_at_end(data, q + 8)),
-            };
-            let (group, shift) = ((r >> 3) & 3, r & 7);
-            packed[group] |= (low & 0x0101_0101_0101_0101) << shift;
-            packed[4 + group] |= (high & 0x0101_0101_0101_0101) << shift;
+        let first = (p as isize + self.rows[0]) as usize;
+        let last = (p as isize + self.rows[self.rows.len() - 1]) as usize;
+        match data.get(first..last + 16) {
+            // Unrolled for each dimension's row count, so that every shift is a constant.
+            Some(span) => {
+                let offset = p as isize - first as isize;
+                let words = match self.rows.len() {
+                    3 => pack_rows::<3>(&self.rows, span, offset),
+                    9 => pack_rows::<9>(&self.rows, span, offset),
+                    _ => pack_rows::<27>(&self.rows, span, offset),
+                };
+                for (group, word) in words.into_iter().enumerate() {
+                    packed[group] = word as u64;
+                    packed[4 + group] = (word >> 64) as u64;
+                }
+            }
+            None => {
+                for (r, &o) in self.rows.iter().enumerate() {
+                    let q = (p as isize + o) as usize;
+                    let (low, high) = (word_at_end(data, q), word_at_end(data, q + 8));
+                    let (group, shift) = ((r >> 3) & 3, r & 7);
+                    packed[group] |= (low & ONES as u64) << shift;
+                    packed[4 + group] |= (high & ONES as u64) << shift;
+                }
+            }
         }
         columns.packed = packed;
         columns.base = p;
         columns.end = (p + 16).min((p / self.line + 1) * self.line);
     }
 
-    /// The column at flat index `at` at bits 3r, read ahead into `columns` when it is not
-    /// there.
-    #[inline]
+    /// The column at flat index `at` (bit r = row r), read ahead into `columns` when it is
+    /// not there.
+    #[inline(always)]
     fn column(&self, data: &[u8], at: usize, columns: &mut Columns) -> u128 {
         if at.wrapping_sub(columns.base) >= columns.end - columns.base {
             self.load(data, at, columns);
@@ -191,26 +206,47 @@ impl Window {
         let words = &columns.packed[(j >> 3) * 4..(j >> 3) * 4 + 4];
         let shift = 8 * (j & 7);
         let byte = |g: usize| (words[g] >> shift) as usize & 0xFF;
-        // Rows 0-8, 9-17 and 18-26, nine bits each.
-        let c = byte(0) | byte(1) << 8 | byte(2) << 16 | byte(3) << 24;
-        self.spread[c & 511] as u128
-            | (self.spread[(c >> 9) & 511] as u128) << 27
-            | (self.spread[(c >> 18) & 511] as u128) << 54
+        // Rows 8g..8g + 7 are byte g; bytes past the last row are zero.
+        (byte(0) | byte(1) << 8 | byte(2) << 16 | byte(3) << 24) as u128
     }
 
     #[inline]
     fn block(&self, data: &[u8], i: usize, columns: &mut Columns) -> u128 {
+        let r = self.column_bits;
         self.column(data, i - 1, columns)
-            | self.column(data, i, columns) << 1
-            | self.column(data, i + 1, columns) << 2
+            | self.column(data, i, columns) << r
+            | self.column(data, i + 1, columns) << (2 * r)
     }
 
     /// The block of voxel i from the (current) block of voxel i - 1.
     #[inline]
     fn advance(&self, data: &[u8], block: u128, i: usize, columns: &mut Columns) -> u128 {
-        ((block >> 1) & self.low_two) | self.column(data, i + 1, columns) << 2
+        block >> self.column_bits | self.column(data, i + 1, columns) << (2 * self.column_bits)
     }
 }
+
+/// Bit 0 of the sixteen bytes at `offset + rows[r]` of `span`, for each of the R rows,
+/// at bit r mod 8 of each byte of word r / 8.
+#[inline(always)]
+fn pack_rows<const R: usize>(rows: &[isize], span: &[u8], offset: isize) -> [u128; 4] {
+    let rows: &[isize; R] = rows.try_into().expect("R rows");
+    let mut words = [0u128; 4];
+    // Groups of eight rows: loops short enough for the compiler to unroll.
+    for (group, word) in words.iter_mut().enumerate() {
+        for shift in 0..8 {
+            let r = 8 * group + shift;
+            if r < R {
+                let q = (offset + rows[r]) as usize;
+                let bytes: [u8; 16] = span[q..q + 16].try_into().expect("16 bytes");
+                *word |= (u128::from_le_bytes(bytes) & ONES) << shift;
+            }
+        }
+    }
+    words
+}
+
+/// Bit 0 of each of sixteen bytes.
+const ONES: u128 = 0x0101_0101_0101_0101_0101_0101_0101_0101;
 
 /// The eight bytes from flat index `q` as a little-endian word, zero past the end of the
 /// data (the last line of a slab: those columns lie beyond the line and are never used).
@@ -573,8 +609,11 @@ mod tests {
             assert!(tester.is_simple_by_collapse(later), "{dim:?}");
             let image = BinaryImage::zeros(&vec![5; dim.get()]).unwrap();
             let window = Window::new(image.strides());
-            let half = window.all_bits & !(window.centre_bit - 1);
-            assert_eq!(tester.configuration_of_block(half), later, "{dim:?}");
+            assert_eq!(
+                tester.key_of_column_block(window.half),
+                tester.memo_key(later),
+                "{dim:?}"
+            );
         }
     }
 
