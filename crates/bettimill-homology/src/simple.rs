@@ -45,6 +45,7 @@ pub struct SimpleCache {
 }
 
 impl SimpleCache {
+    const COLUMN: u128 = 1 << 125;
     const USED: u128 = 1 << 126;
     const ANSWER: u128 = 1 << 127;
 
@@ -70,19 +71,32 @@ impl SimpleCache {
     /// simple for `tester`, memoised on what the answer depends on.
     #[inline]
     pub fn is_simple(&mut self, tester: &SimpleTester, config: u128) -> bool {
-        self.is_simple_by_key(tester, tester.memo_key(config))
+        let key = tester.memo_key(config);
+        self.memoised(key, || tester.is_simple_key(key))
     }
 
-    /// [`SimpleCache::is_simple`] of a configuration whose [`SimpleTester::memo_key`] is
-    /// `key`.
+    /// [`SimpleCache::is_simple`] of a voxel whose block in column order has the key
+    /// `column_key` ([`SimpleTester::column_key`]). Such keys are marked by bit 125, so
+    /// that they never meet the other keys in a memo that holds both.
     #[inline]
-    pub(crate) fn is_simple_by_key(&mut self, tester: &SimpleTester, key: u128) -> bool {
+    pub(crate) fn is_simple_by_column_key(
+        &mut self,
+        tester: &SimpleTester,
+        column_key: u128,
+    ) -> bool {
+        self.memoised(column_key | Self::COLUMN, || {
+            tester.is_simple_key(tester.face_key(column_key))
+        })
+    }
+
+    #[inline]
+    fn memoised(&mut self, key: u128, answer: impl FnOnce() -> bool) -> bool {
         let slot = self.slot(key);
         let entry = self.entries[slot];
         if entry & !Self::ANSWER == key | Self::USED {
             return entry & Self::ANSWER != 0;
         }
-        let answer = tester.is_simple_key(key);
+        let answer = answer();
         self.entries[slot] = key | Self::USED | if answer { Self::ANSWER } else { 0 };
         answer
     }
@@ -112,12 +126,13 @@ struct Tables {
     /// first-level cache, where one 128-bit table took 40 KiB and did not.
     closure_low: Vec<[u64; 256]>,
     closure_high: Vec<[u16; 256]>,
-    /// `key_low/high[j][b]`: the memo key (as [`SimpleTester::memo_key`]) of the
-    /// neighbours whose bits are set in byte value b at bits 8j..8j+8 of a configuration
-    /// in column order ([`SimpleTester::key_of_column_block`]), so that the thinning sweep
-    /// never reorders its block.
-    key_low: Vec<[u64; 256]>,
-    key_high: Vec<[u16; 256]>,
+    /// `face_low/high[j][b]`: the neighbour bits (configuration order) of the faces whose
+    /// bits are set in byte value b at bits 8j..8j+8 of a set of faces in column order,
+    /// its centre bit dropped ([`SimpleTester::face_key`]).
+    face_low: Vec<[u64; 256]>,
+    face_high: Vec<[u16; 256]>,
+    /// Per axis, the bits of a block in column order whose offset along it is 0.
+    zero_columns: [u128; 4],
     /// `adjacency[k]`: the other neighbours within one step of neighbour k in every axis.
     adjacency: Vec<u128>,
     /// `cofaces[k]`: faces of one dimension more whose closure contains face k.
@@ -247,20 +262,28 @@ impl Tables {
         // below the centre, b + 1 above it; block bit R c + r is position c along the last
         // axis of row r (R rows), the neighbour at raster index 3 r + c.
         let rows = n.div_ceil(3);
-        let key_bytes: Vec<u128> = (0..n.div_ceil(8) * 256)
+        let raster_of = |block_bit: usize| 3 * (block_bit % rows) + block_bit / rows;
+        let face_bytes: Vec<u128> = (0..n.div_ceil(8) * 256)
             .map(|entry| {
                 let (j, byte) = (entry / 256, entry % 256);
                 (0..8)
                     .filter(|&b| byte >> b & 1 == 1 && 8 * j + b < n)
-                    .fold(0u128, |key, b| {
+                    .fold(0u128, |faces, b| {
                         let bit = 8 * j + b;
-                        let block_bit = if bit < centre { bit } else { bit + 1 };
-                        let raster = 3 * (block_bit % rows) + block_bit / rows;
-                        let k = if raster < centre { raster } else { raster - 1 };
-                        key | if dim == Dim::Four { closure[k] } else { 1 << k }
+                        let raster = raster_of(if bit < centre { bit } else { bit + 1 });
+                        faces | 1 << if raster < centre { raster } else { raster - 1 }
                     })
             })
             .collect();
+        // The offset along axis a of the neighbour at raster index i is digit d - 1 - a
+        // of i in base 3, minus one.
+        let zero_columns = std::array::from_fn(|axis| {
+            (0..3 * rows)
+                .filter(|&bit| {
+                    axis < d && raster_of(bit) / 3usize.pow((d - 1 - axis) as u32) % 3 == 1
+                })
+                .fold(0u128, |mask, bit| mask | 1 << bit)
+        });
         let low_words = |bytes: &[u128]| -> Vec<[u64; 256]> {
             bytes
                 .chunks_exact(256)
@@ -282,8 +305,9 @@ impl Tables {
             closure,
             closure_low: low_words(&closure_bytes),
             closure_high: high_words(&closure_bytes),
-            key_low: low_words(&key_bytes),
-            key_high: high_words(&key_bytes),
+            face_low: low_words(&face_bytes),
+            face_high: high_words(&face_bytes),
+            zero_columns,
             adjacency,
             cofaces,
             even_faces,
@@ -529,27 +553,51 @@ impl SimpleTester {
         self.configuration_in(image.data(), image.strides(), index)
     }
 
-    /// The memo key ([`SimpleTester::memo_key`]) of a voxel from its whole 3^d block in
-    /// column order: bit R c + r is row r of the R = 3^(d-1) rows along the last axis (in
-    /// lexicographic order), at position c = 0, 1, 2 for offsets -1, 0, +1. The thinning
-    /// sweep slides its block one column at a time in that order; the key is read from it
-    /// with per-byte tables, without putting it back in raster order.
+    /// What the simple-point test of a voxel depends on, read from its whole 3^d block in
+    /// column order (bit R c + r is row r of the R = 3^(d-1) rows along the last axis, in
+    /// lexicographic order, at position c = 0, 1, 2 for offsets -1, 0, +1), which the
+    /// thinning sweep slides one column at a time. In 4D it is the attachment set A(x)
+    /// laid out like the block: a face is in A(x) when it is the face of a foreground
+    /// neighbour with some of its zero offsets made -1 or +1 (its closure), so A(x) is the
+    /// foreground neighbours spread, one axis at a time, from offset 0 to both sides: a few
+    /// shifts, no table. In 2D and 3D it is the block without its centre.
+    /// [`SimpleTester::face_key`] turns it into [`SimpleTester::memo_key`]'s layout.
     #[inline]
-    pub(crate) fn key_of_column_block(&self, block: u128) -> u128 {
-        // The centre's bit is R + (R - 1) / 2 = 3^d / 2, as in raster order: a constant
-        // per dimension, so that the 128-bit shifts are by constants (by a variable they
-        // took three times the instructions).
+    pub(crate) fn column_key(&self, block: u128) -> u128 {
+        let tables = &*self.tables;
+        // The centre's bit is R + (R - 1) / 2 = 3^d / 2, as in raster order.
+        let faces = block & !(1u128 << tables.centre);
+        if tables.dim != Dim::Four {
+            return faces;
+        }
+        // The axes' steps in column order: rows 9, 3, 1 apart for axes 0-2, columns 27
+        // apart for axis 3 (constants: a 128-bit shift by a variable costs several
+        // instructions).
+        let zero = &tables.zero_columns;
+        let spread = |faces: u128, zero: u128, step: u32| {
+            let middle = faces & zero;
+            faces | middle << step | middle >> step
+        };
+        let faces = spread(faces, zero[0], 9);
+        let faces = spread(faces, zero[1], 3);
+        let faces = spread(faces, zero[2], 1);
+        spread(faces, zero[3], 27)
+    }
+
+    /// [`SimpleTester::memo_key`] of the voxel whose [`SimpleTester::column_key`] is
+    /// `column_key`: the same set in configuration order.
+    pub(crate) fn face_key(&self, column_key: u128) -> u128 {
         fn without<const CENTRE: u32>(block: u128) -> u128 {
             (block & ((1u128 << CENTRE) - 1)) | ((block >> (CENTRE + 1)) << CENTRE)
         }
         let tables = &*self.tables;
         debug_assert_eq!(tables.centre, 3usize.pow(tables.dim.get() as u32) / 2);
-        let config = match tables.dim {
-            Dim::Two => without::<4>(block),
-            Dim::Three => without::<13>(block),
-            Dim::Four => without::<40>(block),
+        let faces = match tables.dim {
+            Dim::Two => without::<4>(column_key),
+            Dim::Three => without::<13>(column_key),
+            Dim::Four => without::<40>(column_key),
         };
-        by_bytes(&tables.key_low, &tables.key_high, config)
+        by_bytes(&tables.face_low, &tables.face_high, faces)
     }
 
     /// The configuration of voxel `index` of C-order voxel bytes `data` laid out with
@@ -770,7 +818,7 @@ mod tests {
     }
 
     /// The key of a block in column order is the key of the same block's configuration
-    /// in raster order.
+    /// in raster order, laid out in column order.
     #[test]
     fn column_order_keys_match_raster_order_keys() {
         let mut rng = ChaCha8Rng::seed_from_u64(17);
@@ -787,11 +835,14 @@ mod tests {
                 let config = (0..cells)
                     .filter(|&i| i != centre && raster[i])
                     .fold(0u128, |c, i| c | 1 << if i < centre { i } else { i - 1 });
+                let key = tester.column_key(column);
                 assert_eq!(
-                    tester.key_of_column_block(column),
+                    tester.face_key(key),
                     tester.memo_key(config),
                     "{dim:?} {config:#x}"
                 );
+                // Only the centre's bit is dropped (and, in 4D, the closure added).
+                assert_eq!(key & column, column & !(1 << centre), "{dim:?}");
             }
         }
     }

@@ -65,16 +65,16 @@ fn sweep(
         let (exposed, key) = match phase {
             Phase::Foreground => (
                 block & window.face_bits != window.face_bits,
-                tester.key_of_column_block(block),
+                tester.column_key(block),
             ),
             // Adding a background voxel to the object needs an object voxel among its
             // neighbours; the object's configuration is the complement.
             Phase::Background => (
                 block & neighbours != neighbours,
-                tester.key_of_column_block(!block & neighbours),
+                tester.column_key(!block & neighbours),
             ),
         };
-        if exposed && cache.is_simple_by_key(tester, key) {
+        if exposed && cache.is_simple_by_column_key(tester, key) {
             data[i] = 0;
             block &= !window.centre_bit;
         } else {
@@ -515,7 +515,7 @@ impl<'a> Thinner<'a> {
             if self.phase == Phase::Background {
                 block = !block & neighbours;
             }
-            if cache.is_simple_by_key(self.tester, self.tester.key_of_column_block(block)) {
+            if cache.is_simple_by_column_key(self.tester, self.tester.column_key(block)) {
                 data[i] = 0;
                 for &s in &self.steps {
                     let j = (i as isize + s) as usize;
@@ -651,7 +651,7 @@ mod tests {
             let image = BinaryImage::zeros(&vec![5; dim.get()]).unwrap();
             let window = Window::new(image.strides());
             assert_eq!(
-                tester.key_of_column_block(window.half),
+                tester.face_key(tester.column_key(window.half)),
                 tester.memo_key(later),
                 "{dim:?}"
             );
