@@ -445,26 +445,20 @@ impl Tables {
     /// The 4D test from the attachment set alone (see `SimpleTester::is_simple_key`).
     #[inline]
     fn evaluate_attachment(&self, faces: u128) -> bool {
-        if !self.background_faces_connected(faces) {
-            return false;
-        }
+        // The Euler characteristic first: two counts, and it is what rejects most often
+        // (54% of the memo's misses on a 48^4 blob, where the background condition
+        // rejected 2.4%).
         let chi = (faces & self.even_faces).count_ones() as i32
             - (faces & self.odd_faces).count_ones() as i32;
-        chi == 1 && self.attachment_connected(faces)
+        chi == 1 && self.background_faces_connected(faces) && self.attachment_connected(faces)
     }
 
     #[inline]
     fn evaluate(&self, config: u128) -> bool {
-        if !self.background_faces_connected(config) {
-            return false;
-        }
         if self.dim == Dim::Four {
-            let faces = self.attachment(config);
-            let chi = (faces & self.even_faces).count_ones() as i32
-                - (faces & self.odd_faces).count_ones() as i32;
-            return chi == 1 && self.attachment_connected(faces);
+            return self.evaluate_attachment(self.attachment(config));
         }
-        self.foreground_connected(config)
+        self.background_faces_connected(config) && self.foreground_connected(config)
     }
 
     /// The slow oracle: greedily collapse A(x) through free faces and report whether one
