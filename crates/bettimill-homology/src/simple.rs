@@ -84,12 +84,16 @@ impl SimpleCache {
         tester: &SimpleTester,
         column_key: u128,
     ) -> bool {
-        self.memoised(column_key | Self::COLUMN, || {
+        // The miss is out of line: the hit is a few instructions inside the sweep.
+        #[cold]
+        #[inline(never)]
+        fn evaluate(tester: &SimpleTester, column_key: u128) -> bool {
             tester.is_simple_key(tester.face_key(column_key))
-        })
+        }
+        self.memoised(column_key | Self::COLUMN, || evaluate(tester, column_key))
     }
 
-    #[inline]
+    #[inline(always)]
     fn memoised(&mut self, key: u128, answer: impl FnOnce() -> bool) -> bool {
         let slot = self.slot(key);
         let entry = self.entries[slot];
