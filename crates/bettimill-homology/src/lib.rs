@@ -12,12 +12,12 @@
 //!   image minus one, and the Euler characteristic is a streaming sum over grid vertices;
 //!   in 2D and 3D that determines everything (b_1 = b_0 + b_2 - chi in 3D).
 //! - In 4D b_1 and b_2 are tied by one equation only, so the image is thinned by sequential
-//!   simple-point deletion in raster sweeps (same homotopy type; about 1% of a blob's
-//!   voxels survive), and the remnant's cubical complex is shrunk by collapses and
-//!   coreductions (module `dense`) until the cells left go to an explicit Z/2 rank, by
-//!   elimination with free pivots first (module `eliminate`): a few cells on a smooth
-//!   image, over a million on some random ones, where a plain column reduction was
-//!   quadratic.
+//!   simple-point deletion, a raster sweep and then the voxels whose neighbourhood changed
+//!   (same homotopy type; about 1% of a blob's voxels survive), and the remnant's cubical
+//!   complex is shrunk by collapses and coreductions (module `dense`) until the cells left
+//!   go to an explicit Z/2 rank, by elimination with free pivots first (module
+//!   `eliminate`): a few cells on a smooth image, over a million on some random ones, where
+//!   a plain column reduction was quadratic.
 //! - For a solid cube with cavities (a foreground wall encloses all inner background), 4D
 //!   thinning would leave a 3-dimensional shell around every cavity. Instead the background
 //!   is thinned (its simple voxels are given to the object) down to thin cores of the
