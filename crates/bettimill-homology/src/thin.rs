@@ -582,6 +582,23 @@ mod tests {
         }
     }
 
+    /// An image of `shape` whose voxels inside its border are foreground with probability
+    /// `density`.
+    fn random_inside(
+        shape: &[usize],
+        density: f64,
+        rng: &mut rand_chacha::ChaCha8Rng,
+    ) -> BinaryImage {
+        use rand::Rng;
+        let mut image = BinaryImage::zeros(shape).unwrap();
+        for index in 0..image.len() {
+            if is_interior(&image, index, 1) {
+                image.data_mut()[index] = rng.gen_bool(density) as u8;
+            }
+        }
+        image
+    }
+
     /// Thinning ends with no simple survivor, whether the image splits into slabs or not
     /// and in both phases: every survivor was tested after its neighbours' last flip.
     #[test]
@@ -597,12 +614,7 @@ mod tests {
                 let mut shape = vec![side; d];
                 shape[0] = [6, 12, 17][trial % 3];
                 let density: f64 = rng.gen_range(0.3..0.9);
-                let mut image = BinaryImage::zeros(&shape).unwrap();
-                for index in 0..image.len() {
-                    if is_interior(&image, index, 1) {
-                        image.data_mut()[index] = rng.gen_bool(density) as u8;
-                    }
-                }
+                let mut image = random_inside(&shape, density, &mut rng);
                 let phase = if trial % 2 == 0 {
                     Phase::Foreground
                 } else {
@@ -672,13 +684,8 @@ mod tests {
                 let side = [9, 7, 6][d - 2];
                 let mut shape: Vec<usize> = (0..d).map(|a| side + a % 2).collect();
                 shape[d - 1] = [7, 10, 19, 26][trial % 4];
-                let mut image = BinaryImage::zeros(&shape).unwrap();
                 let density: f64 = rng.gen_range(0.2..0.95);
-                for index in 0..image.len() {
-                    if is_interior(&image, index, 1) {
-                        image.data_mut()[index] = rng.gen_bool(density) as u8;
-                    }
-                }
+                let mut image = random_inside(&shape, density, &mut rng);
                 let mut fresh = image.clone();
                 for i in 0..fresh.len() {
                     if fresh.data()[i] == 1
