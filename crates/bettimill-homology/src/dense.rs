@@ -281,11 +281,18 @@ impl DenseComplex {
     /// Adds the cell with local code `code` owned by the voxel at `owner` (a place).
     #[inline]
     pub(crate) fn insert(&mut self, owner: usize, code: u32) {
+        self.insert_mask(owner, 1 << code);
+    }
+
+    /// Adds the cells whose local codes are the bits of `cells` (not 0), owned by the voxel
+    /// at `owner` (a place).
+    #[inline]
+    pub(crate) fn insert_mask(&mut self, owner: usize, cells: u16) {
         let mask = &mut self.masks[owner];
         if *mask == 0 {
             self.owners.push(owner as u32);
         }
-        *mask |= 1 << code;
+        *mask |= cells;
     }
 
     /// The closed cubical complex of the foreground voxels of `image`, whose border must
