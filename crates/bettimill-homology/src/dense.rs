@@ -468,6 +468,8 @@ impl DenseComplex {
                 removed_vertices += cells.reduce(&mut queue, &everywhere, &seam, &owners, None);
             }
         }
+        // Every pair was taken: the tags of the queue (`COREDUCIBLE`) skip no pair.
+        debug_assert_eq!(self.cells().reducible(&owners), 0);
         // Explicit reduction of what is left, top dimension first; a k-cell that is the
         // lowest row of a reduced (k+1)-column has a boundary column reducing to zero. (The
         // queues went with the match above.)
@@ -686,6 +688,23 @@ impl<const PART: bool> Cells<'_, PART> {
             .map_or(u64::MAX, |(o, c)| cell(o, c))
     }
 
+    /// How many alive cells of `owners` still have one alive cofacet or one alive facet
+    /// (for the checks of debug builds: none after the pairs).
+    fn reducible(&self, owners: &[u32]) -> usize {
+        let mut reducible = 0;
+        for &o in owners {
+            let o = o as usize;
+            let mut rest = self.masks[self.at(o)];
+            while rest != 0 {
+                let code = rest.trailing_zeros();
+                rest &= rest - 1;
+                reducible +=
+                    (self.cofacet_count(o, code) == 1 || self.facet_count(o, code) == 1) as usize;
+            }
+        }
+        reducible
+    }
+
     /// Queues the cells of the owners in `inside` that are free faces (one alive
     /// cofacet). Coreducible cells (one alive facet) only appear when a cell goes, and are
     /// queued then.
@@ -732,7 +751,7 @@ impl<const PART: bool> Cells<'_, PART> {
                         self.cofacet_count(o, c)
                     };
                     if count == 1 {
-                        queue.push(o, c);
+                        queue.push(o, if upward { c | COREDUCIBLE } else { c });
                     }
                 }
             }
@@ -776,22 +795,31 @@ impl<const PART: bool> Cells<'_, PART> {
         let mut next = 0usize;
         let mut centre = centre;
         loop {
-            while let Some((o, code)) = queue.pop() {
+            while let Some((o, queued)) = queue.pop() {
                 if PART && !inside.contains(&o) {
-                    left.push(o, code);
+                    left.push(o, queued);
                     continue;
                 }
+                let code = queued & !COREDUCIBLE;
                 if !self.has(o, code) {
                     continue;
                 }
                 // Free face: c is the facet and its only cofacet goes with it; coreduction:
-                // c is the cell and its only facet goes with it.
-                let partner = if self.cofacet_count(o, code) == 1 {
+                // c is the cell and its only facet goes with it. Only the count the cell
+                // was queued for is checked: when the other one is 1 too, the cell was
+                // queued for it as well, at the removal that made it 1 (a count only falls,
+                // and a closed complex starts with no cell of one facet), and that entry
+                // is still to come, or the cell would be gone.
+                let partner = if queued & COREDUCIBLE == 0 {
+                    if self.cofacet_count(o, code) != 1 {
+                        continue;
+                    }
                     self.some_cofacet(o, code)
-                } else if self.facet_count(o, code) == 1 {
-                    self.some_facet(o, code)
                 } else {
-                    continue;
+                    if self.facet_count(o, code) != 1 {
+                        continue;
+                    }
+                    self.some_facet(o, code)
                 };
                 let (po, pcode) = split(partner);
                 self.remove(o, code);
@@ -970,6 +998,10 @@ impl CellQueue {
         }
     }
 }
+
+/// Marks a queued cell as queued for a coreduction (one alive facet); a cell without it
+/// was queued as a free face (one alive cofacet). Above the four bits of a code.
+const COREDUCIBLE: u32 = 16;
 
 #[inline]
 fn cell(owner: usize, code: u32) -> u64 {
