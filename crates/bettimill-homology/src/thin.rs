@@ -218,19 +218,6 @@ impl Window {
             | self.column(data, i + 1, columns) << (2 * r)
     }
 
-    /// The block of voxel i read afresh, three bytes of each row: for the voxels tested one
-    /// at a time after the sweep.
-    #[inline]
-    fn block_at(&self, data: &[u8], i: usize) -> u128 {
-        let [before, at, after] = match self.rows.len() {
-            3 => columns_at::<3>(&self.rows, data, i),
-            9 => columns_at::<9>(&self.rows, data, i),
-            _ => columns_at::<27>(&self.rows, data, i),
-        };
-        let r = self.column_bits;
-        before as u128 | (at as u128) << r | (after as u128) << (2 * r)
-    }
-
     /// The block of voxel i from the (current) block of voxel i - 1.
     #[inline]
     fn advance(&self, data: &[u8], block: u128, i: usize, columns: &mut Columns) -> u128 {
@@ -256,34 +243,6 @@ fn pack_rows<const R: usize>(rows: &[isize], span: &[u8], offset: isize) -> [u12
         }
     }
     words
-}
-
-/// The three columns (offsets -1, 0, +1 along the last axis; bit r = row r) of the block
-/// of voxel `i`, each row's bytes read as one word where they fit (the last byte of the
-/// data may end a row): bit 0 of its bytes 0-2, shifted by r mod 8 into word r / 8, so
-/// that byte c of word g holds rows 8g..8g + 7 of column c.
-#[inline(always)]
-fn columns_at<const R: usize>(rows: &[isize], data: &[u8], i: usize) -> [u32; 3] {
-    let rows: &[isize; R] = rows.try_into().expect("R rows");
-    let mut words = [0u32; 4];
-    for (group, word) in words.iter_mut().enumerate() {
-        for shift in 0..8 {
-            let r = 8 * group + shift;
-            if r < R {
-                let q = (i as isize + rows[r] - 1) as usize;
-                let bytes = match data.get(q..q + 4) {
-                    Some(bytes) => [bytes[0], bytes[1], bytes[2], bytes[3]],
-                    None => [data[q], data[q + 1], data[q + 2], 0],
-                };
-                *word |= (u32::from_le_bytes(bytes) & 0x0001_0101) << shift;
-            }
-        }
-    }
-    std::array::from_fn(|c| {
-        words.iter().enumerate().fold(0, |column, (g, &word)| {
-            column | (word >> (8 * c) & 0xFF) << (8 * g)
-        })
-    })
 }
 
 /// Bit 0 of each of sixteen bytes.
@@ -511,7 +470,8 @@ impl<'a> Thinner<'a> {
             if !exposed {
                 continue;
             }
-            let mut block = self.window.block_at(data, i);
+            // Read as the sweep reads a block afresh (the columns read ahead go unused).
+            let mut block = self.window.block(data, i, &mut Columns::default());
             if self.phase == Phase::Background {
                 block = !block & neighbours;
             }
