@@ -810,15 +810,18 @@ impl<const PART: bool> Cells<'_, PART> {
                 // queued for it as well, at the removal that made it 1 (a count only falls,
                 // and a closed complex starts with no cell of one facet), and that entry
                 // is still to come, or the cell would be gone.
-                let partner = if queued & COREDUCIBLE == 0 {
-                    if self.cofacet_count(o, code) != 1 {
-                        continue;
-                    }
+                let free = queued & COREDUCIBLE == 0;
+                let count = if free {
+                    self.cofacet_count(o, code)
+                } else {
+                    self.facet_count(o, code)
+                };
+                if count != 1 {
+                    continue;
+                }
+                let partner = if free {
                     self.some_cofacet(o, code)
                 } else {
-                    if self.facet_count(o, code) != 1 {
-                        continue;
-                    }
                     self.some_facet(o, code)
                 };
                 let (po, pcode) = split(partner);
