@@ -24,7 +24,8 @@
 //! process on first use (about a second on two cores), and direct evaluation in 4D where a
 //! table (2^80 entries) is impossible. [`SimpleCache`] memoises the answers for loops that
 //! ask many times (thinning here, the editing loops of `bettimill-deform`): the one memo of
-//! the workspace, so every caller keys and hashes it the same way.
+//! the workspace, so every caller keys and hashes it the same way (the thinning's keys,
+//! read from its block in column order, are marked apart: `SimpleTester::column_key`).
 
 use bettimill_grid::neighbourhood::{full_offsets, is_interior};
 use bettimill_grid::{BinaryImage, Dim};
