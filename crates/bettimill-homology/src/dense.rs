@@ -27,8 +27,8 @@
 //! complex differs from the old one only by the deleted pair. Coreductions need a start, so
 //! when no pair is left an alive vertex v is removed (the first time, the one nearest the
 //! centre of the grid: started from a corner, the waves stalled on a random 4D image with
-//! ten times the cells, issue 18; on a grid long enough, one start per half of the grid,
-//! the halves reduced on two threads, see [`DenseComplex::betti_with`]), which turns the
+//! ten times the cells, issue 18; on a grid large enough, one start per part of the grid,
+//! the parts reduced on two threads, see [`DenseComplex::betti_with`]), which turns the
 //! homology into that of the pair (X, V) with V the removed vertices. For k >= 2 the long
 //! exact sequence of (X, V)
 //! gives H_k(X, V) = H_k(X), and in low degrees dim H_0(X, V) = b_0 - c and
@@ -50,6 +50,7 @@
 use crate::complex::z2_rank;
 use crate::eliminate::{rank_by_elimination, Lists, PoolOverflow};
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU16, Ordering::Relaxed};
 
 /// How [`DenseComplex::betti_with`] ranks the boundary matrices of the cells that the
 /// reduction pairs leave.
@@ -74,8 +75,10 @@ pub(crate) struct DenseComplex {
     grid: Grid,
     /// The grid's sides (1 for the axes past the last).
     sides: [usize; 4],
-    /// Presence bits of the cells each voxel owns, by place.
-    masks: Vec<u16>,
+    /// Presence bits of the cells each voxel owns, by place. Atomic so that the two
+    /// threads of a split reduction share them (their places are apart: see
+    /// [`DenseComplex::betti_with`]); relaxed loads and stores are plain moves.
+    masks: Vec<AtomicU16>,
     /// The place of every voxel that has owned a cell, in the order of the first insertion
     /// (places fit 32 bits: [`DenseComplex::new`] checks the grid).
     owners: Vec<u32>,
@@ -169,29 +172,100 @@ impl Grid {
     }
 }
 
-/// How a reduction splits across the first axis (see [`DenseComplex::betti_with`]): brick
-/// rows (4 planes each) below `half` are the lower part, the rest the upper part; the
-/// brick rows `half - 1` and `half` are the seam, reduced after both.
+/// A range of places cut across one axis into two parts and a seam between them:
+/// `start..end` is a whole number of units of `unit` places (the grid's brick rows along
+/// the first axis, or one brick row's bricks along the second), the unit `half` (counted
+/// from `start`) is the seam, the units before it are the lower part and those after it
+/// the upper part. See [`DenseComplex::betti_with`].
 #[derive(Clone, Copy, Debug)]
 struct Halves {
+    start: usize,
+    end: usize,
+    unit: usize,
     half: usize,
-    /// Places per brick row.
-    row: usize,
 }
 
 impl Halves {
-    /// The lower part's places, and the places whose cells it reduces: those at least a
-    /// brick row (four voxels) from the split, since a reduction step reaches three
-    /// voxels from the cell it starts at (the cell's facets and cofacets, its partner, and
-    /// the counts of their neighbours), so it stays in the part's own places.
-    fn lower(&self) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
-        (0..self.half * self.row, 0..(self.half - 1) * self.row)
+    /// `places` cut at the unit where the weight up to it passes half (`weights`, one per
+    /// unit), kept one unit from either end. None with fewer than three units, the fewest
+    /// a cut can have, or no weight.
+    fn balanced(places: std::ops::Range<usize>, unit: usize, weights: &[usize]) -> Option<Halves> {
+        let units = weights.len();
+        let total: usize = weights.iter().sum();
+        if units < 3 || total == 0 {
+            return None;
+        }
+        let mut before = 0;
+        let half = weights
+            .iter()
+            .position(|&w| {
+                before += w;
+                2 * before >= total
+            })
+            .unwrap_or(units);
+        Some(Halves {
+            start: places.start,
+            end: places.end,
+            unit,
+            half: half.clamp(1, units - 2),
+        })
     }
 
-    /// The upper part's (as [`Halves::lower`]), up to `end`, the number of places.
-    fn upper(&self, end: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
-        (self.half * self.row..end, (self.half + 1) * self.row..end)
+    fn lower(&self) -> std::ops::Range<usize> {
+        self.start..self.start + self.half * self.unit
     }
+
+    fn seam(&self) -> std::ops::Range<usize> {
+        self.start + self.half * self.unit..self.start + (self.half + 1) * self.unit
+    }
+
+    fn upper(&self) -> std::ops::Range<usize> {
+        self.start + (self.half + 1) * self.unit..self.end
+    }
+}
+
+/// How the two parts of a split reduction run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Order {
+    /// At once, on two threads.
+    Parallel,
+    /// One after the other, lower part first (tests: the parts never meet, so every order
+    /// leaves the same cells).
+    #[cfg(test)]
+    LowerFirst,
+    /// One after the other, upper part first.
+    #[cfg(test)]
+    UpperFirst,
+}
+
+impl Order {
+    fn run<A: Send, B: Send>(
+        self,
+        lower: impl FnOnce() -> A + Send,
+        upper: impl FnOnce() -> B + Send,
+    ) -> (A, B) {
+        match self {
+            Order::Parallel => rayon::join(lower, upper),
+            #[cfg(test)]
+            Order::LowerFirst => {
+                let a = lower();
+                (a, upper())
+            }
+            #[cfg(test)]
+            Order::UpperFirst => {
+                let b = upper();
+                (lower(), b)
+            }
+        }
+    }
+}
+
+/// How [`DenseComplex::betti_with`] splits a reduction: across the first axis, and the
+/// seam of that (one brick row) across the second axis when it is long enough.
+#[derive(Clone, Copy, Debug)]
+struct Split {
+    rows: Halves,
+    columns: Option<Halves>,
 }
 
 impl DenseComplex {
@@ -237,7 +311,8 @@ impl DenseComplex {
                 all_codes,
             },
             sides: std::array::from_fn(|axis| shape.get(axis).copied().unwrap_or(1)),
-            masks: vec![0; places],
+            // Zeroed by the allocator: pages no cell touches are never written.
+            masks: bytemuck::zeroed_vec(places),
             owners: Vec::new(),
         })
     }
@@ -247,30 +322,37 @@ impl DenseComplex {
         &self.grid
     }
 
-    /// How to split work on the grid across its first axis, given how much of it lies in
-    /// each brick row (`weights`, one per row): at the row where the weight before it
-    /// passes half, kept two rows from either end. None when the grid has fewer than six
-    /// brick rows (a first side of 20 or less with the border), the fewest a split can
-    /// have, or no weight. Whether a split is worth it is [`DenseComplex::split`]'s rule
-    /// (eight brick rows and 65,536 owners).
-    fn halves(&self, weights: &[usize]) -> Option<Halves> {
-        let rows = weights.len();
-        let total: usize = weights.iter().sum();
-        if self.grid.d < 2 || rows < 6 || total == 0 {
-            return None;
+    /// How many owners lie in each unit of `unit` places of `places`.
+    fn weights(&self, places: &std::ops::Range<usize>, unit: usize) -> Vec<usize> {
+        let mut weights = vec![0; places.len() / unit];
+        for &o in &self.owners {
+            let o = o as usize;
+            if places.contains(&o) {
+                weights[(o - places.start) / unit] += 1;
+            }
         }
-        let mut before = 0;
-        let half = weights
-            .iter()
-            .position(|&w| {
-                before += w;
-                2 * before >= total
-            })
-            .unwrap_or(rows);
-        Some(Halves {
-            half: half.clamp(2, rows - 2),
-            row: self.grid.brick_step[0],
-        })
+        weights
+    }
+
+    /// The split at brick row `row`, its seam split at brick `column` along the second
+    /// axis if given (both counted from 0).
+    #[cfg(test)]
+    fn split_at(&self, row: usize, column: Option<usize>) -> Split {
+        let (unit, places) = (self.grid.brick_step[0], self.masks.len());
+        let rows = Halves {
+            start: 0,
+            end: places,
+            unit,
+            half: row,
+        };
+        let seam = rows.seam();
+        let columns = column.map(|half| Halves {
+            start: seam.start,
+            end: seam.end,
+            unit: self.grid.brick_step[1],
+            half,
+        });
+        Split { rows, columns }
     }
 
     /// The number of brick rows along the first axis.
@@ -288,7 +370,7 @@ impl DenseComplex {
     /// at `owner` (a place).
     #[inline]
     pub(crate) fn insert_mask(&mut self, owner: usize, cells: u16) {
-        let mask = &mut self.masks[owner];
+        let mask = self.masks[owner].get_mut();
         if *mask == 0 {
             self.owners.push(owner as u32);
         }
@@ -316,29 +398,27 @@ impl DenseComplex {
     }
 
     /// A view of all the masks, for a reduction.
-    fn cells(&mut self) -> Cells<'_, false> {
+    fn cells(&self) -> Cells<'_, false> {
         Cells {
             grid: self.grid,
-            masks: &mut self.masks,
-            base: 0,
+            masks: &self.masks,
         }
     }
 
-    /// Twice the coordinates of the centre of a slab of the grid: along the first axis,
-    /// of the voxels of the brick rows that the places `rows` cover (a range starting at a
-    /// brick row, its end rounded up to one and cut at the grid's side); along the others,
-    /// of the whole grid.
-    fn doubled_centre(&self, rows: std::ops::Range<usize>) -> [usize; 4] {
-        let row = self.grid.brick_step[0];
-        let first = 4 * (rows.start / row);
-        let last = (4 * rows.end.div_ceil(row)).min(self.sides[0]) - 1;
-        std::array::from_fn(|axis| {
-            if axis == 0 {
-                first + last
-            } else {
-                self.sides[axis].saturating_sub(1)
-            }
-        })
+    /// The presence bits of the cells `owner` owns.
+    #[inline]
+    fn mask(&self, owner: usize) -> u16 {
+        self.masks[owner].load(Relaxed)
+    }
+
+    /// Twice the coordinates of the centre of the voxels of the places `places` (a range
+    /// of whole bricks, as [`Halves`] cuts them), cut at the grid's sides.
+    fn doubled_centre(&self, places: std::ops::Range<usize>) -> [usize; 4] {
+        let (first, last) = (
+            self.grid.coords(places.start),
+            self.grid.coords(places.end - 1),
+        );
+        std::array::from_fn(|axis| first[axis] + last[axis].min(self.sides[axis] - 1))
     }
 
     /// Betti numbers b_0..b_d over Z/2 (module docs for the method), given b_0, the
@@ -346,17 +426,21 @@ impl DenseComplex {
     /// than the complex's vertices). Consumes the complex: the reduction deletes cells as it
     /// goes.
     ///
-    /// When the grid splits ([`DenseComplex::halves`], at the brick row that halves the
-    /// owners), the pairs run on two threads first: each part removes the pairs it reaches
-    /// (its free faces, then coreductions from its own vertex nearest its centre, and from
-    /// one more vertex for each piece of it those waves miss) among the cells owned at
-    /// least a brick row away from the other part, and leaves the rest queued. A step
-    /// reaches three voxels from the cell it starts at, less than a brick row, so each part
-    /// reads and writes only its own part's masks (a slice of them): the two never meet,
-    /// and the cells left do not depend on the threads' timing. Then the seam (the two
-    /// brick rows between the parts) and whatever was left queued go on one thread. The
+    /// When the complex is large enough ([`DenseComplex::split`]), the pairs run on two
+    /// threads first. The grid is cut across its first axis at the brick row that halves
+    /// the owners: that row is the seam, and the rows before and after it are the two
+    /// parts. Each part removes the pairs it reaches among the cells it owns (its free
+    /// faces, then coreductions from its own vertex nearest its centre, and from one more
+    /// vertex for each piece of it those waves miss) and leaves the rest queued. A step
+    /// from a cell writes at most one voxel away (the cell and its partner) and reads at
+    /// most three (the counts of their neighbours' neighbours), so across a seam of four
+    /// planes neither part reads a place the other writes: the two never meet, and the
+    /// cells left do not depend on the threads' timing (the masks are atomics only so that
+    /// both threads may hold them). Then the seam row is cut the same way across the
+    /// second axis, its two parts taking the cells left queued in them, and only the last
+    /// seam, one brick of each axis, and whatever is still queued go on one thread. The
     /// extra vertices are more vertices in V, which the bookkeeping below counts anyway;
-    /// where the waves of the two parts meet, a few more cells stall (issue 18 measured the
+    /// where the waves of two parts meet, a few more cells stall (issue 18 measured the
     /// trade: BENCHMARKS.md).
     ///
     /// The final rank is computed as `final_rank` says; also returns how many general
@@ -367,29 +451,95 @@ impl DenseComplex {
         b0: u64,
         final_rank: FinalRank,
     ) -> Result<(Vec<u64>, u64), PoolOverflow> {
-        // Two threads pay off from 65,536 owners and eight brick rows (the seam two of
-        // them): a 32^4 blob (34,417 owners, nine rows) took 14% longer split, a 48^4 blob
-        // 6% less, a 64^4 blob 15% less, a random 48^4 image 16% less (BENCHMARKS.md).
         let split = self.split();
         self.betti_split(b0, final_rank, split)
     }
 
-    /// How [`DenseComplex::betti_with`] splits the reduction, if it does.
-    fn split(&self) -> Option<Halves> {
-        if self.owners.len() < 1 << 16 || self.rows() < 8 {
+    /// How [`DenseComplex::betti_with`] splits the reduction, if it does: from 8,192
+    /// owners and five brick rows. With a seam of one brick row, a 32^4 blob (35,183
+    /// owners, nine rows) reduced in 6.3 ms instead of 10.3, a random 24^4 image (seven
+    /// rows) in 104 ms instead of 186; a 16^4 blob (1,205 owners) took longer split
+    /// (BENCHMARKS.md).
+    fn split(&self) -> Option<Split> {
+        if self.owners.len() < 1 << 13 || self.rows() < 5 {
             return None;
         }
-        let mut weights = vec![0; self.rows()];
-        for &o in &self.owners {
-            weights[o as usize / self.grid.brick_step[0]] += 1;
-        }
-        self.halves(&weights)
+        let everywhere = 0..self.masks.len();
+        let row = self.grid.brick_step[0];
+        let rows = Halves::balanced(everywhere.clone(), row, &self.weights(&everywhere, row))?;
+        let seam = rows.seam();
+        let column = self.grid.brick_step[1];
+        let columns = (self.grid.d >= 2)
+            .then(|| Halves::balanced(seam.clone(), column, &self.weights(&seam, column)))
+            .flatten();
+        Some(Split { rows, columns })
     }
 
-    /// Whether [`DenseComplex::betti_with`] splits this complex's reduction.
+    /// The pairs of one part of a split reduction ([`DenseComplex::betti_with`]): those
+    /// among the cells owned in `inside`, from its free faces and then from its vertex
+    /// nearest its centre. Returns the cells left queued (outside `inside`) and the number
+    /// of vertices removed.
+    fn reduce_part(
+        &self,
+        owners: &[u32],
+        inside: std::ops::Range<usize>,
+        queue: CellQueue,
+    ) -> (CellQueue, u64) {
+        let centre = self.doubled_centre(inside.clone());
+        let mut cells: Cells<true> = Cells {
+            grid: self.grid,
+            masks: &self.masks,
+        };
+        cells.reduce_from_free_faces(owners, &inside, centre, queue)
+    }
+
+    /// The parts of a split reduction ([`DenseComplex::betti_with`]), each pair of parts
+    /// run as `order` says: the lower and upper brick rows, then the two parts of the seam
+    /// row if it splits too (each taking the cells left queued in it). Returns the cells
+    /// left queued, the last seam (whose cells no part reduced) and the number of vertices
+    /// removed.
+    fn reduce_parts(
+        &self,
+        owners: &[u32],
+        split: Split,
+        order: Order,
+    ) -> (CellQueue, std::ops::Range<usize>, u64) {
+        let Split { rows, columns } = split;
+        let ((mut left, a), (left_upper, b)) = order.run(
+            || self.reduce_part(owners, rows.lower(), CellQueue::default()),
+            || self.reduce_part(owners, rows.upper(), CellQueue::default()),
+        );
+        left.append(left_upper);
+        let Some(columns) = columns else {
+            return (left, rows.seam(), a + b);
+        };
+        let (lower, upper) = (columns.lower(), columns.upper());
+        let mut queues = [(); 3].map(|_| CellQueue::default());
+        while let Some((o, code)) = left.pop() {
+            let at = if lower.contains(&o) {
+                0
+            } else if upper.contains(&o) {
+                1
+            } else {
+                2
+            };
+            queues[at].push(o, code);
+        }
+        let [lower_queue, upper_queue, mut rest] = queues;
+        let ((left_lower, c), (left_upper, d)) = order.run(
+            || self.reduce_part(owners, lower, lower_queue),
+            || self.reduce_part(owners, upper, upper_queue),
+        );
+        rest.append(left_lower);
+        rest.append(left_upper);
+        (rest, columns.seam(), a + b + c + d)
+    }
+
+    /// Whether [`DenseComplex::betti_with`] splits this complex's reduction, and its
+    /// seam row too.
     #[cfg(test)]
     pub(crate) fn splits(&self) -> bool {
-        self.split().is_some()
+        self.split().is_some_and(|split| split.columns.is_some())
     }
 
     /// [`DenseComplex::betti_with`] without the split (both routes agree: tests).
@@ -398,12 +548,12 @@ impl DenseComplex {
         self.betti_split(b0, FinalRank::Elimination, None)
     }
 
-    /// [`DenseComplex::betti_with`], split as `halves` says (or not at all).
+    /// [`DenseComplex::betti_with`], split as `parts` says (or not at all).
     fn betti_split(
         mut self,
         b0: u64,
         final_rank: FinalRank,
-        halves: Option<Halves>,
+        parts: Option<Split>,
     ) -> Result<(Vec<u64>, u64), PoolOverflow> {
         let d = self.grid.d;
         // The vertex code: every axis even.
@@ -416,7 +566,7 @@ impl DenseComplex {
             .owners
             .iter()
             .map(|&o| {
-                let mask = self.masks[o as usize];
+                let mask = self.mask(o as usize);
                 (mask & even_codes).count_ones() as i64 - (mask & !even_codes).count_ones() as i64
             })
             .sum();
@@ -426,46 +576,25 @@ impl DenseComplex {
         let owners = std::mem::take(&mut self.owners);
         let mut removed_vertices = 0u64;
         let everywhere = 0..usize::MAX;
-        match halves {
+        match parts {
             None => {
                 let centre = self.doubled_centre(0..self.masks.len());
-                let (_, removed) =
-                    self.cells()
-                        .reduce_from_free_faces(&owners, &everywhere, centre);
+                let (_, removed) = self.cells().reduce_from_free_faces(
+                    &owners,
+                    &everywhere,
+                    centre,
+                    CellQueue::default(),
+                );
                 removed_vertices += removed;
             }
-            Some(halves) => {
-                let end = self.masks.len();
-                let ((lower, lower_inside), (upper, upper_inside)) =
-                    (halves.lower(), halves.upper(end));
-                let centres = [
-                    self.doubled_centre(lower_inside.clone()),
-                    self.doubled_centre(upper_inside.clone()),
-                ];
-                let grid = self.grid;
-                let (lower_masks, upper_masks) = self.masks.split_at_mut(lower.end);
-                let part = |masks: &mut [u16],
-                            base: usize,
-                            inside: std::ops::Range<usize>,
-                            centre: [usize; 4]| {
-                    let mut cells: Cells<true> = Cells { grid, masks, base };
-                    cells.reduce_from_free_faces(&owners, &inside, centre)
-                };
-                let ((mut queue, a), (mut left_upper, b)) = rayon::join(
-                    || part(lower_masks, 0, lower_inside.clone(), centres[0]),
-                    || part(upper_masks, upper.start, upper_inside.clone(), centres[1]),
-                );
-                removed_vertices += a + b;
-                // What the parts left queued (cells in or next to the seam), then the seam's
-                // own candidates.
-                while let Some((o, code)) = left_upper.pop() {
-                    queue.push(o, code);
-                }
-                let seam = lower_inside.end..upper_inside.start;
+            Some(split) => {
+                let (mut left, seam, removed) = self.reduce_parts(&owners, split, Order::Parallel);
+                removed_vertices += removed;
+                // What is left queued, then the last seam's own candidates. The parts
+                // removed every vertex they own: only the last seam's are left.
                 let mut cells = self.cells();
-                cells.queue_free_faces(&owners, &seam, &mut queue);
-                // The parts removed every vertex they own: only the seam's are left.
-                removed_vertices += cells.reduce(&mut queue, &everywhere, &seam, &owners, None);
+                cells.queue_free_faces(&owners, &seam, &mut left);
+                removed_vertices += cells.reduce(&mut left, &everywhere, &seam, &owners, None);
             }
         }
         // Every pair was taken: the tags of the queue (`COREDUCIBLE`) skip no pair.
@@ -476,7 +605,7 @@ impl DenseComplex {
         // Counted first, so that each list is allocated once at its size.
         let mut counts = vec![0usize; d + 1];
         for &o in &owners {
-            let mut rest = self.masks[o as usize];
+            let mut rest = self.mask(o as usize);
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
@@ -508,14 +637,14 @@ impl DenseComplex {
         };
         if few {
             for o in owners {
-                push_cells(o as usize, self.masks[o as usize]);
+                push_cells(o as usize, self.mask(o as usize));
             }
             for cells in &mut by_dim {
                 cells.sort_unstable();
             }
         } else {
-            for (o, &mask) in self.masks.iter().enumerate() {
-                push_cells(o, mask);
+            for (o, mask) in self.masks.iter().enumerate() {
+                push_cells(o, mask.load(Relaxed));
             }
         }
         debug_assert!(by_dim
@@ -601,42 +730,39 @@ impl DenseComplex {
     }
 }
 
-/// The masks of the places from `base` on, as a reduction sees them: every place it
-/// looks up must be among them. `PART` is whether they are a part of the grid (with a
-/// range of owners to reduce): a constant, so that the whole grid's reduction pays no
-/// offset and no range test in its inner loop (they cost it 5% of its instructions).
+/// The masks, as a reduction sees them. `PART` is whether the reduction is one part of a
+/// split one (with a range of owners to reduce): a constant, so that the whole grid's
+/// reduction pays no range test in its inner loop.
 struct Cells<'a, const PART: bool> {
     grid: Grid,
-    masks: &'a mut [u16],
-    base: usize,
+    masks: &'a [AtomicU16],
 }
 
 impl<const PART: bool> Cells<'_, PART> {
-    /// The index in `masks` of the place `owner`.
+    /// The presence bits of the cells `owner` owns.
     #[inline]
-    fn at(&self, owner: usize) -> usize {
-        if PART {
-            owner - self.base
-        } else {
-            owner
-        }
+    fn mask(&self, owner: usize) -> u16 {
+        self.masks[owner].load(Relaxed)
     }
 
     #[inline]
     fn has(&self, owner: usize, code: u32) -> bool {
-        self.masks[self.at(owner)] >> code & 1 == 1
+        self.mask(owner) >> code & 1 == 1
     }
 
+    /// Removes a cell. A load and a store, not one atomic update: no other thread writes
+    /// or reads this place meanwhile (the parts of a split are apart).
     #[inline]
     fn remove(&mut self, owner: usize, code: u32) {
-        self.masks[self.at(owner)] &= !(1 << code);
+        let mask = &self.masks[owner];
+        mask.store(mask.load(Relaxed) & !(1 << code), Relaxed);
     }
 
     /// The number of alive cofacets of (owner, code): those the owner holds are one mask
     /// test, the others one bit each from the next voxel along an even axis.
     #[inline]
     fn cofacet_count(&self, owner: usize, code: u32) -> u32 {
-        let same = self.masks[self.at(owner)] & self.grid.up_same[code as usize];
+        let same = self.mask(owner) & self.grid.up_same[code as usize];
         let mut count = same.count_ones();
         let mut axes = code;
         while axes != 0 {
@@ -651,7 +777,7 @@ impl<const PART: bool> Cells<'_, PART> {
     /// voxel back along the odd axes).
     #[inline]
     fn facet_count(&self, owner: usize, code: u32) -> u32 {
-        let same = self.masks[self.at(owner)] & self.grid.down_same[code as usize];
+        let same = self.mask(owner) & self.grid.down_same[code as usize];
         let mut count = same.count_ones();
         let mut axes = !code & self.grid.all_codes;
         while axes != 0 {
@@ -664,7 +790,7 @@ impl<const PART: bool> Cells<'_, PART> {
 
     /// An alive cofacet of (owner, code), the only one when the count is one.
     fn some_cofacet(&self, owner: usize, code: u32) -> u64 {
-        let same = self.masks[self.at(owner)] & self.grid.up_same[code as usize];
+        let same = self.mask(owner) & self.grid.up_same[code as usize];
         if same != 0 {
             return cell(owner, same.trailing_zeros());
         }
@@ -677,7 +803,7 @@ impl<const PART: bool> Cells<'_, PART> {
 
     /// An alive facet of (owner, code), the only one when the count is one.
     fn some_facet(&self, owner: usize, code: u32) -> u64 {
-        let same = self.masks[self.at(owner)] & self.grid.down_same[code as usize];
+        let same = self.mask(owner) & self.grid.down_same[code as usize];
         if same != 0 {
             return cell(owner, same.trailing_zeros());
         }
@@ -694,7 +820,7 @@ impl<const PART: bool> Cells<'_, PART> {
         let mut reducible = 0;
         for &o in owners {
             let o = o as usize;
-            let mut rest = self.masks[self.at(o)];
+            let mut rest = self.mask(o);
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
@@ -719,7 +845,7 @@ impl<const PART: bool> Cells<'_, PART> {
             if !inside.contains(&o) {
                 continue;
             }
-            let mut rest = self.masks[self.at(o)];
+            let mut rest = self.mask(o);
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
@@ -766,8 +892,8 @@ impl<const PART: bool> Cells<'_, PART> {
         owners: &[u32],
         inside: &std::ops::Range<usize>,
         centre: [usize; 4],
+        mut queue: CellQueue,
     ) -> (CellQueue, u64) {
-        let mut queue = CellQueue::default();
         self.queue_free_faces(owners, inside, &mut queue);
         let removed = self.reduce(&mut queue, inside, inside, owners, Some(centre));
         (queue, removed)
@@ -962,6 +1088,13 @@ impl CellQueue {
         self.tail.codes.push(code as u8);
     }
 
+    /// Pushes the cells of `other`, in its order.
+    fn append(&mut self, mut other: CellQueue) {
+        while let Some((owner, code)) = other.pop() {
+            self.push(owner, code);
+        }
+    }
+
     /// Files the full tail block and starts another.
     #[cold]
     fn start_block(&mut self) {
@@ -1083,7 +1216,7 @@ mod tests {
         for x in [1, 5, 9] {
             image.set(&[x, 2, 2, 2], true);
         }
-        let mut complex = DenseComplex::of_image(&image);
+        let complex = DenseComplex::of_image(&image);
         let owners = complex.owners.clone();
         let centre = complex.doubled_centre(0..complex.masks.len());
         let grid = complex.grid;
@@ -1156,7 +1289,11 @@ mod tests {
             image.set(&centre, true);
             let count = |image: &BinaryImage| -> u32 {
                 let complex = DenseComplex::of_image(image);
-                complex.masks.iter().map(|m| m.count_ones()).sum()
+                complex
+                    .masks
+                    .iter()
+                    .map(|m| m.load(Relaxed).count_ones())
+                    .sum()
             };
             assert_eq!(count(&image), 3u32.pow(d as u32), "{d}D");
             centre[d - 1] = 3;
@@ -1168,15 +1305,18 @@ mod tests {
         }
     }
 
-    /// The reduction split in two parts (first on two threads, then the seam) against the
-    /// same reduction unsplit and against plain boundary ranks, on random 4D images long
-    /// enough along the first axis to split, sparse to dense, and on a loop that crosses
-    /// the seam; every split point from the first possible to the last.
+    /// The reduction split (two parts on two threads, then the seam row's two parts, then
+    /// the last seam) against the same reduction unsplit and against plain boundary ranks,
+    /// on random 4D images long enough to split, sparse to dense, and on a loop that
+    /// crosses the seams; every split row from the first possible to the last, with and
+    /// without the seam row's own split. And the parts never meet: run one after the other
+    /// in either order, they leave the same cells.
     #[test]
     fn split_reductions_agree_with_boundary_ranks() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(44);
-        let shape = [28, 6, 5, 5];
+        // Seven brick rows along the first axis, three brick columns along the second.
+        let shape = [28, 10, 5, 5];
         let mut images = Vec::new();
         for trial in 0..24 {
             let density = 0.15 + 0.7 * trial as f64 / 23.0;
@@ -1193,9 +1333,9 @@ mod tests {
         let mut ring = BinaryImage::zeros(&shape).unwrap();
         for x in 2..26 {
             ring.set(&[x, 1, 2, 2], true);
-            ring.set(&[x, 4, 2, 2], true);
+            ring.set(&[x, 8, 2, 2], true);
         }
-        for y in 1..5 {
+        for y in 1..9 {
             ring.set(&[2, y, 2, 2], true);
             ring.set(&[25, y, 2, 2], true);
         }
@@ -1206,13 +1346,14 @@ mod tests {
             let expected = CellComplex::of_image(image).betti_by_boundaries();
             let whole = DenseComplex::of_image(image);
             let row = whole.grid.brick_step[0];
-            let balanced = {
-                let mut weights = vec![0; whole.rows()];
-                for &o in &whole.owners {
-                    weights[o as usize / row] += 1;
-                }
-                whole.halves(&weights).expect("seven brick rows split")
-            };
+            let everywhere = 0..whole.masks.len();
+            let balanced =
+                Halves::balanced(everywhere.clone(), row, &whole.weights(&everywhere, row))
+                    .expect("seven brick rows split");
+            assert!(balanced.half >= 1 && balanced.half <= 5);
+            let splits: Vec<Split> = (1..=5)
+                .flat_map(|half| [None, Some(1)].map(|column| whole.split_at(half, column)))
+                .collect();
             assert_eq!(
                 whole
                     .betti_split(b0, FinalRank::Elimination, None)
@@ -1221,18 +1362,36 @@ mod tests {
                 expected,
                 "trial {trial} unsplit"
             );
-            for half in 2..=5 {
-                let halves = Halves { half, row };
-                assert!(balanced.half >= 2 && balanced.half <= 5);
+            for split in splits {
+                let (half, column) = (split.rows.half, split.columns.map(|c| c.half));
                 let found = DenseComplex::of_image(image)
-                    .betti_split(b0, FinalRank::Elimination, Some(halves))
+                    .betti_split(b0, FinalRank::Elimination, Some(split))
                     .unwrap()
                     .0;
-                assert_eq!(found, expected, "trial {trial} split at brick row {half}");
+                assert_eq!(found, expected, "trial {trial} split at {half}, {column:?}");
+                // The parts never meet: in either order they leave the same cells, and
+                // the same cells queued.
+                let [lower_first, upper_first] =
+                    [Order::LowerFirst, Order::UpperFirst].map(|order| {
+                        let mut complex = DenseComplex::of_image(image);
+                        let owners = std::mem::take(&mut complex.owners);
+                        let (mut left, seam, removed) = complex.reduce_parts(&owners, split, order);
+                        let mut queued = Vec::new();
+                        while let Some(cell) = left.pop() {
+                            queued.push(cell);
+                        }
+                        let masks: Vec<u16> =
+                            complex.masks.iter().map(|m| m.load(Relaxed)).collect();
+                        (masks, queued, seam, removed)
+                    });
+                assert!(
+                    lower_first == upper_first,
+                    "trial {trial} split at {half}, {column:?}"
+                );
                 checked += 1;
             }
         }
-        assert_eq!(checked, 4 * 25);
+        assert_eq!(checked, 10 * 25);
         // Both parts start a wave of their own on the ring, and the seam joins them.
         assert_eq!(
             CellComplex::of_image(&images[24]).betti_by_boundaries(),

@@ -30,8 +30,8 @@
 //! bytes per voxel of address space, written only where the remnant is, four per owner
 //! voxel and five per queued cell); `bettimill betti` (the owned route) peaked at 896 MB on
 //! a 128^4 blob and at 375 MB on a random 64^4 image, whose remnant is most of it
-//! (BENCHMARKS.md). On a large remnant the reduction pairs run on two threads, one half of
-//! the grid each (module `dense`).
+//! (BENCHMARKS.md). On a large remnant the reduction pairs run on two threads, in parts of
+//! the grid that never meet (module `dense`).
 //!
 //! [`simple`] decides whether one voxel can be flipped without changing the topology; it is
 //! the kernel of both deformations and of the thinning.

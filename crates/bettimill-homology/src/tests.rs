@@ -297,7 +297,7 @@ fn every_4d_route_agrees_on_rough_images() {
 /// Images large enough for the reduction to split across two threads: the split and the
 /// unsplit reduction of the same remnant agree (and `topology`, which splits, with them),
 /// on a random image and on a smooth one (a blob: a few loops and spheres, found by
-/// waves that start in both parts and meet in the seam).
+/// waves that start in all four parts and meet in the seams).
 #[test]
 fn the_split_reduction_agrees_with_the_whole_one() {
     let mut rng = ChaCha8Rng::seed_from_u64(92);
@@ -328,7 +328,10 @@ fn the_split_reduction_agrees_with_the_whole_one() {
         let b0 = components::count_components_of(padded.data_mut(), &remaining, &steps);
         let split = remnant_complex(&padded, &remaining, &tester).unwrap();
         let whole = remnant_complex(&padded, &remaining, &tester).unwrap();
-        assert!(split.splits(), "{name}: large enough to split");
+        assert!(
+            split.splits(),
+            "{name}: large enough to split, seam row included"
+        );
         let found = split.betti_with(b0, FinalRank::Elimination).unwrap().0;
         assert_eq!(found, whole.betti_unsplit(b0).unwrap().0, "{name}");
         let mut betti = found;
@@ -338,7 +341,7 @@ fn the_split_reduction_agrees_with_the_whole_one() {
     }
 }
 
-/// The thinning's slabs and the reduction's halves run on rayon's threads, and neither the
+/// The thinning's slabs and the reduction's parts run on rayon's threads, and neither the
 /// Betti numbers nor the work left to the elimination (its general pivots, which follow
 /// the cells the pairs leave) depend on how many there are.
 #[test]
