@@ -12,8 +12,8 @@
 //!   where o ± 1_a is the voxel one step along a.
 //!
 //! So the complex needs no sorting, no deduplication and no neighbour table, and every step
-//! of the reduction is a few loads from one array (two bytes per voxel; pages no cell
-//! touches are never written). The array is laid out in bricks of 4^d voxels, so that most
+//! of the reduction is a few loads from one array (two bytes per voxel, in huge pages
+//! where the system gives them, and pages no cell touches never backed: [`Masks`]). The array is laid out in bricks of 4^d voxels, so that most
 //! steps along any axis stay within the same 512 bytes (in 4D) instead of jumping a whole
 //! hyperplane of the image: the reduction wanders through the complex in waves, and with
 //! the image's own layout nearly every step along the first axes missed the caches. A
@@ -51,6 +51,7 @@ use crate::complex::z2_rank;
 use crate::eliminate::{rank_by_elimination, Lists, PoolOverflow};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU16, Ordering::Relaxed};
+use zerocopy::FromBytes;
 
 /// How [`DenseComplex::betti_with`] ranks the boundary matrices of the cells that the
 /// reduction pairs leave.
@@ -75,10 +76,10 @@ pub(crate) struct DenseComplex {
     grid: Grid,
     /// The grid's sides (1 for the axes past the last).
     sides: [usize; 4],
-    /// Presence bits of the cells each voxel owns, by place. Atomic so that the two
-    /// threads of a split reduction share them (their places are apart: see
-    /// [`DenseComplex::betti_with`]); relaxed loads and stores are plain moves.
-    masks: Vec<AtomicU16>,
+    /// The number of places.
+    places: usize,
+    /// Presence bits of the cells each voxel owns, by place ([`Masks`]).
+    masks: Masks,
     /// The place of every voxel that has owned a cell, in the order of the first insertion
     /// (places fit 32 bits: [`DenseComplex::new`] checks the grid).
     owners: Vec<u32>,
@@ -311,8 +312,8 @@ impl DenseComplex {
                 all_codes,
             },
             sides: std::array::from_fn(|axis| shape.get(axis).copied().unwrap_or(1)),
-            // Zeroed by the allocator: pages no cell touches are never written.
-            masks: bytemuck::zeroed_vec(places),
+            places,
+            masks: Masks::zeroed(places),
             owners: Vec::new(),
         })
     }
@@ -338,7 +339,7 @@ impl DenseComplex {
     /// axis if given (both counted from 0).
     #[cfg(test)]
     fn split_at(&self, row: usize, column: Option<usize>) -> Split {
-        let (unit, places) = (self.grid.brick_step[0], self.masks.len());
+        let (unit, places) = (self.grid.brick_step[0], self.places);
         let rows = Halves {
             start: 0,
             end: places,
@@ -370,7 +371,7 @@ impl DenseComplex {
     /// at `owner` (a place).
     #[inline]
     pub(crate) fn insert_mask(&mut self, owner: usize, cells: u16) {
-        let mask = self.masks[owner].get_mut();
+        let mask = &mut self.masks.get_mut()[owner];
         if *mask == 0 {
             self.owners.push(owner as u32);
         }
@@ -397,28 +398,13 @@ impl DenseComplex {
         complex
     }
 
-    /// A view of all the masks, for a reduction.
-    fn cells(&self) -> Cells<'_, false> {
-        Cells {
+    /// The grid and the masks, as a reduction shares them between its threads.
+    fn view(&mut self) -> View<'_> {
+        View {
             grid: self.grid,
-            masks: &self.masks,
+            sides: self.sides,
+            masks: self.masks.shared(),
         }
-    }
-
-    /// The presence bits of the cells `owner` owns.
-    #[inline]
-    fn mask(&self, owner: usize) -> u16 {
-        self.masks[owner].load(Relaxed)
-    }
-
-    /// Twice the coordinates of the centre of the voxels of the places `places` (a range
-    /// of whole bricks, as [`Halves`] cuts them), cut at the grid's sides.
-    fn doubled_centre(&self, places: std::ops::Range<usize>) -> [usize; 4] {
-        let (first, last) = (
-            self.grid.coords(places.start),
-            self.grid.coords(places.end - 1),
-        );
-        std::array::from_fn(|axis| first[axis] + last[axis].min(self.sides[axis] - 1))
     }
 
     /// Betti numbers b_0..b_d over Z/2 (module docs for the method), given b_0, the
@@ -464,7 +450,7 @@ impl DenseComplex {
         if self.owners.len() < 1 << 13 || self.rows() < 5 {
             return None;
         }
-        let everywhere = 0..self.masks.len();
+        let everywhere = 0..self.places;
         let row = self.grid.brick_step[0];
         let rows = Halves::balanced(everywhere.clone(), row, &self.weights(&everywhere, row))?;
         let seam = rows.seam();
@@ -473,66 +459,6 @@ impl DenseComplex {
             .then(|| Halves::balanced(seam.clone(), column, &self.weights(&seam, column)))
             .flatten();
         Some(Split { rows, columns })
-    }
-
-    /// The pairs of one part of a split reduction ([`DenseComplex::betti_with`]): those
-    /// among the cells owned in `inside`, from its free faces and then from its vertex
-    /// nearest its centre. Returns the cells left queued (outside `inside`) and the number
-    /// of vertices removed.
-    fn reduce_part(
-        &self,
-        owners: &[u32],
-        inside: std::ops::Range<usize>,
-        queue: CellQueue,
-    ) -> (CellQueue, u64) {
-        let centre = self.doubled_centre(inside.clone());
-        let mut cells: Cells<true> = Cells {
-            grid: self.grid,
-            masks: &self.masks,
-        };
-        cells.reduce_from_free_faces(owners, &inside, centre, queue)
-    }
-
-    /// The parts of a split reduction ([`DenseComplex::betti_with`]), each pair of parts
-    /// run as `order` says: the lower and upper brick rows, then the two parts of the seam
-    /// row if it splits too (each taking the cells left queued in it). Returns the cells
-    /// left queued, the last seam (whose cells no part reduced) and the number of vertices
-    /// removed.
-    fn reduce_parts(
-        &self,
-        owners: &[u32],
-        split: Split,
-        order: Order,
-    ) -> (CellQueue, std::ops::Range<usize>, u64) {
-        let Split { rows, columns } = split;
-        let ((mut left, a), (left_upper, b)) = order.run(
-            || self.reduce_part(owners, rows.lower(), CellQueue::default()),
-            || self.reduce_part(owners, rows.upper(), CellQueue::default()),
-        );
-        left.append(left_upper);
-        let Some(columns) = columns else {
-            return (left, rows.seam(), a + b);
-        };
-        let (lower, upper) = (columns.lower(), columns.upper());
-        let mut queues = [(); 3].map(|_| CellQueue::default());
-        while let Some((o, code)) = left.pop() {
-            let at = if lower.contains(&o) {
-                0
-            } else if upper.contains(&o) {
-                1
-            } else {
-                2
-            };
-            queues[at].push(o, code);
-        }
-        let [lower_queue, upper_queue, mut rest] = queues;
-        let ((left_lower, c), (left_upper, d)) = order.run(
-            || self.reduce_part(owners, lower, lower_queue),
-            || self.reduce_part(owners, upper, upper_queue),
-        );
-        rest.append(left_lower);
-        rest.append(left_upper);
-        (rest, columns.seam(), a + b + c + d)
     }
 
     /// Whether [`DenseComplex::betti_with`] splits this complex's reduction, and its
@@ -562,24 +488,25 @@ impl DenseComplex {
         let even_codes = (0..=top)
             .filter(|&code| (d as u32 - code.count_ones()) % 2 == 0)
             .fold(0u16, |mask, code| mask | 1 << code);
-        let chi: i64 = self
-            .owners
+        let owners = std::mem::take(&mut self.owners);
+        let places = self.places;
+        let view = self.view();
+        let chi: i64 = owners
             .iter()
             .map(|&o| {
-                let mask = self.mask(o as usize);
+                let mask = view.mask(o as usize);
                 (mask & even_codes).count_ones() as i64 - (mask & !even_codes).count_ones() as i64
             })
             .sum();
-        if self.owners.is_empty() {
+        if owners.is_empty() {
             return Ok((vec![0; d + 1], 0));
         }
-        let owners = std::mem::take(&mut self.owners);
         let mut removed_vertices = 0u64;
         let everywhere = 0..usize::MAX;
         match parts {
             None => {
-                let centre = self.doubled_centre(0..self.masks.len());
-                let (_, removed) = self.cells().reduce_from_free_faces(
+                let centre = view.doubled_centre(0..places);
+                let (_, removed) = view.cells::<false>().reduce_from_free_faces(
                     &owners,
                     &everywhere,
                     centre,
@@ -588,24 +515,24 @@ impl DenseComplex {
                 removed_vertices += removed;
             }
             Some(split) => {
-                let (mut left, seam, removed) = self.reduce_parts(&owners, split, Order::Parallel);
+                let (mut left, seam, removed) = view.reduce_parts(&owners, split, Order::Parallel);
                 removed_vertices += removed;
                 // What is left queued, then the last seam's own candidates. The parts
                 // removed every vertex they own: only the last seam's are left.
-                let mut cells = self.cells();
+                let mut cells = view.cells::<false>();
                 cells.queue_free_faces(&owners, &seam, &mut left);
                 removed_vertices += cells.reduce(&mut left, &everywhere, &seam, &owners, None);
             }
         }
         // Every pair was taken: the tags of the queue (`COREDUCIBLE`) skip no pair.
-        debug_assert_eq!(self.cells().reducible(&owners), 0);
+        debug_assert_eq!(view.cells::<false>().reducible(&owners), 0);
         // Explicit reduction of what is left, top dimension first; a k-cell that is the
         // lowest row of a reduced (k+1)-column has a boundary column reducing to zero. (The
         // queues went with the match above.)
         // Counted first, so that each list is allocated once at its size.
         let mut counts = vec![0usize; d + 1];
         for &o in &owners {
-            let mut rest = self.mask(o as usize);
+            let mut rest = view.mask(o as usize);
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
@@ -617,7 +544,7 @@ impl DenseComplex {
         // already in that order; when they are few (a smooth image), from the owners, and
         // sorted: the scan would cost more than the sort (a 64^4 blob has 21 million places
         // and a few thousand cells left).
-        let few = counts.iter().sum::<usize>() < self.masks.len() / 64;
+        let few = counts.iter().sum::<usize>() < places / 64;
         // The ranks only look cells up in the masks: the owners go before the lists grow
         // (unless the lists come from them).
         let owners = if few {
@@ -637,20 +564,20 @@ impl DenseComplex {
         };
         if few {
             for o in owners {
-                push_cells(o as usize, self.mask(o as usize));
+                push_cells(o as usize, view.mask(o as usize));
             }
             for cells in &mut by_dim {
                 cells.sort_unstable();
             }
         } else {
-            for (o, mask) in self.masks.iter().enumerate() {
+            for (o, mask) in view.masks.iter().enumerate() {
                 push_cells(o, mask.load(Relaxed));
             }
         }
         debug_assert!(by_dim
             .iter()
             .all(|cells| cells.windows(2).all(|w| w[0] < w[1])));
-        let cells = self.cells();
+        let cells = view.cells::<false>();
         let mut rank = vec![0u64; d + 2];
         let mut general = 0u64;
         let mut cleared = vec![false; by_dim[d].len()];
@@ -727,6 +654,146 @@ impl DenseComplex {
              characteristic {chi}"
         );
         Ok((betti, general))
+    }
+}
+
+/// The grid and the masks of a [`DenseComplex`], as a reduction shares them between its
+/// threads.
+#[derive(Clone, Copy)]
+struct View<'a> {
+    grid: Grid,
+    sides: [usize; 4],
+    masks: &'a [AtomicU16],
+}
+
+impl<'a> View<'a> {
+    /// The presence bits of the cells `owner` owns.
+    #[inline]
+    fn mask(&self, owner: usize) -> u16 {
+        self.masks[owner].load(Relaxed)
+    }
+
+    /// The masks as a reduction works on them (`PART`: see [`Cells`]).
+    fn cells<const PART: bool>(&self) -> Cells<'a, PART> {
+        Cells {
+            grid: self.grid,
+            masks: self.masks,
+        }
+    }
+
+    /// Twice the coordinates of the centre of the voxels of the places `places` (a range
+    /// of whole bricks, as [`Halves`] cuts them), cut at the grid's sides.
+    fn doubled_centre(&self, places: std::ops::Range<usize>) -> [usize; 4] {
+        let (first, last) = (
+            self.grid.coords(places.start),
+            self.grid.coords(places.end - 1),
+        );
+        std::array::from_fn(|axis| first[axis] + last[axis].min(self.sides[axis] - 1))
+    }
+
+    /// The pairs of one part of a split reduction ([`DenseComplex::betti_with`]): those
+    /// among the cells owned in `inside`, from its free faces and then from its vertex
+    /// nearest its centre. Returns the cells left queued (outside `inside`) and the number
+    /// of vertices removed.
+    fn reduce_part(
+        &self,
+        owners: &[u32],
+        inside: std::ops::Range<usize>,
+        queue: CellQueue,
+    ) -> (CellQueue, u64) {
+        let centre = self.doubled_centre(inside.clone());
+        self.cells::<true>()
+            .reduce_from_free_faces(owners, &inside, centre, queue)
+    }
+
+    /// The parts of a split reduction ([`DenseComplex::betti_with`]), each pair of parts
+    /// run as `order` says: the lower and upper brick rows, then the two parts of the seam
+    /// row if it splits too (each taking the cells left queued in it). Returns the cells
+    /// left queued, the last seam (whose cells no part reduced) and the number of vertices
+    /// removed.
+    fn reduce_parts(
+        &self,
+        owners: &[u32],
+        split: Split,
+        order: Order,
+    ) -> (CellQueue, std::ops::Range<usize>, u64) {
+        let Split { rows, columns } = split;
+        let ((mut left, a), (left_upper, b)) = order.run(
+            || self.reduce_part(owners, rows.lower(), CellQueue::default()),
+            || self.reduce_part(owners, rows.upper(), CellQueue::default()),
+        );
+        left.append(left_upper);
+        let Some(columns) = columns else {
+            return (left, rows.seam(), a + b);
+        };
+        let (lower, upper) = (columns.lower(), columns.upper());
+        let mut queues = [(); 3].map(|_| CellQueue::default());
+        while let Some((o, code)) = left.pop() {
+            let at = if lower.contains(&o) {
+                0
+            } else if upper.contains(&o) {
+                1
+            } else {
+                2
+            };
+            queues[at].push(o, code);
+        }
+        let [lower_queue, upper_queue, mut rest] = queues;
+        let ((left_lower, c), (left_upper, d)) = order.run(
+            || self.reduce_part(owners, lower, lower_queue),
+            || self.reduce_part(owners, upper, upper_queue),
+        );
+        rest.append(left_lower);
+        rest.append(left_upper);
+        (rest, columns.seam(), a + b + c + d)
+    }
+}
+
+/// The masks' memory: an anonymous mapping of two bytes per place, zeroed by the kernel
+/// (pages no cell touches are never written) and asked for as transparent huge pages on
+/// Linux. On the test machine a fault on a fresh 4 KiB page cost about 2.3 us, so the
+/// 14.6 MB of a 48^4 image's masks took 8 ms of faults, most of the inserts' time; a huge
+/// page costs one fault per 2 MiB (issue 18, BENCHMARKS.md).
+struct Masks {
+    map: memmap2::MmapMut,
+    /// Where the masks start in `map`: its first 2 MiB boundary, so that every whole huge
+    /// page of the mapping holds masks.
+    start: usize,
+    /// Their bytes: two per place.
+    len: usize,
+}
+
+impl Masks {
+    /// A huge page.
+    const HUGE: usize = 2 << 20;
+
+    fn zeroed(places: usize) -> Masks {
+        let len = 2 * places.max(1);
+        let map = memmap2::MmapMut::map_anon(len + Masks::HUGE)
+            .unwrap_or_else(|error| panic!("no memory for the complex's masks: {error}"));
+        // Only a hint: without huge pages the mapping works the same.
+        #[cfg(target_os = "linux")]
+        let _ = map.advise(memmap2::Advice::HugePage);
+        let at = map.as_ptr() as usize;
+        let start = at.next_multiple_of(Masks::HUGE) - at;
+        Masks { map, start, len }
+    }
+
+    fn bytes(&mut self) -> &mut [u8] {
+        &mut self.map[self.start..self.start + self.len]
+    }
+
+    /// The masks, for threads to share: relaxed loads and stores of atomics are plain
+    /// moves, and the parts of a split reduction never touch the same place (see
+    /// [`DenseComplex::betti_with`]).
+    fn shared(&mut self) -> &[AtomicU16] {
+        <[AtomicU16]>::mut_from_bytes(self.bytes()).expect("an aligned, even length")
+    }
+
+    /// The masks, for one writer.
+    #[inline]
+    fn get_mut(&mut self) -> &mut [u16] {
+        <[u16]>::mut_from_bytes(self.bytes()).expect("an aligned, even length")
     }
 }
 
@@ -1216,12 +1283,14 @@ mod tests {
         for x in [1, 5, 9] {
             image.set(&[x, 2, 2, 2], true);
         }
-        let complex = DenseComplex::of_image(&image);
+        let mut complex = DenseComplex::of_image(&image);
         let owners = complex.owners.clone();
-        let centre = complex.doubled_centre(0..complex.masks.len());
-        let grid = complex.grid;
-        let centre = complex
-            .cells()
+        let places = complex.places;
+        let view = complex.view();
+        let centre = view.doubled_centre(0..places);
+        let grid = view.grid;
+        let centre = view
+            .cells::<false>()
             .central_vertex(&owners, &(0..usize::MAX), centre)
             .expect("vertices are alive");
         let c = grid.coords(centre);
@@ -1288,12 +1357,8 @@ mod tests {
             let mut centre = vec![2; d];
             image.set(&centre, true);
             let count = |image: &BinaryImage| -> u32 {
-                let complex = DenseComplex::of_image(image);
-                complex
-                    .masks
-                    .iter()
-                    .map(|m| m.load(Relaxed).count_ones())
-                    .sum()
+                let mut complex = DenseComplex::of_image(image);
+                complex.masks.get_mut().iter().map(|m| m.count_ones()).sum()
             };
             assert_eq!(count(&image), 3u32.pow(d as u32), "{d}D");
             centre[d - 1] = 3;
@@ -1346,7 +1411,7 @@ mod tests {
             let expected = CellComplex::of_image(image).betti_by_boundaries();
             let whole = DenseComplex::of_image(image);
             let row = whole.grid.brick_step[0];
-            let everywhere = 0..whole.masks.len();
+            let everywhere = 0..whole.places;
             let balanced =
                 Halves::balanced(everywhere.clone(), row, &whole.weights(&everywhere, row))
                     .expect("seven brick rows split");
@@ -1375,13 +1440,13 @@ mod tests {
                     [Order::LowerFirst, Order::UpperFirst].map(|order| {
                         let mut complex = DenseComplex::of_image(image);
                         let owners = std::mem::take(&mut complex.owners);
-                        let (mut left, seam, removed) = complex.reduce_parts(&owners, split, order);
+                        let (mut left, seam, removed) =
+                            complex.view().reduce_parts(&owners, split, order);
                         let mut queued = Vec::new();
                         while let Some(cell) = left.pop() {
                             queued.push(cell);
                         }
-                        let masks: Vec<u16> =
-                            complex.masks.iter().map(|m| m.load(Relaxed)).collect();
+                        let masks: Vec<u16> = complex.masks.get_mut().to_vec();
                         (masks, queued, seam, removed)
                     });
                 assert!(
