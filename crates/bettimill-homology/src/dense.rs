@@ -160,6 +160,11 @@ impl Grid {
             .collect()
     }
 
+    /// The first place of the brick row (four planes across the first axis) of `place`.
+    pub(crate) fn row_start(&self, place: usize) -> usize {
+        place - place % self.brick_step[0]
+    }
+
     /// The coordinates of the voxel at `place` (the inverse of [`Grid::place`]).
     fn coords(&self, place: usize) -> [usize; 4] {
         let mut coords = [0usize; 4];
@@ -376,6 +381,48 @@ impl DenseComplex {
             self.owners.push(owner as u32);
         }
         *mask |= cells;
+    }
+
+    /// Inserts cells on two threads at once: `lower` and `upper` each get an [`Inserter`],
+    /// `lower`'s for the places below `boundary`, `upper`'s for the rest. Cells an inserter
+    /// is given outside its places are held back and inserted after both are done, in its
+    /// order. The owners are listed as `lower` first inserted them, then as `upper` did,
+    /// then the held-back ones: the same whatever the threads' timing. Returns how many
+    /// masks were held back.
+    pub(crate) fn insert_split(
+        &mut self,
+        boundary: usize,
+        lower: impl FnOnce(&mut Inserter) + Send,
+        upper: impl FnOnce(&mut Inserter) + Send,
+    ) -> usize {
+        let places = self.places;
+        let masks = self.masks.shared();
+        let mut parts = [0..boundary, boundary..places].map(|own| Inserter {
+            masks,
+            own,
+            owners: Vec::new(),
+            held: Vec::new(),
+        });
+        let [a, b] = &mut parts;
+        rayon::join(|| lower(a), || upper(b));
+        let [a, b] = parts.map(|part| (part.owners, part.held));
+        for (owners, _) in [&a, &b] {
+            self.owners.extend_from_slice(owners);
+        }
+        let mut count = 0;
+        for (_, held) in [a, b] {
+            count += held.len();
+            for (owner, cells) in held {
+                self.insert_mask(owner as usize, cells);
+            }
+        }
+        count
+    }
+
+    /// Every place's presence bits.
+    #[cfg(test)]
+    pub(crate) fn cells_by_place(&mut self) -> Vec<u16> {
+        self.masks.get_mut().to_vec()
     }
 
     /// The closed cubical complex of the foreground voxels of `image`, whose border must
@@ -654,6 +701,36 @@ impl DenseComplex {
              characteristic {chi}"
         );
         Ok((betti, general))
+    }
+}
+
+/// Inserts cells into a [`DenseComplex`] from one of two threads
+/// ([`DenseComplex::insert_split`]): the places `own` are its alone.
+pub(crate) struct Inserter<'a> {
+    masks: &'a [AtomicU16],
+    own: std::ops::Range<usize>,
+    /// The owners it made, in the order of their first cell.
+    owners: Vec<u32>,
+    /// Cells given outside `own`, inserted later.
+    held: Vec<(u32, u16)>,
+}
+
+impl Inserter<'_> {
+    /// Adds the cells whose local codes are the bits of `cells` (not 0), owned by the voxel
+    /// at `owner` (a place).
+    #[inline]
+    pub(crate) fn insert_mask(&mut self, owner: usize, cells: u16) {
+        if !self.own.contains(&owner) {
+            self.held.push((owner as u32, cells));
+            return;
+        }
+        // A load and a store: no other thread touches these places.
+        let mask = &self.masks[owner];
+        let old = mask.load(Relaxed);
+        if old == 0 {
+            self.owners.push(owner as u32);
+        }
+        mask.store(old | cells, Relaxed);
     }
 }
 

@@ -251,17 +251,30 @@ fn topology_by_thinning_with(
 /// the complex. A voxel on a thin loop or sheet keeps a handful of private cells instead
 /// of tens.
 ///
-/// Each voxel's cells depend on the image alone, so they are found on all threads, a
-/// chunk of voxels at a time, and inserted on one thread in the voxels' order: the
-/// complex is the same whatever the threads, and only one thread touches its pages for
-/// the first time (two threads faulting pages in at once were about three times slower
-/// per voxel on the test machine, issue 18).
+/// Each voxel's cells depend on the image alone, and its cells are owned by it and by
+/// voxels one step back. So the voxels are cut in two at a brick row (the one that halves
+/// them) and each half is done on its own thread, in the voxels' order: each inserts the
+/// cells owned on its side of the cut, and the few that the second half's first plane owns
+/// one step back, on the first half's side, are inserted after both. The complex is the
+/// same whatever the threads' timing. (Two threads faulting in the masks' fresh 4 KiB
+/// pages at once were about three times slower per voxel on the test machine, issue 18;
+/// in huge pages they fault a few times, not thousands.)
 fn remnant_complex(
     padded: &BinaryImage,
     remaining: &[usize],
     tester: &simple::SimpleTester,
 ) -> Result<DenseComplex, dense::GridTooLarge> {
-    use rayon::prelude::*;
+    Ok(remnant_complex_cut(padded, remaining, tester, 1 << 11)?.0)
+}
+
+/// [`remnant_complex`], cut in two from `fewest` voxels (tests: the cut and the uncut
+/// complex are the same), and how many masks the second half held back.
+fn remnant_complex_cut(
+    padded: &BinaryImage,
+    remaining: &[usize],
+    tester: &simple::SimpleTester,
+    fewest: usize,
+) -> Result<(DenseComplex, usize), dense::GridTooLarge> {
     let offsets = tester.offsets();
     let n = offsets.len();
     let cell_bit = 1u128 << n;
@@ -310,26 +323,32 @@ fn remnant_complex(
         }
         (grid.place(&padded.coords(index)), masks)
     };
-    // 4,096 voxels a chunk: 128 KiB of masks, many times the cost of a split. (Finding
-    // the next chunk's cells while inserting this chunk's was no faster.) The inserts are
-    // one per owner, not one per cell: about 16 writes a voxel instead of 42 on a blob.
     let owned = 1 << padded.dim().get();
-    let mut cells = Vec::with_capacity(remaining.len().min(1 << 12));
-    for chunk in remaining.chunks(1 << 12) {
-        chunk
-            .par_iter()
-            .map(|&i| cells_of(i))
-            .collect_into_vec(&mut cells);
-        for (place, masks) in &cells {
-            let around = grid.owners_around(*place);
-            for (&owner, &mask) in around.iter().zip(masks).take(owned) {
+    let insert = |voxels: &[usize], inserter: &mut dense::Inserter| {
+        for &index in voxels {
+            let (place, masks) = cells_of(index);
+            let around = grid.owners_around(place);
+            for (&owner, &mask) in around.iter().zip(&masks).take(owned) {
                 if mask != 0 {
-                    complex.insert_mask(owner, mask);
+                    inserter.insert_mask(owner, mask);
                 }
             }
         }
-    }
-    Ok(complex)
+    };
+    // The cut: at the brick row of the middle voxel (the voxels are in raster order, so in
+    // order of their first coordinate); none for a few voxels.
+    let row = |i: usize| padded.coords(i)[0] / 4;
+    let cut = match remaining.len() {
+        n if n < fewest.max(1) => 0,
+        n => remaining.partition_point(|&i| row(i) < row(remaining[n / 2])),
+    };
+    let boundary = match cut {
+        0 => 0,
+        _ => grid.row_start(grid.place(&padded.coords(remaining[cut]))),
+    };
+    let (lower, upper) = remaining.split_at(cut);
+    let held = complex.insert_split(boundary, |a| insert(lower, a), |b| insert(upper, b));
+    Ok((complex, held))
 }
 
 /// Any dimension, through the background: the object's Betti numbers are those of the

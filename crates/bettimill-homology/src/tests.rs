@@ -341,6 +341,30 @@ fn the_split_reduction_agrees_with_the_whole_one() {
     }
 }
 
+/// The remnant's complex built on two threads, its voxels cut at a brick row, has the same
+/// cells as built on one, the cells that the second half's first plane owns on the first
+/// half's side included.
+#[test]
+fn the_cut_complex_has_the_cells_of_the_uncut_one() {
+    let mut rng = ChaCha8Rng::seed_from_u64(93);
+    for density in [0.3, 0.5, 0.7] {
+        let image = random_image(&mut rng, &[14, 9, 9, 9], density);
+        let mut padded = image.padded(1);
+        let tester = simple::SimpleTester::new(padded.dim());
+        let remaining = thin::thin(&mut padded, &tester, Phase::Foreground);
+        let (mut whole, none) =
+            remnant_complex_cut(&padded, &remaining, &tester, usize::MAX).unwrap();
+        let (mut cut, held) = remnant_complex_cut(&padded, &remaining, &tester, 0).unwrap();
+        assert_eq!(
+            cut.cells_by_place(),
+            whole.cells_by_place(),
+            "density {density}"
+        );
+        assert_eq!(none, 0);
+        assert!(held > 0, "density {density}: nothing held back");
+    }
+}
+
 /// The thinning's slabs and the reduction's parts run on rayon's threads, and neither the
 /// Betti numbers nor the work left to the elimination (its general pivots, which follow
 /// the cells the pairs leave) depend on how many there are.
