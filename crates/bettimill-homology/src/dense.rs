@@ -902,34 +902,33 @@ impl<const PART: bool> Cells<'_, PART> {
         mask.store(mask.load(Relaxed) & !(1 << code), Relaxed);
     }
 
-    /// The number of alive cofacets of (owner, code): those the owner holds are one mask
-    /// test, the others one bit each from the next voxel along an even axis.
+    /// Whether (owner, code) has exactly one alive cofacet: those the owner holds are one
+    /// mask test, the others one bit each from the next voxel along an even axis, looked at
+    /// only while fewer than two are found (most cells have two among the owner's own).
     #[inline]
-    fn cofacet_count(&self, owner: usize, code: u32) -> u32 {
-        let same = self.mask(owner) & self.grid.up_same[code as usize];
-        let mut count = same.count_ones();
+    fn one_cofacet(&self, owner: usize, code: u32) -> bool {
+        let mut count = (self.mask(owner) & self.grid.up_same[code as usize]).count_ones();
         let mut axes = code;
-        while axes != 0 {
+        while axes != 0 && count < 2 {
             let axis = axes.trailing_zeros() as usize;
             axes &= axes - 1;
             count += self.has(self.grid.forward(owner, axis), code ^ 1 << axis) as u32;
         }
-        count
+        count == 1
     }
 
-    /// The number of alive facets of (owner, code) (as [`Cells::cofacet_count`], one
+    /// Whether (owner, code) has exactly one alive facet (as [`Cells::one_cofacet`], one
     /// voxel back along the odd axes).
     #[inline]
-    fn facet_count(&self, owner: usize, code: u32) -> u32 {
-        let same = self.mask(owner) & self.grid.down_same[code as usize];
-        let mut count = same.count_ones();
+    fn one_facet(&self, owner: usize, code: u32) -> bool {
+        let mut count = (self.mask(owner) & self.grid.down_same[code as usize]).count_ones();
         let mut axes = !code & self.grid.all_codes;
-        while axes != 0 {
+        while axes != 0 && count < 2 {
             let axis = axes.trailing_zeros() as usize;
             axes &= axes - 1;
             count += self.has(self.grid.back(owner, axis), code | 1 << axis) as u32;
         }
-        count
+        count == 1
     }
 
     /// An alive cofacet of (owner, code), the only one when the count is one.
@@ -968,8 +967,7 @@ impl<const PART: bool> Cells<'_, PART> {
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
-                reducible +=
-                    (self.cofacet_count(o, code) == 1 || self.facet_count(o, code) == 1) as usize;
+                reducible += (self.one_cofacet(o, code) || self.one_facet(o, code)) as usize;
             }
         }
         reducible
@@ -993,7 +991,7 @@ impl<const PART: bool> Cells<'_, PART> {
             while rest != 0 {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
-                if self.cofacet_count(o, code) == 1 {
+                if self.one_cofacet(o, code) {
                     queue.push(o, code);
                 }
             }
@@ -1015,12 +1013,12 @@ impl<const PART: bool> Cells<'_, PART> {
             };
             for o in [owner, other] {
                 if self.has(o, c) {
-                    let count = if upward {
-                        self.facet_count(o, c)
+                    let one = if upward {
+                        self.one_facet(o, c)
                     } else {
-                        self.cofacet_count(o, c)
+                        self.one_cofacet(o, c)
                     };
-                    if count == 1 {
+                    if one {
                         queue.push(o, if upward { c | COREDUCIBLE } else { c });
                     }
                 }
@@ -1081,12 +1079,12 @@ impl<const PART: bool> Cells<'_, PART> {
                 // and a closed complex starts with no cell of one facet), and that entry
                 // is still to come, or the cell would be gone.
                 let free = queued & COREDUCIBLE == 0;
-                let count = if free {
-                    self.cofacet_count(o, code)
+                let one = if free {
+                    self.one_cofacet(o, code)
                 } else {
-                    self.facet_count(o, code)
+                    self.one_facet(o, code)
                 };
-                if count != 1 {
+                if !one {
                     continue;
                 }
                 let partner = if free {
