@@ -931,30 +931,44 @@ impl<const PART: bool> Cells<'_, PART> {
         count == 1
     }
 
-    /// An alive cofacet of (owner, code), the only one when the count is one.
-    fn some_cofacet(&self, owner: usize, code: u32) -> u64 {
+    /// The only alive cofacet of (owner, code), if it has exactly one (as
+    /// [`Cells::one_cofacet`], which it saves a second look for the partner).
+    #[inline]
+    fn sole_cofacet(&self, owner: usize, code: u32) -> Option<(usize, u32)> {
         let same = self.mask(owner) & self.grid.up_same[code as usize];
-        if same != 0 {
-            return cell(owner, same.trailing_zeros());
+        let mut count = same.count_ones();
+        let mut found = (owner, same.trailing_zeros());
+        let mut axes = code;
+        while axes != 0 && count < 2 {
+            let axis = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            let (o, c) = (self.grid.forward(owner, axis), code ^ 1 << axis);
+            if self.has(o, c) {
+                count += 1;
+                found = (o, c);
+            }
         }
-        (0..self.grid.d)
-            .filter(|&axis| code >> axis & 1 == 1)
-            .map(|axis| (self.grid.forward(owner, axis), code ^ 1 << axis))
-            .find(|&(o, c)| self.has(o, c))
-            .map_or(u64::MAX, |(o, c)| cell(o, c))
+        (count == 1).then_some(found)
     }
 
-    /// An alive facet of (owner, code), the only one when the count is one.
-    fn some_facet(&self, owner: usize, code: u32) -> u64 {
+    /// The only alive facet of (owner, code), if it has exactly one (as
+    /// [`Cells::sole_cofacet`], one voxel back along the odd axes).
+    #[inline]
+    fn sole_facet(&self, owner: usize, code: u32) -> Option<(usize, u32)> {
         let same = self.mask(owner) & self.grid.down_same[code as usize];
-        if same != 0 {
-            return cell(owner, same.trailing_zeros());
+        let mut count = same.count_ones();
+        let mut found = (owner, same.trailing_zeros());
+        let mut axes = !code & self.grid.all_codes;
+        while axes != 0 && count < 2 {
+            let axis = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            let (o, c) = (self.grid.back(owner, axis), code | 1 << axis);
+            if self.has(o, c) {
+                count += 1;
+                found = (o, c);
+            }
         }
-        (0..self.grid.d)
-            .filter(|&axis| code >> axis & 1 == 0)
-            .map(|axis| (self.grid.back(owner, axis), code | 1 << axis))
-            .find(|&(o, c)| self.has(o, c))
-            .map_or(u64::MAX, |(o, c)| cell(o, c))
+        (count == 1).then_some(found)
     }
 
     /// How many alive cells of `owners` still have one alive cofacet or one alive facet
@@ -1079,20 +1093,14 @@ impl<const PART: bool> Cells<'_, PART> {
                 // and a closed complex starts with no cell of one facet), and that entry
                 // is still to come, or the cell would be gone.
                 let free = queued & COREDUCIBLE == 0;
-                let one = if free {
-                    self.one_cofacet(o, code)
-                } else {
-                    self.one_facet(o, code)
-                };
-                if !one {
-                    continue;
-                }
                 let partner = if free {
-                    self.some_cofacet(o, code)
+                    self.sole_cofacet(o, code)
                 } else {
-                    self.some_facet(o, code)
+                    self.sole_facet(o, code)
                 };
-                let (po, pcode) = split(partner);
+                let Some((po, pcode)) = partner else {
+                    continue;
+                };
                 self.remove(o, code);
                 self.remove(po, pcode);
                 self.queue_new_candidates(o, code, queue);
