@@ -226,23 +226,27 @@ impl Window {
 }
 
 /// Bit 0 of the sixteen bytes at `offset + rows[r]` of `span`, for each of the R rows,
-/// at bit r mod 8 of each byte of word r / 8.
+/// at bit r mod 8 of each byte of word r / 8. Written byte by byte over sixteen lanes, so
+/// that the compiler keeps each row in one vector register (a mask, a shift and an or per
+/// row) instead of a pair of 64-bit halves.
 #[inline(always)]
 fn pack_rows<const R: usize>(rows: &[isize], span: &[u8], offset: isize) -> [u128; 4] {
     let rows: &[isize; R] = rows.try_into().expect("R rows");
-    let mut words = [0u128; 4];
+    let mut words = [[0u8; 16]; 4];
     // Groups of eight rows: loops short enough for the compiler to unroll.
     for (group, word) in words.iter_mut().enumerate() {
         for shift in 0..8 {
             let r = 8 * group + shift;
             if r < R {
                 let q = (offset + rows[r]) as usize;
-                let bytes: [u8; 16] = span[q..q + 16].try_into().expect("16 bytes");
-                *word |= (u128::from_le_bytes(bytes) & ONES) << shift;
+                let bytes: &[u8; 16] = span[q..q + 16].try_into().expect("16 bytes");
+                for (lane, &byte) in word.iter_mut().zip(bytes) {
+                    *lane |= (byte & 1) << shift;
+                }
             }
         }
     }
-    words
+    words.map(u128::from_le_bytes)
 }
 
 /// Bit 0 of each of sixteen bytes.
