@@ -198,7 +198,12 @@ impl BinaryImage {
                 found: data.len(),
             });
         }
-        if let Some(index) = data.iter().position(|&v| v > 1) {
+        // The OR of a chunk is at most 1 exactly when all its values are: a loop the
+        // compiler turns into vector ORs, where a search for the first bad value goes one byte
+        // at a time (four instructions a voxel, 5% of a 32^4 image's Betti numbers).
+        let binary = |chunk: &[u8]| chunk.iter().fold(0u8, |any, &v| any | v) <= 1;
+        if !data.chunks(1 << 12).all(binary) {
+            let index = data.iter().position(|&v| v > 1).expect("a value over 1");
             return Err(GridError::NotBinary {
                 index,
                 value: data[index],
@@ -363,25 +368,32 @@ impl BinaryImage {
             strides[axis] = stride;
             stride *= new_shape[axis];
         }
-        // The padded start of row r (its coordinates along the first d - 1 axes are r's
-        // digits in the old shape).
-        let start = |r: usize| -> usize {
-            let mut rest = r;
-            let mut index = width;
+        // The padded start of every row, in order (its coordinates along the first d - 1
+        // axes are r's digits in the old shape), counted like an odometer: a division per
+        // row cost more than moving the row.
+        let mut starts = Vec::with_capacity(rows);
+        let mut digits = [0usize; 4];
+        for _ in 0..rows {
+            starts.push(
+                width
+                    + (0..d - 1)
+                        .map(|axis| (digits[axis] + width) * strides[axis])
+                        .sum::<usize>(),
+            );
             for axis in (0..d - 1).rev() {
-                index += (rest % old_shape[axis] + width) * strides[axis];
-                rest /= old_shape[axis];
+                digits[axis] += 1;
+                if digits[axis] < old_shape[axis] {
+                    break;
+                }
+                digits[axis] = 0;
             }
-            index
-        };
-        for r in (0..rows).rev() {
-            let dst = start(r);
+        }
+        for (r, &dst) in starts.iter().enumerate().rev() {
             data.copy_within(r * row..(r + 1) * row, dst);
         }
         // Clear what lies between the moved rows (old data or zeros alike).
         let mut cleared_to = 0;
-        for r in 0..rows {
-            let dst = start(r);
+        for &dst in &starts {
             data[cleared_to..dst].fill(0);
             cleared_to = dst + row;
         }
