@@ -233,12 +233,17 @@ impl Window {
 fn pack_rows<const R: usize>(rows: &[isize], span: &[u8], offset: isize) -> [u128; 4] {
     let rows: &[isize; R] = rows.try_into().expect("R rows");
     let mut words = [[0u8; 16]; 4];
+    // Every row lies within `span` (it runs from the first row to the last one's end); the
+    // bound tells the compiler so, which spares a pair of checks per row.
+    let Some(last) = span.len().checked_sub(16) else {
+        return [0; 4];
+    };
     // Groups of eight rows: loops short enough for the compiler to unroll.
     for (group, word) in words.iter_mut().enumerate() {
         for shift in 0..8 {
             let r = 8 * group + shift;
             if r < R {
-                let q = (offset + rows[r]) as usize;
+                let q = ((offset + rows[r]) as usize).min(last);
                 let bytes: &[u8; 16] = span[q..q + 16].try_into().expect("16 bytes");
                 for (lane, &byte) in word.iter_mut().zip(bytes) {
                     *lane |= (byte & 1) << shift;
