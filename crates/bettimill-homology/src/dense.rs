@@ -13,12 +13,13 @@
 //!
 //! So the complex needs no sorting, no deduplication and no neighbour table, and every step
 //! of the reduction is a few loads from one array (two bytes per voxel, in huge pages
-//! where the system gives them, and pages no cell touches never backed: [`Masks`]). The array is laid out in bricks of 4^d voxels, so that most
-//! steps along any axis stay within the same 512 bytes (in 4D) instead of jumping a whole
-//! hyperplane of the image: the reduction wanders through the complex in waves, and with
-//! the image's own layout nearly every step along the first axes missed the caches. A
-//! voxel's place is `brick << 2d | local`, with two bits of local coordinate per axis. A
-//! cell is named by one `u64`, `place << 4 | e`.
+//! where the system gives them, and pages no cell touches never backed: [`Masks`]). The
+//! array is laid out in bricks of 4^d voxels, so that most steps along any axis stay
+//! within the same 512 bytes (in 4D) instead of jumping a whole hyperplane of the image:
+//! the reduction wanders through the complex in waves, and with the image's own layout
+//! nearly every step along the first axes missed the caches. A voxel's place is
+//! `brick << 2d | local`, with two bits of local coordinate per axis. A cell is named by
+//! one `u64`, `place << 4 | e`.
 //!
 //! The reduction removes pairs (a, b), b a facet of a, that are either a free-face collapse
 //! (a is the only alive cofacet of b) or a coreduction (b is the only alive facet of a).

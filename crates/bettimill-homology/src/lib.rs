@@ -30,8 +30,8 @@
 //! bytes per voxel of address space, in 2 MiB pages backed only where the remnant is,
 //! four per owner voxel and five per queued cell); `bettimill betti` (the owned route)
 //! peaked at 1,072 MB on a 128^4 blob and at 524 MB on a random 64^4 image, whose
-//! remnant is most of it (BENCHMARKS.md). On a large remnant the reduction pairs run on two threads, in parts of
-//! the grid that never meet (module `dense`).
+//! remnant is most of it (BENCHMARKS.md). On a large remnant the reduction pairs run on
+//! two threads, in parts of the grid that never meet (module `dense`).
 //!
 //! [`simple`] decides whether one voxel can be flipped without changing the topology; it is
 //! the kernel of both deformations and of the thinning.
