@@ -243,7 +243,9 @@ fn pack_rows<const R: usize>(rows: &[isize], span: &[u8], offset: isize) -> [u12
         for shift in 0..8 {
             let r = 8 * group + shift;
             if r < R {
-                let q = ((offset + rows[r]) as usize).min(last);
+                let q = (offset + rows[r]) as usize;
+                debug_assert!(q <= last, "row {r} past the span");
+                let q = q.min(last);
                 let bytes: &[u8; 16] = span[q..q + 16].try_into().expect("16 bytes");
                 for (lane, &byte) in word.iter_mut().zip(bytes) {
                     *lane |= (byte & 1) << shift;
