@@ -903,73 +903,52 @@ impl<const PART: bool> Cells<'_, PART> {
         mask.store(mask.load(Relaxed) & !(1 << code), Relaxed);
     }
 
-    /// Whether (owner, code) has exactly one alive cofacet: those the owner holds are one
-    /// mask test, the others one bit each from the next voxel along an even axis, looked at
-    /// only while fewer than two are found (most cells have two among the owner's own).
+    /// The only alive cofacet (`UP`) or facet of (owner, code), if it has exactly one.
+    /// Those the owner holds are one mask test; the others are one bit each from the next
+    /// voxel along an even axis (cofacets) or the previous one along an odd axis (facets),
+    /// looked at only while fewer than two are found (most cells have two among the owner's
+    /// own).
+    #[inline]
+    fn sole<const UP: bool>(&self, owner: usize, code: u32) -> Option<(usize, u32)> {
+        let same = self.mask(owner)
+            & if UP {
+                self.grid.up_same[code as usize]
+            } else {
+                self.grid.down_same[code as usize]
+            };
+        let mut count = same.count_ones();
+        let mut found = (owner, same.trailing_zeros());
+        let mut axes = if UP {
+            code
+        } else {
+            !code & self.grid.all_codes
+        };
+        while axes != 0 && count < 2 {
+            let axis = axes.trailing_zeros() as usize;
+            axes &= axes - 1;
+            let (o, c) = if UP {
+                (self.grid.forward(owner, axis), code ^ 1 << axis)
+            } else {
+                (self.grid.back(owner, axis), code | 1 << axis)
+            };
+            if self.has(o, c) {
+                count += 1;
+                found = (o, c);
+            }
+        }
+        (count == 1).then_some(found)
+    }
+
+    /// Whether (owner, code) has exactly one alive cofacet ([`Cells::sole`]).
     #[inline]
     fn one_cofacet(&self, owner: usize, code: u32) -> bool {
-        let mut count = (self.mask(owner) & self.grid.up_same[code as usize]).count_ones();
-        let mut axes = code;
-        while axes != 0 && count < 2 {
-            let axis = axes.trailing_zeros() as usize;
-            axes &= axes - 1;
-            count += self.has(self.grid.forward(owner, axis), code ^ 1 << axis) as u32;
-        }
-        count == 1
+        self.sole::<true>(owner, code).is_some()
     }
 
-    /// Whether (owner, code) has exactly one alive facet (as [`Cells::one_cofacet`], one
-    /// voxel back along the odd axes).
+    /// Whether (owner, code) has exactly one alive facet ([`Cells::sole`]).
     #[inline]
     fn one_facet(&self, owner: usize, code: u32) -> bool {
-        let mut count = (self.mask(owner) & self.grid.down_same[code as usize]).count_ones();
-        let mut axes = !code & self.grid.all_codes;
-        while axes != 0 && count < 2 {
-            let axis = axes.trailing_zeros() as usize;
-            axes &= axes - 1;
-            count += self.has(self.grid.back(owner, axis), code | 1 << axis) as u32;
-        }
-        count == 1
-    }
-
-    /// The only alive cofacet of (owner, code), if it has exactly one (as
-    /// [`Cells::one_cofacet`], which it saves a second look for the partner).
-    #[inline]
-    fn sole_cofacet(&self, owner: usize, code: u32) -> Option<(usize, u32)> {
-        let same = self.mask(owner) & self.grid.up_same[code as usize];
-        let mut count = same.count_ones();
-        let mut found = (owner, same.trailing_zeros());
-        let mut axes = code;
-        while axes != 0 && count < 2 {
-            let axis = axes.trailing_zeros() as usize;
-            axes &= axes - 1;
-            let (o, c) = (self.grid.forward(owner, axis), code ^ 1 << axis);
-            if self.has(o, c) {
-                count += 1;
-                found = (o, c);
-            }
-        }
-        (count == 1).then_some(found)
-    }
-
-    /// The only alive facet of (owner, code), if it has exactly one (as
-    /// [`Cells::sole_cofacet`], one voxel back along the odd axes).
-    #[inline]
-    fn sole_facet(&self, owner: usize, code: u32) -> Option<(usize, u32)> {
-        let same = self.mask(owner) & self.grid.down_same[code as usize];
-        let mut count = same.count_ones();
-        let mut found = (owner, same.trailing_zeros());
-        let mut axes = !code & self.grid.all_codes;
-        while axes != 0 && count < 2 {
-            let axis = axes.trailing_zeros() as usize;
-            axes &= axes - 1;
-            let (o, c) = (self.grid.back(owner, axis), code | 1 << axis);
-            if self.has(o, c) {
-                count += 1;
-                found = (o, c);
-            }
-        }
-        (count == 1).then_some(found)
+        self.sole::<false>(owner, code).is_some()
     }
 
     /// How many alive cells of `owners` still have one alive cofacet or one alive facet
@@ -1095,9 +1074,9 @@ impl<const PART: bool> Cells<'_, PART> {
                 // is still to come, or the cell would be gone.
                 let free = queued & COREDUCIBLE == 0;
                 let partner = if free {
-                    self.sole_cofacet(o, code)
+                    self.sole::<true>(o, code)
                 } else {
-                    self.sole_facet(o, code)
+                    self.sole::<false>(o, code)
                 };
                 let Some((po, pcode)) = partner else {
                     continue;
