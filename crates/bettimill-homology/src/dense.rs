@@ -82,7 +82,8 @@ pub(crate) struct DenseComplex {
     /// Presence bits of the cells each voxel owns, by place ([`Masks`]).
     masks: Masks,
     /// The place of every voxel that has owned a cell, in the order of the first insertion
-    /// (places fit 32 bits: [`DenseComplex::new`] checks the grid).
+    /// (of each thread's in turn after [`DenseComplex::insert_split`]; places fit 32 bits:
+    /// [`DenseComplex::new`] checks the grid).
     owners: Vec<u32>,
 }
 

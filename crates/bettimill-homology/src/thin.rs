@@ -158,9 +158,9 @@ impl Window {
     }
 
     /// Reads the columns at flat indices p..p + 16, cut at the end of p's line, into
-    /// `columns`. Each row contributes two 8-byte words (byte j = voxel p + j); masked to
-    /// bit 0 of every byte and shifted by r mod 8, the words of eight rows OR into one word
-    /// whose byte j holds those rows' bits of column j, with no carries between bytes.
+    /// `columns`. Each row contributes sixteen bytes (byte j = voxel p + j); masked to bit
+    /// 0 and shifted by r mod 8, the bytes of eight rows OR into sixteen whose byte j holds
+    /// those rows' bits of column j ([`pack_rows`]), kept as two 8-byte words.
     #[inline(never)]
     fn load(&self, data: &[u8], p: usize, columns: &mut Columns) {
         let mut packed = [0u64; 8];
