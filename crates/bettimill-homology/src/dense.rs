@@ -473,10 +473,10 @@ impl DenseComplex {
     /// cells left do not depend on the threads' timing (the masks are atomics only so that
     /// both threads may hold them). Then the seam row is cut the same way across the
     /// second axis, its two parts taking the cells left queued in them, and only the last
-    /// seam, one brick of each axis, and whatever is still queued go on one thread. The
-    /// extra vertices are more vertices in V, which the bookkeeping below counts anyway;
-    /// where the waves of two parts meet, a few more cells stall (issue 18 measured the
-    /// trade: BENCHMARKS.md).
+    /// seam, one brick along each of the first two axes, and whatever is still queued go
+    /// on one thread. The extra vertices are more vertices in V, which the bookkeeping
+    /// below counts anyway; where the waves of two parts meet, a few more cells stall
+    /// (issue 18 measured the trade: BENCHMARKS.md).
     ///
     /// The final rank is computed as `final_rank` says; also returns how many general
     /// (fill-in) pivots the elimination took. An error when the elimination's lists would
