@@ -25,13 +25,17 @@ Each peer runs in a child Python process of its own (the image read before the t
 starts), so that its peak RSS is its own; the time is that of the call only (in-process).
 Our side is the whole process: `bettimill betti IMAGE.npy --json` when --bettimill is given,
 otherwise the `betti` example of bettimill-homology (start-up and file read included, so the
-comparison does not flatter us). Peak RSS of every process comes from GNU time
-(/usr/bin/time); a peer's includes its Python interpreter, NumPy and the image (about 40 MB). With --repeat N
-every tool runs N times on each image and keeps its best wall and best CPU time (the usual
-minimum-of-repeats: noise only ever adds time); the ratio is the peer's best wall time
-(faster route) over ours. --ours-repeat M runs our side M times instead (at least N): a run
-of 30 ms on a shared machine needs more tries than a run of 3 s to dodge a busy moment (on
-the test VM the same binary's best of 3 ranged from 24 to 37 ms within minutes).
+comparison does not flatter us), started straight from this script and timed from its start
+to its exit. Peak RSS of every process comes from GNU time (/usr/bin/time), in runs of its
+own for our side (time's own start would add 0.7-1.7 ms to a 25 ms run); a peer's includes
+its Python interpreter, NumPy and the image (about 40 MB). With --repeat N every tool runs N
+times on each image and keeps its best wall and best CPU time (the usual minimum-of-repeats:
+noise only ever adds time); the ratio is the peer's best wall time (faster route) over ours.
+--ours-repeat M times our side M times instead (at least N): a run of 30 ms on a shared
+machine needs more tries than a run of 3 s to dodge a busy moment (on the test VM the same
+binary's best of 3 ranged from 24 to 37 ms within minutes). Our timed runs are spread over
+the peers' (a chunk before each peer run, one after the last), so both sides sample the same
+minutes.
 
 Usage:
   python benches/compare_peers.py [--cases 4:32:blob,4:32:random,...] [--skip-gudhi]
@@ -176,14 +180,39 @@ def run_peer(route, path):
     return record["betti"], record["seconds"], record["cpu"], rss
 
 
-def run_ours(path, args):
+def ours_command(path, args):
     if args.bettimill:
-        command = [args.bettimill, "betti", path, "--json"]
-    else:
-        command = [args.example, path]
-    out, seconds, cpu, rss = run_measured(command)
-    record = json.loads(out.strip().splitlines()[-1])
-    return record["betti"], seconds, cpu, rss
+        return [args.bettimill, "betti", path, "--json"]
+    return [args.example, path]
+
+
+def run_ours(path, args):
+    """Our whole process, started straight from here: (betti, wall s, cpu s). Its peak RSS
+    comes from `run_ours_rss` instead: under GNU time the wall would include time's own
+    start and its fork (0.7-1.7 ms on the test VM, 3-7% of a 25 ms run)."""
+    with tempfile.TemporaryFile(mode="w+") as out, tempfile.TemporaryFile(mode="w+") as err:
+        start = time.perf_counter()
+        child = subprocess.Popen(ours_command(path, args), stdout=out, stderr=err)
+        _, status, usage = os.wait4(child.pid, 0)
+        seconds = time.perf_counter() - start
+        code = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        if code != 0:
+            sys.exit(f"{' '.join(ours_command(path, args))} failed ({code}): {err.read().strip()}")
+        record = json.loads(out.read().strip().splitlines()[-1])
+    return record["betti"], seconds, usage.ru_utime + usage.ru_stime
+
+
+def run_ours_rss(path, args):
+    """Our whole process under GNU time: (betti, peak RSS KB)."""
+    out, _, _, rss = run_measured(ours_command(path, args))
+    return json.loads(out.strip().splitlines()[-1])["betti"], rss
+
+
+def spread(total, parts):
+    """`total` runs in `parts` chunks as even as can be, larger ones first."""
+    return [total // parts + (k < total % parts) for k in range(parts)]
 
 
 def self_check(workdir):
@@ -258,18 +287,33 @@ def main():
         row = {"case": case, "dim": dim, "side": side, "kind": kind,
                "foreground": int(image.sum()), "repeat": args.repeat, "ours_repeat": ours_repeat}
         del image
-        runs = [run_ours(path, args) for _ in range(ours_repeat)]
+        # Our timed runs are spread over the peers' runs (a chunk before each, the last
+        # chunk after them all), so that both sides sample the same minutes of a shared
+        # machine; then our peak RSS, from runs of their own.
+        chunks = spread(ours_repeat, len(tools) * args.repeat + 1)
+        runs = []
+        peer_runs = {}
+        for tool in tools:
+            peer_runs[tool] = []
+            for _ in range(args.repeat):
+                runs += [run_ours(path, args) for _ in range(chunks.pop())]
+                peer_runs[tool].append(run_peer(tool.split("-")[-1], path))
+        runs += [run_ours(path, args) for _ in range(chunks.pop())]
+        rss_runs = [run_ours_rss(path, args) for _ in range(args.repeat)]
         ours = runs[0][0]
+        for theirs in [r[0] for r in runs] + [r[0] for r in rss_runs]:
+            if theirs != ours:
+                print(f"MISMATCH {case}: ours {ours} and {theirs} in another run", file=sys.stderr)
+                failed = True
         row["betti"] = ours
         row["ours_seconds"] = min(r[1] for r in runs)
         row["ours_cpu_seconds"] = min(r[2] for r in runs)
-        row["ours_max_rss_kb"] = max(r[3] for r in runs)
+        row["ours_max_rss_kb"] = max(r[1] for r in rss_runs)
         cells = [case, str(ours),
                  f"{row['ours_seconds']:.3f}/{row['ours_cpu_seconds']:.3f}, {row['ours_max_rss_kb'] / 1024:.0f}"]
         best = None
         for tool in tools:
-            route = tool.split("-")[-1]
-            runs = [run_peer(route, path) for _ in range(args.repeat)]
+            runs = peer_runs[tool]
             row[f"{tool}_seconds"] = min(r[1] for r in runs)
             row[f"{tool}_cpu_seconds"] = min(r[2] for r in runs)
             row[f"{tool}_max_rss_kb"] = max(r[3] for r in runs)
