@@ -152,15 +152,17 @@ def peer_betti(route, image):
     raise ValueError(route)
 
 
-def run_measured(command):
+def run_measured(command, rss=True):
     """Runs `command` as a child: (stdout, wall s, cpu s, peak RSS KB). The peak RSS is GNU
     time's (%M): a child forked straight from this Python process would report this
     process's RSS when nothing it does itself comes near it (the kernel keeps the high-water
-    mark across exec)."""
+    mark across exec). With rss=False the child is started straight, without GNU time, and
+    the peak RSS is None."""
     with tempfile.TemporaryFile(mode="w+") as out, tempfile.TemporaryFile(mode="w+") as err, \
-            tempfile.NamedTemporaryFile(mode="r") as rss:
+            tempfile.NamedTemporaryFile(mode="r") as peak:
+        under_time = [TIME, "-f", "%M", "-o", peak.name] if rss else []
         start = time.perf_counter()
-        child = subprocess.Popen([TIME, "-f", "%M", "-o", rss.name] + command, stdout=out, stderr=err)
+        child = subprocess.Popen(under_time + command, stdout=out, stderr=err)
         _, status, usage = os.wait4(child.pid, 0)
         seconds = time.perf_counter() - start
         code = os.waitstatus_to_exitcode(status)
@@ -168,7 +170,7 @@ def run_measured(command):
         err.seek(0)
         if code != 0:
             sys.exit(f"{' '.join(command)} failed ({code}): {err.read().strip()}")
-        max_rss_kb = int(rss.read().split()[-1])
+        max_rss_kb = int(peak.read().split()[-1]) if rss else None
         return out.read(), seconds, usage.ru_utime + usage.ru_stime, max_rss_kb
 
 
@@ -190,18 +192,8 @@ def run_ours(path, args):
     """Our whole process, started straight from here: (betti, wall s, cpu s). Its peak RSS
     comes from `run_ours_rss` instead: under GNU time the wall would include time's own
     start and its fork (0.7-1.7 ms on the test VM, 3-7% of a 25 ms run)."""
-    with tempfile.TemporaryFile(mode="w+") as out, tempfile.TemporaryFile(mode="w+") as err:
-        start = time.perf_counter()
-        child = subprocess.Popen(ours_command(path, args), stdout=out, stderr=err)
-        _, status, usage = os.wait4(child.pid, 0)
-        seconds = time.perf_counter() - start
-        code = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        if code != 0:
-            sys.exit(f"{' '.join(ours_command(path, args))} failed ({code}): {err.read().strip()}")
-        record = json.loads(out.read().strip().splitlines()[-1])
-    return record["betti"], seconds, usage.ru_utime + usage.ru_stime
+    out, seconds, cpu, _ = run_measured(ours_command(path, args), rss=False)
+    return json.loads(out.strip().splitlines()[-1])["betti"], seconds, cpu
 
 
 def run_ours_rss(path, args):
@@ -211,7 +203,7 @@ def run_ours_rss(path, args):
 
 
 def spread(total, parts):
-    """`total` runs in `parts` chunks as even as can be, larger ones first."""
+    """`total` runs in `parts` chunks as even as can be (taken from the end: smaller first)."""
     return [total // parts + (k < total % parts) for k in range(parts)]
 
 
