@@ -828,15 +828,15 @@ impl<'a> View<'a> {
     }
 }
 
-/// The masks' memory: an anonymous mapping of two bytes per place, zeroed by the kernel
-/// (pages no cell touches are never written) and asked for as transparent huge pages on
-/// Linux. On the test machine a fault on a fresh 4 KiB page cost about 2.3 us, so the
+/// The masks' memory: an anonymous mapping of two bytes per place, rounded up to whole
+/// 2 MiB pages and one more for the alignment, zeroed by the kernel (pages no cell touches
+/// are never written) and asked for as transparent huge pages on Linux. On the test machine a fault on a fresh 4 KiB page cost about 2.3 us, so the
 /// 14.6 MB of a 48^4 image's masks took 8 ms of faults, most of the inserts' time; a huge
 /// page costs one fault per 2 MiB (issue 18, BENCHMARKS.md).
 struct Masks {
     map: memmap2::MmapMut,
-    /// Where the masks start in `map`: its first 2 MiB boundary, so that every whole huge
-    /// page of the mapping holds masks.
+    /// Where the masks start in `map`: its first 2 MiB boundary, so that they lie in whole
+    /// huge pages of the mapping.
     start: usize,
     /// Their bytes: two per place.
     len: usize,
@@ -848,10 +848,9 @@ impl Masks {
 
     fn zeroed(places: usize) -> Masks {
         let len = 2 * places.max(1);
-        // Whole huge pages from the first boundary on: with only `len` after it, the last
-        // partial huge page is 4 KiB pages, or, when the mapping's start falls so, the
-        // whole second one (a 32^4 image's masks faulted 540 more times in about half the
-        // runs).
+        // Room for whole huge pages after the first boundary: with only `len` there, the
+        // huge page holding the masks' end could stick out of the mapping and be faulted
+        // in 4 KiB pages (about 540 more faults on a 32^4 image, in about half the runs).
         let map = memmap2::MmapMut::map_anon(len.next_multiple_of(Masks::HUGE) + Masks::HUGE)
             .unwrap_or_else(|error| panic!("no memory for the complex's masks: {error}"));
         // Only a hint: without huge pages the mapping works the same.
