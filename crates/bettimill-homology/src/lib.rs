@@ -280,6 +280,24 @@ fn remnant_complex_cut(
     let cell_bit = 1u128 << n;
     let every_face = cell_bit - 1;
     let cofaces = tester.cofaces_with_cell();
+    // Each face's facets among the faces (entry n: the voxel's), and the faces by
+    // dimension, highest first: the layers of the collapse below.
+    let mut facets = vec![0u128; n + 1];
+    for (f, &up) in cofaces.iter().enumerate() {
+        let mut up = up;
+        while up != 0 {
+            facets[up.trailing_zeros() as usize] |= 1 << f;
+            up &= up - 1;
+        }
+    }
+    let d = padded.dim().get();
+    let layers: Vec<u128> = (1..=d)
+        .map(|across| {
+            (0..n)
+                .filter(|&f| offsets[f].iter().filter(|&&o| o != 0).count() == across)
+                .fold(0u128, |layer, f| layer | 1 << f)
+        })
+        .collect();
     let mut complex = DenseComplex::new(padded.shape())?;
     let grid = *complex.grid();
     let places = grid.face_places(offsets);
@@ -293,21 +311,21 @@ fn remnant_complex_cut(
         let shared = tester.attachment_of(config);
         // Private cells: the voxel itself and the boundary faces no neighbour shares.
         let mut alive = cell_bit | (every_face & !shared);
-        // Passes over the private faces until one collapses nothing (a collapse only
-        // frees faces of the removed coface, so a pass carries on after each).
-        loop {
-            let before = alive;
-            let mut rest = alive & every_face;
-            while rest != 0 {
-                let f = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
+        // Free-face collapses, one dimension of free face at a time, highest first. A
+        // collapse of (f, c) with f of dimension k removes a k-face and a (k + 1)-face, so
+        // it can only free the other k-facets of c (they are tried again) and never a
+        // face of a higher layer: after the last layer no private face is free.
+        for &layer in &layers {
+            let mut todo = alive & layer;
+            while todo != 0 {
+                let f = todo.trailing_zeros() as usize;
+                todo &= todo - 1;
+                debug_assert!(alive >> f & 1 == 1, "only alive faces are queued");
                 let up = cofaces[f] & alive;
-                if alive >> f & 1 == 1 && up.count_ones() == 1 {
+                if up.count_ones() == 1 {
                     alive &= !(1u128 << f) & !up;
+                    todo |= facets[up.trailing_zeros() as usize] & alive & layer;
                 }
-            }
-            if alive == before {
-                break;
             }
         }
         let mut masks = [0u16; 16];
