@@ -292,9 +292,11 @@ pub(crate) enum Phase {
 /// planes k and k + 1 between them. A voxel of A and a voxel of B are at least three planes
 /// apart, so neither ever reads what the other writes (flags included: A's reach plane k
 /// at most, B's plane k + 1), and sweeping A and B at once is exactly sweeping A and then
-/// B. The seam is swept after both. The pending voxels after the sweep follow the same
-/// order, in rounds: A's and B's at once, then the seam's, each part handing the voxels it
-/// makes pending in another part to that part for the next round. Every flip is a
+/// B. The seam is swept after both. The pending voxels after the sweep are cut the same
+/// way, but at the plane of the middle survivor (the sweep's cut halves the planes, which
+/// can leave one slab twice the other's survivors), and tested in rounds: A's and B's at
+/// once, then the seam's, each part handing the voxels it makes pending in another part to
+/// that part for the next round. Every flip is a
 /// simple-point flip of the image as it is at that moment, so the topology is kept, and
 /// the survivors are the same on every run.
 pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase) -> Vec<usize> {
@@ -347,17 +349,29 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // neighbours' last flip: no survivor is simple, as with full sweeps. (Passes over all
     // survivors took 58 passes on a 64^4 blob, the tip of a curve eaten one voxel a
     // pass.)
-    let data = image.data_mut();
-    let mut pending = [&part_a, &seam, &part_b].map(|members| {
-        members
-            .iter()
-            .rev()
-            .map(|&i| {
-                data[i] |= 2;
-                i
-            })
-            .collect::<Vec<usize>>()
+    // The survivors in index order. The pending rounds cut the image again, at the plane
+    // of the middle survivor: what is left to test is not spread like the foreground (on a
+    // 32^4 blob slab B kept twice A's survivors, and the seam, swept last with both sides
+    // already thinned, three times as many per plane), so a cut by planes left one thread
+    // testing twice as long as the other.
+    let mut survivors = part_a;
+    survivors.extend(seam);
+    survivors.extend(part_b);
+    let split = split.map(|_| {
+        let middle = survivors.get(survivors.len() / 2).map_or(0, |&i| i / plane);
+        middle.clamp(1, planes - 3)
     });
+    let data = image.data_mut();
+    let mut pending: [Vec<usize>; 3] = Default::default();
+    for &i in survivors.iter().rev() {
+        data[i] |= 2;
+        let part = match split {
+            Some(k) if i >= (k + 2) * plane => 2,
+            Some(k) if i >= k * plane => 1,
+            _ => 0,
+        };
+        pending[part].push(i);
+    }
     match split {
         Some(k) => {
             let (seam_start, seam_end) = (k * plane, (k + 2) * plane);
@@ -410,9 +424,7 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
         }
     }
     let data = image.data();
-    let mut remaining = part_a;
-    remaining.extend(seam);
-    remaining.extend(part_b);
+    let mut remaining = survivors;
     remaining.retain(|&i| data[i] & 1 != 0);
     // Nothing is pending: every flag was cleared when its voxel was tested.
     debug_assert!(data.iter().all(|&v| v & 2 == 0));
