@@ -166,8 +166,7 @@ impl Window {
     fn load(&self, data: &[u8], p: usize, columns: &mut Columns) {
         let first = (p as isize + self.rows[0]) as usize;
         let last = (p as isize + self.rows[self.rows.len() - 1]) as usize;
-        let packed: [[u8; 16]; 4];
-        match data.get(first..last + 16) {
+        let packed: [[u8; 16]; 4] = match data.get(first..last + 16) {
             // Unrolled for each dimension's row count, so that every shift is a constant.
             Some(span) => {
                 let offset = p as isize - first as isize;
@@ -176,7 +175,7 @@ impl Window {
                     9 => pack_rows::<9>(&self.rows, span, offset),
                     _ => pack_rows::<27>(&self.rows, span, offset),
                 };
-                packed = words.map(u128::to_le_bytes);
+                words.map(u128::to_le_bytes)
             }
             None => {
                 let mut words = [0u128; 4];
@@ -186,9 +185,9 @@ impl Window {
                     let bytes = (low as u128 | (high as u128) << 64) & ONES;
                     words[(r >> 3) & 3] |= bytes << (r & 7);
                 }
-                packed = words.map(u128::to_le_bytes);
+                words.map(u128::to_le_bytes)
             }
-        }
+        };
         columns.bits = std::array::from_fn(|j| {
             u32::from_le_bytes([packed[0][j], packed[1][j], packed[2][j], packed[3][j]])
         });
