@@ -95,6 +95,12 @@ pub(crate) struct Grid {
     /// Per axis: the shift of its two local bits, and the step from one brick to the next.
     shift: [u32; 4],
     brick_step: [usize; 4],
+    /// Per axis, for [`Grid::forward`] and [`Grid::back`]: the two local bits in place, the
+    /// step to the next voxel inside a brick (one at the shift) and the step from the last
+    /// voxel of a brick to the first of the next (a brick on, three back inside).
+    local_bits: [usize; 4],
+    inner_step: [usize; 4],
+    brick_over: [usize; 4],
     /// Per local code: the codes of its cofacets (facets) held by the same owner.
     up_same: [u16; 16],
     down_same: [u16; 16],
@@ -113,19 +119,22 @@ impl Grid {
     /// The place one voxel further along `axis`.
     #[inline]
     fn forward(&self, place: usize, axis: usize) -> usize {
-        let shift = self.shift[axis];
-        let local = (place >> shift & 3) + 1;
-        ((place & !(3 << shift)) | (local & 3) << shift) + (local >> 2) * self.brick_step[axis]
+        let bits = self.local_bits[axis];
+        place.wrapping_add(if place & bits == bits {
+            self.brick_over[axis]
+        } else {
+            self.inner_step[axis]
+        })
     }
 
     /// The place one voxel back along `axis`.
     #[inline]
     fn back(&self, place: usize, axis: usize) -> usize {
-        let shift = self.shift[axis];
-        let local = place >> shift & 3;
-        let borrow = (local == 0) as usize;
-        ((place & !(3 << shift)) | (local.wrapping_sub(1) & 3) << shift)
-            .wrapping_sub(borrow * self.brick_step[axis])
+        place.wrapping_sub(if place & self.local_bits[axis] == 0 {
+            self.brick_over[axis]
+        } else {
+            self.inner_step[axis]
+        })
     }
 
     /// The owners of the cells of the voxel at `place`: entry s is the voxel one step back
@@ -314,6 +323,11 @@ impl DenseComplex {
                 d,
                 shift,
                 brick_step,
+                local_bits: shift.map(|shift| 3 << shift),
+                inner_step: shift.map(|shift| 1 << shift),
+                brick_over: std::array::from_fn(|axis| {
+                    brick_step[axis].wrapping_sub(3 << shift[axis])
+                }),
                 up_same,
                 down_same,
                 all_codes,
