@@ -32,7 +32,30 @@ fn sweep(
     survivors: &mut Vec<usize>,
     cache: &mut SimpleCache,
 ) {
+    // One copy per dimension's column bits, so that the blocks' 128-bit shifts are by
+    // constants (by a variable they cost several instructions each).
+    let args = (thinner, data, range, global_offset, survivors, cache);
+    match thinner.window.column_bits {
+        27 => sweep_with::<27>(args),
+        9 => sweep_with::<9>(args),
+        _ => sweep_with::<3>(args),
+    }
+}
+
+/// [`sweep`] with `R` bits a column.
+#[inline(always)]
+fn sweep_with<const R: u32>(
+    (thinner, data, range, global_offset, survivors, cache): (
+        &Thinner,
+        &mut [u8],
+        std::ops::Range<usize>,
+        usize,
+        &mut Vec<usize>,
+        &mut SimpleCache,
+    ),
+) {
     let (tester, phase, window) = (thinner.tester, thinner.phase, &thinner.window);
+    debug_assert_eq!(window.column_bits, R);
     // `block` is the 3^d block of voxel `previous`, kept current: between two voxels the
     // only write is the deletion of the voxel itself, whose centre bit is cleared.
     let mut block = 0u128;
@@ -50,9 +73,11 @@ fn sweep(
             continue;
         }
         block = if previous.wrapping_add(1) == i {
-            window.advance(data, block, i, &mut columns)
+            block >> R | window.column(data, i + 1, &mut columns) << (2 * R)
         } else {
-            window.block(data, i, &mut columns)
+            window.column(data, i - 1, &mut columns)
+                | window.column(data, i, &mut columns) << R
+                | window.column(data, i + 1, &mut columns) << (2 * R)
         };
         previous = i;
         // A voxel whose face neighbours are all foreground is never simple (the background
@@ -212,12 +237,6 @@ impl Window {
         self.column(data, i - 1, columns)
             | self.column(data, i, columns) << r
             | self.column(data, i + 1, columns) << (2 * r)
-    }
-
-    /// The block of voxel i from the (current) block of voxel i - 1.
-    #[inline]
-    fn advance(&self, data: &[u8], block: u128, i: usize, columns: &mut Columns) -> u128 {
-        block >> self.column_bits | self.column(data, i + 1, columns) << (2 * self.column_bits)
     }
 }
 
