@@ -31,8 +31,8 @@
 //! four per owner voxel and five per queued cell), and on a rough image the lists of the
 //! cells the pairs leave; `bettimill betti` (the owned route) peaked at 1,019 MiB on a
 //! 128^4 blob, at 243 MiB on a random 64^4 image, whose remnant is most of it, and at
-//! 4.3 GiB on a random 128^4 one (BENCHMARKS.md). On a large remnant the reduction pairs run on
-//! two threads, in parts of the grid that never meet (module `dense`).
+//! 4.3 GiB on a random 128^4 one (BENCHMARKS.md). On a large remnant the reduction pairs
+//! run on two threads, in parts of the grid that never meet (module `dense`).
 //!
 //! [`simple`] decides whether one voxel can be flipped without changing the topology; it is
 //! the kernel of both deformations and of the thinning.

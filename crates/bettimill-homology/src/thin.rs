@@ -227,7 +227,7 @@ impl Window {
         if at.wrapping_sub(columns.base) >= columns.end - columns.base {
             self.load(data, at, columns);
         }
-        // Rows 8g..8g + 7 are byte g; bytes past the last row are zero.
+        // Bit r is row r; the bits past the last row are zero.
         columns.bits[(at - columns.base) & 15] as u128
     }
 
@@ -311,9 +311,8 @@ pub(crate) enum Phase {
 /// way, but at the plane of the middle survivor (the sweep's cut halves the planes, which
 /// can leave one slab twice the other's survivors), and tested in rounds: A's and B's at
 /// once, then the seam's, each part handing the voxels it makes pending in another part to
-/// that part for the next round. Every flip is a
-/// simple-point flip of the image as it is at that moment, so the topology is kept, and
-/// the survivors are the same on every run.
+/// that part for the next round. Every flip is a simple-point flip of the image as it is
+/// at that moment, so the topology is kept, and the survivors are the same on every run.
 pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase) -> Vec<usize> {
     debug_assert!(match phase {
         Phase::Foreground => image.border_is_background(),
