@@ -844,9 +844,10 @@ impl<'a> View<'a> {
 
 /// The masks' memory: an anonymous mapping of two bytes per place, rounded up to whole
 /// 2 MiB pages and one more for the alignment, zeroed by the kernel (pages no cell touches
-/// are never written) and asked for as transparent huge pages on Linux. On the test machine a fault on a fresh 4 KiB page cost about 2.3 us, so the
-/// 14.6 MB of a 48^4 image's masks took 8 ms of faults, most of the inserts' time; a huge
-/// page costs one fault per 2 MiB (issue 18, BENCHMARKS.md).
+/// are never written) and asked for as transparent huge pages on Linux. On the test
+/// machine a fault on a fresh 4 KiB page cost about 2.3 us, so the 14.6 MB of a 48^4
+/// image's masks took 8 ms of faults, most of the inserts' time; a huge page costs one
+/// fault per 2 MiB (issue 18, BENCHMARKS.md).
 struct Masks {
     map: memmap2::MmapMut,
     /// Where the masks start in `map`: its first 2 MiB boundary, so that they lie in whole

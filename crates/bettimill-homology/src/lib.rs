@@ -284,8 +284,7 @@ fn remnant_complex_cut(
     // Each face's facets among the faces (entry n: the voxel's), and the faces by
     // dimension, highest first: the layers of the collapse below.
     let mut facets = vec![0u128; n + 1];
-    for (f, &up) in cofaces.iter().enumerate() {
-        let mut up = up;
+    for (f, mut up) in cofaces.iter().copied().enumerate() {
         while up != 0 {
             facets[up.trailing_zeros() as usize] |= 1 << f;
             up &= up - 1;

@@ -75,9 +75,7 @@ fn sweep_with<const R: u32>(
         block = if previous.wrapping_add(1) == i {
             block >> R | window.column(data, i + 1, &mut columns) << (2 * R)
         } else {
-            window.column(data, i - 1, &mut columns)
-                | window.column(data, i, &mut columns) << R
-                | window.column(data, i + 1, &mut columns) << (2 * R)
+            window.block_of::<R>(data, i, &mut columns)
         };
         previous = i;
         // A voxel whose face neighbours are all foreground is never simple (the background
@@ -231,12 +229,24 @@ impl Window {
         columns.bits[(at - columns.base) & 15] as u128
     }
 
+    /// The block of voxel i read afresh (its three columns).
     #[inline]
     fn block(&self, data: &[u8], i: usize, columns: &mut Columns) -> u128 {
-        let r = self.column_bits;
+        match self.column_bits {
+            27 => self.block_of::<27>(data, i, columns),
+            9 => self.block_of::<9>(data, i, columns),
+            _ => self.block_of::<3>(data, i, columns),
+        }
+    }
+
+    /// [`Window::block`] with `R` bits a column: its shifts are constants (a 128-bit shift
+    /// by a variable costs several instructions).
+    #[inline(always)]
+    fn block_of<const R: u32>(&self, data: &[u8], i: usize, columns: &mut Columns) -> u128 {
+        debug_assert_eq!(self.column_bits, R);
         self.column(data, i - 1, columns)
-            | self.column(data, i, columns) << r
-            | self.column(data, i + 1, columns) << (2 * r)
+            | self.column(data, i, columns) << R
+            | self.column(data, i + 1, columns) << (2 * R)
     }
 }
 
