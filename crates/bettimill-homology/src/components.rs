@@ -82,10 +82,10 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
 /// exactly 1, none on the border), two voxels being joined when they are `steps` apart.
 /// Cheap next to a flood fill of the whole image when `voxels` is a thin remnant; bit 1 of
 /// the bytes marks the voxels reached and is cleared again before returning.
-pub(crate) fn count_components_of(data: &mut [u8], voxels: &[usize], steps: &[isize]) -> u64 {
+pub(crate) fn count_components_of(data: &mut [u8], voxels: &[u32], steps: &[isize]) -> u64 {
     let mut count = 0;
     let mut stack = Vec::new();
-    for &start in voxels {
+    for start in voxels.iter().map(|&v| v as usize) {
         if data[start] != 1 {
             continue;
         }
@@ -103,7 +103,7 @@ pub(crate) fn count_components_of(data: &mut [u8], voxels: &[usize], steps: &[is
         }
     }
     for &v in voxels {
-        data[v] = 1;
+        data[v as usize] = 1;
     }
     count
 }

@@ -262,7 +262,7 @@ fn topology_by_thinning_with(
 /// in huge pages they fault a few times, not thousands.)
 fn remnant_complex(
     padded: &BinaryImage,
-    remaining: &[usize],
+    remaining: &[u32],
     tester: &simple::SimpleTester,
 ) -> Result<DenseComplex, dense::GridTooLarge> {
     Ok(remnant_complex_cut(padded, remaining, tester, 1 << 11)?.0)
@@ -272,7 +272,7 @@ fn remnant_complex(
 /// complex are the same), and how many masks the second half held back.
 fn remnant_complex_cut(
     padded: &BinaryImage,
-    remaining: &[usize],
+    remaining: &[u32],
     tester: &simple::SimpleTester,
     fewest: usize,
 ) -> Result<(DenseComplex, usize), dense::GridTooLarge> {
@@ -348,9 +348,9 @@ fn remnant_complex_cut(
         (grid.place(&padded.coords(index)), masks)
     };
     let owned = 1 << padded.dim().get();
-    let insert = |voxels: &[usize], inserter: &mut dense::Inserter| {
+    let insert = |voxels: &[u32], inserter: &mut dense::Inserter| {
         for &index in voxels {
-            let (place, masks) = cells_of(index);
+            let (place, masks) = cells_of(index as usize);
             let around = grid.owners_around(place);
             for (&owner, &mask) in around.iter().zip(&masks).take(owned) {
                 if mask != 0 {
@@ -361,14 +361,14 @@ fn remnant_complex_cut(
     };
     // The cut: at the brick row of the middle voxel (the voxels are in raster order, so in
     // order of their first coordinate); none for a few voxels.
-    let row = |i: usize| padded.coords(i)[0] / 4;
+    let row = |i: u32| padded.coords(i as usize)[0] / 4;
     let cut = match remaining.len() {
         n if n < fewest.max(1) => 0,
         n => remaining.partition_point(|&i| row(i) < row(remaining[n / 2])),
     };
     let boundary = match cut {
         0 => 0,
-        _ => grid.row_start(grid.place(&padded.coords(remaining[cut]))),
+        _ => grid.row_start(grid.place(&padded.coords(remaining[cut] as usize))),
     };
     let (lower, upper) = remaining.split_at(cut);
     let held = complex.insert_split(boundary, |a| insert(lower, a), |b| insert(upper, b));
@@ -410,7 +410,7 @@ fn background_cores(
     let cores = thin::thin(&mut padded, &tester, Phase::Background);
     let strides = padded.strides().to_vec();
     let data = padded.data();
-    let touches_frame = cores.iter().any(|&i| {
+    let touches_frame = cores.iter().map(|&i| i as usize).any(|i| {
         strides
             .iter()
             .any(|&s| data[i - s] & 4 != 0 || data[i + s] & 4 != 0)
@@ -427,7 +427,7 @@ fn background_cores(
     // owned one voxel back: see `dense`) along the others.
     let mut complex = DenseComplex::new(&shape)?;
     let grid = *complex.grid();
-    for &i in &cores {
+    for i in cores.iter().map(|&i| i as usize) {
         let around = grid.owners_around(grid.place(&padded.coords(i)));
         'cubes: for subset in 0usize..1 << d {
             // Every corner v + sum of a subset T of S.

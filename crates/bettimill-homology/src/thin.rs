@@ -29,7 +29,7 @@ fn sweep(
     data: &mut [u8],
     range: std::ops::Range<usize>,
     global_offset: usize,
-    survivors: &mut Vec<usize>,
+    survivors: &mut Vec<u32>,
     cache: &mut SimpleCache,
 ) {
     // One copy per dimension's column bits, so that the blocks' 128-bit shifts are by
@@ -50,7 +50,7 @@ fn sweep_with<const R: u32>(
         &mut [u8],
         std::ops::Range<usize>,
         usize,
-        &mut Vec<usize>,
+        &mut Vec<u32>,
         &mut SimpleCache,
     ),
 ) {
@@ -67,6 +67,8 @@ fn sweep_with<const R: u32>(
     // a ball, so it is simple. A third of a blob's voxels look like this in the first
     // sweep; they skip the memo.
     let half = window.half;
+    // (Indices fit in 32 bits: `thin` checks.)
+    let offset = global_offset as u32;
     for i in range {
         // Skips the other phase, and locked voxels (bit 2), which are never flipped.
         if data[i] & 5 != 1 {
@@ -101,7 +103,7 @@ fn sweep_with<const R: u32>(
             data[i] = 0;
             block &= !window.centre_bit;
         } else {
-            survivors.push(i + global_offset);
+            survivors.push(offset + i as u32);
         }
     }
 }
@@ -323,11 +325,16 @@ pub(crate) enum Phase {
 /// once, then the seam's, each part handing the voxels it makes pending in another part to
 /// that part for the next round. Every flip is a simple-point flip of the image as it is
 /// at that moment, so the topology is kept, and the survivors are the same on every run.
-pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase) -> Vec<usize> {
+pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase) -> Vec<u32> {
     debug_assert!(match phase {
         Phase::Foreground => image.border_is_background(),
         Phase::Background => border_is_locked(image),
     });
+    // Indices are 32-bit: a 4D image's are (its grid is checked first, `dense::check_grid`).
+    assert!(
+        image.len() <= u32::MAX as usize + 1,
+        "at most 2^32 voxels to thin"
+    );
     let thinner = Thinner::new(image, tester, phase);
     let planes = image.shape()[0];
     let plane = thinner.strides[0];
@@ -378,24 +385,32 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // 32^4 blob slab B kept twice A's survivors, and the seam, swept last with both sides
     // already thinned, three times as many per plane), so a cut by planes left one thread
     // testing twice as long as the other.
-    let mut survivors = part_a;
-    survivors.extend(seam);
-    survivors.extend(part_b);
+    // (Four bytes a survivor, each list at its size: on a random image most of the
+    // foreground survives the sweep, and the survivors and the pending lists were the
+    // peak of the thinning, issue 18.)
+    let mut survivors = Vec::with_capacity(part_a.len() + seam.len() + part_b.len());
+    for part in [part_a, seam, part_b] {
+        survivors.extend_from_slice(&part);
+    }
     let split = split.map(|_| {
-        let middle = survivors.get(survivors.len() / 2).map_or(0, |&i| i / plane);
+        let middle = survivors
+            .get(survivors.len() / 2)
+            .map_or(0, |&i| i as usize / plane);
         middle.clamp(1, planes - 3)
     });
     let data = image.data_mut();
-    let mut pending: [Vec<usize>; 3] = Default::default();
-    for &i in survivors.iter().rev() {
-        data[i] |= 2;
-        let part = match split {
-            Some(k) if i >= (k + 2) * plane => 2,
-            Some(k) if i >= k * plane => 1,
-            _ => 0,
-        };
-        pending[part].push(i);
+    for &i in &survivors {
+        data[i as usize] |= 2;
     }
+    // The survivors are in index order: each part's are a run of them, pending last to
+    // first.
+    let ends = match split {
+        Some(k) => [k * plane, (k + 2) * plane]
+            .map(|end| survivors.partition_point(|&i| (i as usize) < end)),
+        None => [survivors.len(); 2],
+    };
+    let runs = [0..ends[0], ends[0]..ends[1], ends[1]..survivors.len()];
+    let mut pending: [Vec<u32>; 3] = runs.map(|run| survivors[run].iter().rev().copied().collect());
     match split {
         Some(k) => {
             let (seam_start, seam_end) = (k * plane, (k + 2) * plane);
@@ -433,7 +448,7 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
                     break;
                 }
                 for &i in out.iter().rev() {
-                    if i < seam_start {
+                    if (i as usize) < seam_start {
                         pending_a.push(i);
                     } else {
                         pending_b.push(i);
@@ -449,7 +464,8 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     }
     let data = image.data();
     let mut remaining = survivors;
-    remaining.retain(|&i| data[i] & 1 != 0);
+    remaining.retain(|&i| data[i as usize] & 1 != 0);
+    remaining.shrink_to_fit();
     // Nothing is pending: every flag was cleared when its voxel was tested.
     debug_assert!(data.iter().all(|&v| v & 2 == 0));
     remaining
@@ -501,14 +517,14 @@ impl<'a> Thinner<'a> {
         &self,
         data: &mut [u8],
         offset: usize,
-        stack: &mut Vec<usize>,
+        stack: &mut Vec<u32>,
         own: std::ops::Range<usize>,
-        out: &mut Vec<usize>,
+        out: &mut Vec<u32>,
         cache: &mut SimpleCache,
     ) {
         let neighbours = self.window.all_bits & !self.window.centre_bit;
         while let Some(global) = stack.pop() {
-            let i = global - offset;
+            let i = global as usize - offset;
             data[i] &= !2;
             let exposed = self
                 .exposure_steps
@@ -531,9 +547,9 @@ impl<'a> Thinner<'a> {
                         data[j] |= 2;
                         let g = j + offset;
                         if own.contains(&g) {
-                            stack.push(g);
+                            stack.push(g as u32);
                         } else {
-                            out.push(g);
+                            out.push(g as u32);
                         }
                     }
                 }
@@ -635,10 +651,11 @@ mod tests {
                 };
                 let survivors = thin(&mut image, &tester, phase);
                 assert!(image.data().iter().all(|&v| v & 2 == 0));
-                let listed: Vec<usize> =
-                    (0..image.len()).filter(|&i| image.data()[i] == 1).collect();
+                let listed: Vec<u32> = (0..image.len() as u32)
+                    .filter(|&i| image.data()[i as usize] == 1)
+                    .collect();
                 assert_eq!(survivors, listed, "{d}D trial {trial}");
-                for &i in &survivors {
+                for i in survivors.iter().map(|&i| i as usize) {
                     let mut config = tester.configuration_unchecked(&image, i);
                     let all = (1u128 << tester.offsets().len()) - 1;
                     if phase == Phase::Background {
@@ -714,7 +731,9 @@ mod tests {
                     &mut cache,
                 );
                 assert_eq!(image.data(), fresh.data(), "{d}D trial {trial}");
-                let expected: Vec<usize> = (0..len).filter(|&i| fresh.data()[i] == 1).collect();
+                let expected: Vec<u32> = (0..len as u32)
+                    .filter(|&i| fresh.data()[i as usize] == 1)
+                    .collect();
                 assert_eq!(survivors, expected);
             }
         }
