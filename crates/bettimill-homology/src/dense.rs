@@ -734,7 +734,11 @@ impl DenseComplex {
         debug_assert!(by_dim
             .iter()
             .all(|cells| cells.windows(2).all(|w| w[0] < w[1])));
-        let cells = view.cells::<false>();
+        // The masks go as soon as no column is left to look facets up in (before the
+        // squares' elimination on a random 4D image, whose peak it is: two bytes a place).
+        let grid = self.grid;
+        let mut masks = Some(self.masks);
+        let looks_up = |k: usize| counts[k] > 0 && counts[k - 1] > 0;
         let mut rank = vec![0u64; d + 2];
         let mut general = 0u64;
         let mut cleared = vec![false; by_dim[d].len()];
@@ -743,14 +747,19 @@ impl DenseComplex {
             // A k-cell has at most 2k facets.
             let mut columns = Lists::with_capacity(by_dim[k].len(), 2 * k * by_dim[k].len());
             let mut column = Vec::with_capacity(2 * d);
+            let cells = masks.as_mut().map(|masks| Cells::<false> {
+                grid,
+                masks: masks.shared(),
+            });
             for (&c, &skip) in by_dim[k].iter().zip(&cleared) {
                 column.clear();
                 if !skip {
+                    let cells = cells.as_ref().expect("kept while columns look facets up");
                     let (o, code) = split(c);
                     for axis in 0..d {
                         if code >> axis & 1 == 0 {
                             let f = code | 1 << axis;
-                            for fo in [o, cells.grid.back(o, axis)] {
+                            for fo in [o, grid.back(o, axis)] {
                                 if cells.has(fo, f) {
                                     let row = rows
                                         .binary_search(&cell(fo, f))
@@ -765,6 +774,9 @@ impl DenseComplex {
                 columns.push_list(&column)?;
             }
             columns.shrink_to_fit();
+            if !(1..k).any(looks_up) {
+                masks = None;
+            }
             // The k-cells are not needed again (only their number), nor the (k-1)-cells
             // when there are no (k-2)-cells for their columns (no vertices are left).
             by_dim[k] = Vec::new();
