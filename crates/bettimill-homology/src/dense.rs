@@ -1110,7 +1110,7 @@ impl<const PART: bool> Cells<'_, PART> {
                 let code = rest.trailing_zeros();
                 rest &= rest - 1;
                 if self.one_cofacet(o, code) {
-                    queue.push(o, code);
+                    queue.push_scanned(o, code);
                 }
             }
         }
@@ -1275,37 +1275,57 @@ pub(crate) fn check_grid(shape: &[usize]) -> Result<usize, GridTooLarge> {
     }
 }
 
-/// Cells in first-in, first-out order, 5 bytes each (a 32-bit place and a code) in blocks
-/// of [`CellQueue::BLOCK`], recycled as they empty: the queue's memory follows its
-/// length. On a random 4D image it holds about one cell per voxel at its peak; a
-/// `VecDeque<u64>` took 16 bytes per cell there (8 bytes, doubled capacity, and every page
-/// touched as the ring turns).
+/// Cells in first-in, first-out order, in blocks recycled as they empty: the queue's
+/// memory follows its length. A cell pushed with [`CellQueue::push`] takes 5 bytes (a
+/// 32-bit place and a code); a run of cells pushed with [`CellQueue::push_scanned`] in
+/// increasing order of place, as a scan of the owners finds the free faces, takes one byte
+/// a cell (the step from the one before and the code), five where the step is 15 or more.
+/// On a random 4D image the free faces are about one cell per voxel, and they were the
+/// pairs' peak (85 MB of a random 64^4 image's 150, issue 18); a `VecDeque<u64>` took 16
+/// bytes per cell there (8 bytes, doubled capacity, and every page touched as the ring
+/// turns).
 struct CellQueue {
     /// Full blocks, oldest first.
     full: VecDeque<Block>,
     /// The block being filled.
     tail: Block,
-    /// The next cell to pop: in the front full block, or in `tail` when there is none.
+    /// The next cell to pop (a byte offset in a run): in the front full block, or in
+    /// `tail` when there is none.
     head: usize,
+    /// In a run at the front: the place of the cell popped last (0 at its start).
+    read_place: u32,
+    /// In a run at the tail: the place of the cell pushed last (0 at its start).
+    write_place: u32,
     /// An emptied block, kept for the next one needed.
     spare: Option<Block>,
 }
 
-/// A block of [`CellQueue`]: the cells' places (four bytes each, from the start) and codes
-/// (one byte each, after the places), in an anonymous mapping of its own, so that an
-/// emptied block goes back to the system. As small heap blocks they stayed with the
-/// allocator after the pairs, and the lists of the cells left were allocated beside them:
-/// a random 64^4 image peaked at 163-204 MB from run to run instead of 135 (issue 18).
+/// A block of [`CellQueue`], in an anonymous mapping of its own, so that an emptied block
+/// goes back to the system (as small heap blocks they stayed with the allocator after the
+/// pairs, and the lists of the cells left were allocated beside them: a random 64^4 image
+/// peaked at 163-204 MB from run to run instead of 135, issue 18). Plain: `len` cells, their
+/// places (four bytes each) from the start, their codes (a byte each) after
+/// [`CellQueue::BLOCK`] places. A run: `len` bytes of steps and codes ([`Block::push_run`]).
 struct Block {
     map: memmap2::MmapMut,
     len: usize,
+    run: bool,
 }
 
 impl Block {
+    /// Bytes a block holds.
+    const BYTES: usize = 5 * CellQueue::BLOCK;
+    /// The step that stands for a step of four bytes after it.
+    const FAR: u8 = 15;
+
     fn new() -> Block {
-        let map = memmap2::MmapMut::map_anon(5 * CellQueue::BLOCK)
+        let map = memmap2::MmapMut::map_anon(Block::BYTES)
             .unwrap_or_else(|error| panic!("no memory for the reduction's queue: {error}"));
-        Block { map, len: 0 }
+        Block {
+            map,
+            len: 0,
+            run: false,
+        }
     }
 
     #[inline(always)]
@@ -1324,6 +1344,38 @@ impl Block {
             .expect("four bytes");
         (place, self.map[4 * CellQueue::BLOCK + at])
     }
+
+    /// Appends to a run a cell `step` places after the one before (wrapping), with code
+    /// `code` (below 16): one byte, the step times 16 plus the code, when the step is
+    /// below [`Block::FAR`]; else [`Block::FAR`] times 16 plus the code, then the step's
+    /// four bytes. The caller leaves room for five bytes.
+    #[inline]
+    fn push_run(&mut self, step: u32, code: u8) {
+        let at = self.len;
+        if step < Block::FAR as u32 {
+            self.map[at] = (step as u8) << 4 | code;
+            self.len += 1;
+        } else {
+            self.map[at] = Block::FAR << 4 | code;
+            self.map[at + 1..at + 5].copy_from_slice(&step.to_ne_bytes());
+            self.len += 5;
+        }
+    }
+
+    /// The step, the code and the bytes of the run's cell at byte `at`.
+    #[inline(always)]
+    fn get_run(&self, at: usize) -> (u32, u8, usize) {
+        let byte = self.map[at];
+        let code = byte & 15;
+        if byte >> 4 != Block::FAR {
+            return ((byte >> 4) as u32, code, 1);
+        }
+        let step = self.map[at + 1..at + 5]
+            .try_into()
+            .map(u32::from_ne_bytes)
+            .expect("four bytes");
+        (step, code, 5)
+    }
 }
 
 impl Default for CellQueue {
@@ -1332,6 +1384,8 @@ impl Default for CellQueue {
             full: VecDeque::new(),
             tail: Block::new(),
             head: 0,
+            read_place: 0,
+            write_place: 0,
             spare: None,
         }
     }
@@ -1342,10 +1396,24 @@ impl CellQueue {
 
     #[inline]
     fn push(&mut self, owner: usize, code: u32) {
-        if self.tail.len == Self::BLOCK {
-            self.start_block();
+        if self.tail.run || self.tail.len == Self::BLOCK {
+            self.start_block(false);
         }
         self.tail.push(owner as u32, code as u8);
+    }
+
+    /// [`CellQueue::push`] for cells found in increasing order of place (any order is
+    /// right, that one is compact): `code` is below 16 (not [`COREDUCIBLE`]).
+    #[inline]
+    fn push_scanned(&mut self, owner: usize, code: u32) {
+        debug_assert!(code < 16);
+        if !self.tail.run || self.tail.len + 5 > Block::BYTES {
+            self.start_block(true);
+        }
+        let place = owner as u32;
+        self.tail
+            .push_run(place.wrapping_sub(self.write_place), code as u8);
+        self.write_place = place;
     }
 
     /// Pushes the cells of `other`, in its order.
@@ -1355,12 +1423,16 @@ impl CellQueue {
         }
     }
 
-    /// Files the full tail block and starts another.
+    /// Files the tail block, unless it is empty, and starts another, a run or not.
     #[cold]
-    fn start_block(&mut self) {
-        let block = self.spare.take().unwrap_or_else(Block::new);
-        let full = std::mem::replace(&mut self.tail, block);
-        self.full.push_back(full);
+    fn start_block(&mut self, run: bool) {
+        if self.tail.len > 0 {
+            let block = self.spare.take().unwrap_or_else(Block::new);
+            let full = std::mem::replace(&mut self.tail, block);
+            self.full.push_back(full);
+        }
+        self.tail.run = run;
+        self.write_place = 0;
     }
 
     // Always inlined: the reduction's loop is large enough that it was not, which cost
@@ -1370,11 +1442,18 @@ impl CellQueue {
         loop {
             let block = self.full.front().unwrap_or(&self.tail);
             if self.head < block.len {
-                let (place, code) = block.get(self.head);
-                self.head += 1;
-                return Some((place as usize, code as u32));
+                if !block.run {
+                    let (place, code) = block.get(self.head);
+                    self.head += 1;
+                    return Some((place as usize, code as u32));
+                }
+                let (step, code, bytes) = block.get_run(self.head);
+                self.head += bytes;
+                self.read_place = self.read_place.wrapping_add(step);
+                return Some((self.read_place as usize, code as u32));
             }
             self.head = 0;
+            self.read_place = 0;
             match self.full.pop_front() {
                 // A used-up full block is kept for reuse; the tail comes next.
                 Some(mut block) => {
@@ -1385,6 +1464,7 @@ impl CellQueue {
                 // from its start.
                 None => {
                     self.tail.len = 0;
+                    self.write_place = 0;
                     return None;
                 }
             }
@@ -1516,17 +1596,28 @@ mod tests {
         assert!(DenseComplex::new(&[300; 4]).is_err());
     }
 
-    /// A queue of cells gives them back in the order they came, across blocks, with pops
-    /// between the pushes and after it ran empty.
+    /// A queue of cells gives them back in the order they came, across blocks, plain and
+    /// runs, with pops between the pushes and after it ran empty.
     #[test]
     fn the_cell_queue_is_first_in_first_out() {
         let mut queue = CellQueue::default();
         let mut expected = VecDeque::new();
-        let mut next = 0usize;
-        for round in 0..5 {
+        let (mut next, mut place) = (0usize, 0usize);
+        for round in 0..9 {
             for _ in 0..(round * 7919) % (3 * CellQueue::BLOCK) + 1 {
-                queue.push(next, (next % 16) as u32);
-                expected.push_back((next, (next % 16) as u32));
+                if round % 3 == 0 {
+                    queue.push(next, (next % 32) as u32);
+                    expected.push_back((next, (next % 32) as u32));
+                } else {
+                    // Runs: steps of 0 to 36 places (15 and more are far), and now and
+                    // then back.
+                    place = match next % 97 {
+                        0 => place / 2,
+                        _ => place + next % 37,
+                    };
+                    queue.push_scanned(place, (next % 16) as u32);
+                    expected.push_back((place, (next % 16) as u32));
+                }
                 next += 1;
             }
             for _ in 0..(round * 5003) % (2 * CellQueue::BLOCK) {
@@ -1536,6 +1627,12 @@ mod tests {
         while let Some(cell) = expected.pop_front() {
             assert_eq!(queue.pop(), Some(cell));
         }
+        assert_eq!(queue.pop(), None);
+        // A run again in the emptied tail (a run too).
+        queue.push_scanned(5, 1);
+        queue.push_scanned(6, 2);
+        assert_eq!(queue.pop(), Some((5, 1)));
+        assert_eq!(queue.pop(), Some((6, 2)));
         assert_eq!(queue.pop(), None);
         queue.push(7, 3);
         assert_eq!(queue.pop(), Some((7, 3)));
