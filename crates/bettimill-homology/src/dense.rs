@@ -697,10 +697,13 @@ impl DenseComplex {
                 counts[d - code.count_ones() as usize] += 1;
             }
         }
-        // Listed in increasing order of place and code, i.e. of cell. When the cells left
-        // are many (a rough image), by scanning the masks, which are two bytes a voxel and
-        // already in that order; when they are few (a smooth image), from the owners, and
-        // sorted: the scan would cost more than the sort (a 64^4 blob has 21 million places
+        // The cells of each dimension in increasing order of place and code, i.e. of
+        // cell: the columns are built in that order, and a facet's row is its rank in it.
+        // When the cells left are many (a rough image), the masks are in that order
+        // already: a scan gives the columns, and [`Ranks`] the rows, a quarter of a byte a
+        // place where a list took eight bytes a cell (190 MB of a random 96^4 image's
+        // peak). When they are few (a smooth image), they are listed from the owners and
+        // sorted: a scan would cost more than the sort (a 64^4 blob has 21 million places
         // and a few thousand cells left).
         let few = counts.iter().sum::<usize>() < places / 64;
         // The ranks only look cells up in the masks: the owners go before the lists grow
@@ -709,31 +712,27 @@ impl DenseComplex {
             Owners::Listed(list) if few => list,
             _ => Vec::new(),
         };
-        let few = few && !owners.is_empty();
-        let mut by_dim: Vec<Vec<u64>> = counts.iter().map(|&n| Vec::with_capacity(n)).collect();
-        let mut push_cells = |o: usize, mask: u16| {
-            let mut rest = mask;
-            while rest != 0 {
-                let code = rest.trailing_zeros();
-                rest &= rest - 1;
-                by_dim[d - code.count_ones() as usize].push(cell(o, code));
-            }
-        };
-        if few {
+        let mut listed = (few && !owners.is_empty()).then(|| {
+            let mut by_dim: Vec<Vec<u64>> = counts.iter().map(|&n| Vec::with_capacity(n)).collect();
             for o in owners {
-                push_cells(o as usize, view.mask(o as usize));
+                let mut rest = view.mask(o as usize);
+                while rest != 0 {
+                    let code = rest.trailing_zeros();
+                    rest &= rest - 1;
+                    by_dim[d - code.count_ones() as usize].push(cell(o as usize, code));
+                }
             }
             for cells in &mut by_dim {
                 cells.sort_unstable();
             }
-        } else {
-            for (o, mask) in view.masks.iter().enumerate() {
-                push_cells(o, mask.load(Relaxed));
-            }
-        }
-        debug_assert!(by_dim
-            .iter()
-            .all(|cells| cells.windows(2).all(|w| w[0] < w[1])));
+            by_dim
+        });
+        // The codes of the k-cells: dimension d - popcount(code).
+        let codes_of = |k: usize| {
+            (0..=top)
+                .filter(|&code| d - code.count_ones() as usize == k)
+                .fold(0u16, |mask, code| mask | 1 << code)
+        };
         // The masks go as soon as no column is left to look facets up in (before the
         // squares' elimination on a random 4D image, whose peak it is: two bytes a place).
         let grid = self.grid;
@@ -741,47 +740,43 @@ impl DenseComplex {
         let looks_up = |k: usize| counts[k] > 0 && counts[k - 1] > 0;
         let mut rank = vec![0u64; d + 2];
         let mut general = 0u64;
-        let mut cleared = vec![false; by_dim[d].len()];
+        let mut cleared = vec![false; counts[d]];
         for k in (1..=d).rev() {
-            let rows = &by_dim[k - 1];
-            // A k-cell has at most 2k facets.
-            let mut columns = Lists::with_capacity(by_dim[k].len(), 2 * k * by_dim[k].len());
-            let mut column = Vec::with_capacity(2 * d);
-            let cells = masks.as_mut().map(|masks| Cells::<false> {
-                grid,
-                masks: masks.shared(),
-            });
-            for (&c, &skip) in by_dim[k].iter().zip(&cleared) {
-                column.clear();
-                if !skip {
-                    let cells = cells.as_ref().expect("kept while columns look facets up");
-                    let (o, code) = split(c);
-                    for axis in 0..d {
-                        if code >> axis & 1 == 0 {
-                            let f = code | 1 << axis;
-                            for fo in [o, grid.back(o, axis)] {
-                                if cells.has(fo, f) {
-                                    let row = rows
-                                        .binary_search(&cell(fo, f))
-                                        .expect("an alive facet is a listed cell");
-                                    column.push(row as u32);
-                                }
-                            }
-                        }
+            // Without (k-1)-cells, or k-cells, the boundary matrix is zero.
+            let columns = if looks_up(k) {
+                let cells = Cells::<false> {
+                    grid,
+                    masks: masks
+                        .as_mut()
+                        .expect("kept while columns look facets up")
+                        .shared(),
+                };
+                match &listed {
+                    Some(by_dim) => {
+                        let rows = &by_dim[k - 1];
+                        let row = |o, code| {
+                            let row = rows.binary_search(&cell(o, code));
+                            row.expect("an alive facet is a listed cell") as u32
+                        };
+                        let of_k = by_dim[k].iter().map(|&c| split(c));
+                        cells.boundary_columns(k, counts[k], of_k, &cleared, row)?
                     }
-                    column.sort_unstable();
+                    None => {
+                        let ranks = Ranks::new(cells.masks, codes_of(k - 1));
+                        let row = |o, code| ranks.rank(cells.masks, o, code);
+                        let of_k = cells.all_of(codes_of(k));
+                        cells.boundary_columns(k, counts[k], of_k, &cleared, row)?
+                    }
                 }
-                columns.push_list(&column)?;
-            }
-            columns.shrink_to_fit();
+            } else {
+                Lists::default()
+            };
             if !(1..k).any(looks_up) {
                 masks = None;
             }
-            // The k-cells are not needed again (only their number), nor the (k-1)-cells
-            // when there are no (k-2)-cells for their columns (no vertices are left).
-            by_dim[k] = Vec::new();
-            if k == 1 || counts[k - 2] == 0 {
-                by_dim[k - 1] = Vec::new();
+            // The k-cells are not needed again (only their number).
+            if let Some(by_dim) = &mut listed {
+                by_dim[k] = Vec::new();
             }
             let n_rows = counts[k - 1];
             let (r, pivots) = match final_rank {
@@ -1095,6 +1090,56 @@ impl<const PART: bool> Cells<'_, PART> {
         reducible
     }
 
+    /// The alive cells whose codes are in `codes`, in increasing order of place and code.
+    fn all_of(&self, codes: u16) -> impl Iterator<Item = (usize, u32)> + '_ {
+        self.masks.iter().enumerate().flat_map(move |(o, mask)| {
+            let mut rest = mask.load(Relaxed) & codes;
+            std::iter::from_fn(move || {
+                (rest != 0).then(|| {
+                    let code = rest.trailing_zeros();
+                    rest &= rest - 1;
+                    (o, code)
+                })
+            })
+        })
+    }
+
+    /// The boundary columns of the `n` k-cells `of_k` (a column of `cleared` is left
+    /// empty): the rows of their alive facets, `row` giving a facet's, in increasing order.
+    fn boundary_columns(
+        &self,
+        k: usize,
+        n: usize,
+        of_k: impl Iterator<Item = (usize, u32)>,
+        cleared: &[bool],
+        row: impl Fn(usize, u32) -> u32,
+    ) -> Result<Lists, PoolOverflow> {
+        debug_assert_eq!(cleared.len(), n);
+        let d = self.grid.d;
+        // A k-cell has at most 2k facets.
+        let mut columns = Lists::with_capacity(n, 2 * k * n);
+        let mut column = Vec::with_capacity(2 * d);
+        for ((o, code), &skip) in of_k.zip(cleared) {
+            column.clear();
+            if !skip {
+                for axis in 0..d {
+                    if code >> axis & 1 == 0 {
+                        let f = code | 1 << axis;
+                        for fo in [o, self.grid.back(o, axis)] {
+                            if self.has(fo, f) {
+                                column.push(row(fo, f));
+                            }
+                        }
+                    }
+                }
+                column.sort_unstable();
+            }
+            columns.push_list(&column)?;
+        }
+        columns.shrink_to_fit();
+        Ok(columns)
+    }
+
     /// Queues the cells of the owners in `inside` that are free faces (one alive
     /// cofacet). Coreducible cells (one alive facet) only appear when a cell goes, and are
     /// queued then.
@@ -1249,6 +1294,56 @@ impl<const PART: bool> Cells<'_, PART> {
                     .map(|axis| (2 * c[axis]).abs_diff(centre[axis]).pow(2))
                     .sum::<usize>()
             })
+    }
+}
+
+/// The rank of a cell among the alive cells of some codes (one dimension's), in increasing
+/// order of place and code, read off the masks: the count before every
+/// [`Ranks::STRIDE`]-th place is kept (a quarter of a byte a place), the places since are
+/// counted when asked.
+struct Ranks {
+    codes: u16,
+    before: Vec<u32>,
+}
+
+impl Ranks {
+    const STRIDE: usize = 16;
+
+    fn new(masks: &[AtomicU16], codes: u16) -> Ranks {
+        let mut before = Vec::with_capacity(masks.len().div_ceil(Ranks::STRIDE));
+        let mut n = 0u32;
+        for stride in masks.chunks(Ranks::STRIDE) {
+            before.push(n);
+            n += Ranks::count(stride, codes);
+        }
+        Ranks { codes, before }
+    }
+
+    /// The cells of `masks` whose codes are in `codes`. Four masks a word: one count of
+    /// its ones for four places (x86-64 without `popcnt` counts a word's ones in a dozen
+    /// instructions).
+    #[inline]
+    fn count(masks: &[AtomicU16], codes: u16) -> u32 {
+        let codes = codes as u64 * 0x0001_0001_0001_0001;
+        masks
+            .chunks(4)
+            .map(|four| {
+                let word = four
+                    .iter()
+                    .rev()
+                    .fold(0u64, |word, mask| word << 16 | mask.load(Relaxed) as u64);
+                (word & codes).count_ones()
+            })
+            .sum()
+    }
+
+    /// The rank of the alive cell (owner, code), whose code is one of the codes.
+    #[inline]
+    fn rank(&self, masks: &[AtomicU16], owner: usize, code: u32) -> u32 {
+        let start = owner - owner % Ranks::STRIDE;
+        let earlier = Ranks::count(&masks[start..owner], self.codes);
+        let below = masks[owner].load(Relaxed) & self.codes & ((1u16 << code) - 1);
+        self.before[owner / Ranks::STRIDE] + earlier + below.count_ones()
     }
 }
 
@@ -1637,6 +1732,34 @@ mod tests {
         queue.push(7, 3);
         assert_eq!(queue.pop(), Some((7, 3)));
         assert_eq!(queue.pop(), None);
+    }
+
+    /// A cell's rank from [`Ranks`] is its place in the list of the cells of its codes, in
+    /// order of place and code, on masks of every density and length.
+    #[test]
+    fn ranks_count_the_cells_before() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for (len, density) in [(1, 8), (15, 2), (16, 8), (17, 16), (100, 1), (1000, 4)] {
+            let masks: Vec<AtomicU16> = (0..len)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    AtomicU16::new((state as u16) & (state >> 16) as u16 | (density << 3))
+                })
+                .collect();
+            for codes in [0x0001u16, 0x0116, 0x6a80, 0xffff] {
+                let ranks = Ranks::new(&masks, codes);
+                let mut n = 0;
+                for (o, mask) in masks.iter().enumerate() {
+                    let mask = mask.load(Relaxed) & codes;
+                    for code in (0..16).filter(|&c| mask >> c & 1 == 1) {
+                        assert_eq!(ranks.rank(&masks, o, code), n, "{len} {codes:#x} {o}");
+                        n += 1;
+                    }
+                }
+            }
+        }
     }
 
     /// Every cell has one owner: a voxel's closure is 3^d distinct cells, and the closures
