@@ -1391,6 +1391,9 @@ struct CellQueue {
     read_place: u32,
     /// In a run at the tail: the place of the cell pushed last (0 at its start).
     write_place: u32,
+    /// The cells a plain tail holds, 0 for a run (so that [`CellQueue::push`] tests one
+    /// length for both a full tail and a run).
+    plain_room: usize,
     /// An emptied block, kept for the next one needed.
     spare: Option<Block>,
 }
@@ -1481,6 +1484,7 @@ impl Default for CellQueue {
             head: 0,
             read_place: 0,
             write_place: 0,
+            plain_room: CellQueue::BLOCK,
             spare: None,
         }
     }
@@ -1491,7 +1495,7 @@ impl CellQueue {
 
     #[inline]
     fn push(&mut self, owner: usize, code: u32) {
-        if self.tail.run || self.tail.len == Self::BLOCK {
+        if self.tail.len >= self.plain_room {
             self.start_block(false);
         }
         self.tail.push(owner as u32, code as u8);
@@ -1527,6 +1531,7 @@ impl CellQueue {
             self.full.push_back(full);
         }
         self.tail.run = run;
+        self.plain_room = if run { 0 } else { Self::BLOCK };
         self.write_place = 0;
     }
 

@@ -26,13 +26,16 @@
 //!   1 GB instead of ~50 s and ~7 GB.
 //!
 //! Memory: the padded copy (one byte per voxel; [`try_topology_owned`] makes it from the
-//! caller's image in place, [`try_topology`] beside it) plus the remnant's complex (two
-//! bytes per voxel of address space, in 2 MiB pages backed only where the remnant is,
-//! four per owner voxel and five per queued cell), and on a rough image the lists of the
-//! cells the pairs leave; `bettimill betti` (the owned route) peaked at 1,019 MiB on a
-//! 128^4 blob, at 243 MiB on a random 64^4 image, whose remnant is most of it, and at
-//! 4.3 GiB on a random 128^4 one (BENCHMARKS.md). On a large remnant the reduction pairs
-//! run on two threads, in parts of the grid that never meet (module `dense`).
+//! caller's image in place, [`try_topology`] beside it) and the survivors of the thinning
+//! (four bytes each), then the remnant's complex (two bytes per voxel of address space,
+//! in 2 MiB pages backed only where the remnant is; four per owner voxel when they are
+//! few enough to list; five per queued cell, one per free face found by the first scan),
+//! and on a rough image the elimination's lists of the cells the pairs leave.
+//! `bettimill betti` (the owned route) peaked at 972 MiB on a 128^4 blob (3.8 bytes per
+//! voxel), and on random images, whose remnant is most of the image, at 124 MiB at 64^4,
+//! 512 MiB at 96^4 and 2.2 GiB at 128^4 (7.7, 6.3 and 9.0 bytes per voxel; BENCHMARKS.md).
+//! On a large remnant the reduction pairs run on two threads, in parts of the grid that
+//! never meet (module `dense`).
 //!
 //! [`simple`] decides whether one voxel can be flipped without changing the topology; it is
 //! the kernel of both deformations and of the thinning.
