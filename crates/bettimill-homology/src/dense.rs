@@ -1376,9 +1376,13 @@ pub(crate) fn check_grid(shape: &[usize]) -> Result<usize, GridTooLarge> {
 /// increasing order of place, as a scan of the owners finds the free faces, takes one byte
 /// a cell (the step from the one before and the code), five where the step is 15 or more.
 /// On a random 4D image the free faces are about one cell per voxel, and they were the
-/// pairs' peak (85 MB of a random 64^4 image's 150, issue 18); a `VecDeque<u64>` took 16
-/// bytes per cell there (8 bytes, doubled capacity, and every page touched as the ring
-/// turns).
+/// pairs' peak (85 MB of a random 64^4 image's 150, issue 18). Past
+/// [`CellQueue::NEAR_FROM`] full blocks, the cells of `push` (the candidates a removal
+/// makes) are kept as runs too, their steps either way in 0 to 4 bytes ([`Kind::Near`]):
+/// the steps from one candidate to the next are spread (a quarter under 8 places, a
+/// quarter under 128, a quarter under 32,768), about 2.7 bytes a cell against 5. A
+/// `VecDeque<u64>` took 16 bytes per cell (8 bytes, doubled capacity, and every page
+/// touched as the ring turns).
 struct CellQueue {
     /// Full blocks, oldest first.
     full: VecDeque<Block>,
@@ -1407,7 +1411,18 @@ struct CellQueue {
 struct Block {
     map: memmap2::MmapMut,
     len: usize,
-    run: bool,
+    kind: Kind,
+}
+
+/// How a [`Block`] holds its cells.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// Four bytes of place and one of code a cell.
+    Plain,
+    /// A run of a scan ([`Block::push_run`]).
+    Scan,
+    /// A run of candidates ([`Block::push_near`]).
+    Near,
 }
 
 impl Block {
@@ -1422,7 +1437,7 @@ impl Block {
         Block {
             map,
             len: 0,
-            run: false,
+            kind: Kind::Plain,
         }
     }
 
@@ -1460,6 +1475,35 @@ impl Block {
         }
     }
 
+    /// Appends to a run of candidates a cell `step` places after the one before (wrapping,
+    /// as a signed step), with code `code` (below 32): a byte of the code and of how many
+    /// bytes the step takes, zigzag-coded (0 to 4, least significant first), then those
+    /// bytes. The caller leaves room for five bytes.
+    #[inline]
+    fn push_near(&mut self, step: u32, code: u8) {
+        let at = self.len;
+        let step = step as i32;
+        let zigzag = (step << 1 ^ step >> 31) as u32;
+        let bytes = (32 - zigzag.leading_zeros()).div_ceil(8) as usize;
+        self.map[at] = code | (bytes as u8) << 5;
+        self.map[at + 1..at + 5].copy_from_slice(&zigzag.to_le_bytes());
+        self.len += 1 + bytes;
+    }
+
+    /// The step, the code and the bytes of the candidates' cell at byte `at`.
+    #[inline(always)]
+    fn get_near(&self, at: usize) -> (u32, u8, usize) {
+        let byte = self.map[at];
+        let bytes = (byte >> 5) as usize;
+        let word = self.map[at + 1..at + 5]
+            .try_into()
+            .map(u32::from_le_bytes)
+            .expect("four bytes");
+        let zigzag = (word as u64 & ((1u64 << (8 * bytes)) - 1)) as u32;
+        let step = (zigzag >> 1) as i32 ^ -((zigzag & 1) as i32);
+        (step as u32, byte & 31, 1 + bytes)
+    }
+
     /// The step, the code and the bytes of the run's cell at byte `at`.
     #[inline(always)]
     fn get_run(&self, at: usize) -> (u32, u8, usize) {
@@ -1493,12 +1537,37 @@ impl Default for CellQueue {
 impl CellQueue {
     const BLOCK: usize = 1 << 16;
 
+    /// Full blocks from which a queue keeps its candidates as runs ([`Kind::Near`]),
+    /// until it runs empty: a smooth image's queue never holds that many.
+    const NEAR_FROM: usize = 8;
+
     #[inline]
     fn push(&mut self, owner: usize, code: u32) {
-        if self.tail.len >= self.plain_room {
-            self.start_block(false);
+        if self.tail.len < self.plain_room {
+            self.tail.push(owner as u32, code as u8);
+        } else {
+            self.push_other(owner, code);
         }
-        self.tail.push(owner as u32, code as u8);
+    }
+
+    /// [`CellQueue::push`] when the tail is full or not plain.
+    #[cold]
+    #[inline(never)]
+    fn push_other(&mut self, owner: usize, code: u32) {
+        let place = owner as u32;
+        if self.tail.kind == Kind::Near && self.tail.len + 5 <= Block::BYTES {
+            self.tail
+                .push_near(place.wrapping_sub(self.write_place), code as u8);
+            self.write_place = place;
+            return;
+        }
+        let kind = if self.tail.kind == Kind::Near || self.full.len() >= Self::NEAR_FROM {
+            Kind::Near
+        } else {
+            Kind::Plain
+        };
+        self.start_block(kind);
+        self.push(owner, code);
     }
 
     /// [`CellQueue::push`] for cells found in increasing order of place (any order is
@@ -1506,8 +1575,8 @@ impl CellQueue {
     #[inline]
     fn push_scanned(&mut self, owner: usize, code: u32) {
         debug_assert!(code < 16);
-        if !self.tail.run || self.tail.len + 5 > Block::BYTES {
-            self.start_block(true);
+        if self.tail.kind != Kind::Scan || self.tail.len + 5 > Block::BYTES {
+            self.start_block(Kind::Scan);
         }
         let place = owner as u32;
         self.tail
@@ -1522,17 +1591,32 @@ impl CellQueue {
         }
     }
 
-    /// Files the tail block, unless it is empty, and starts another, a run or not.
+    /// Files the tail block, unless it is empty, and starts another of kind `kind`.
     #[cold]
-    fn start_block(&mut self, run: bool) {
+    fn start_block(&mut self, kind: Kind) {
         if self.tail.len > 0 {
             let block = self.spare.take().unwrap_or_else(Block::new);
             let full = std::mem::replace(&mut self.tail, block);
             self.full.push_back(full);
         }
-        self.tail.run = run;
-        self.plain_room = if run { 0 } else { Self::BLOCK };
+        self.tail.kind = kind;
+        self.plain_room = match kind {
+            Kind::Plain => Self::BLOCK,
+            Kind::Scan | Kind::Near => 0,
+        };
         self.write_place = 0;
+    }
+
+    /// [`CellQueue::pop`] from a run of candidates at the front (not empty there). Out of
+    /// line, as is [`CellQueue::push_other`]: a smooth image's queue never holds such a
+    /// run, and with both in the reduction's loop it took 1.7% more instructions.
+    #[inline(never)]
+    fn pop_near(&mut self) -> (usize, u32) {
+        let block = self.full.front().unwrap_or(&self.tail);
+        let (step, code, bytes) = block.get_near(self.head);
+        self.head += bytes;
+        self.read_place = self.read_place.wrapping_add(step);
+        (self.read_place as usize, code as u32)
     }
 
     // Always inlined: the reduction's loop is large enough that it was not, which cost
@@ -1542,12 +1626,15 @@ impl CellQueue {
         loop {
             let block = self.full.front().unwrap_or(&self.tail);
             if self.head < block.len {
-                if !block.run {
-                    let (place, code) = block.get(self.head);
-                    self.head += 1;
-                    return Some((place as usize, code as u32));
-                }
-                let (step, code, bytes) = block.get_run(self.head);
+                let (step, code, bytes) = match block.kind {
+                    Kind::Plain => {
+                        let (place, code) = block.get(self.head);
+                        self.head += 1;
+                        return Some((place as usize, code as u32));
+                    }
+                    Kind::Scan => block.get_run(self.head),
+                    Kind::Near => return Some(self.pop_near()),
+                };
                 self.head += bytes;
                 self.read_place = self.read_place.wrapping_add(step);
                 return Some((self.read_place as usize, code as u32));
@@ -1565,6 +1652,9 @@ impl CellQueue {
                 None => {
                     self.tail.len = 0;
                     self.write_place = 0;
+                    if self.tail.kind == Kind::Near {
+                        self.start_block(Kind::Plain);
+                    }
                     return None;
                 }
             }
@@ -1697,7 +1787,7 @@ mod tests {
     }
 
     /// A queue of cells gives them back in the order they came, across blocks, plain and
-    /// runs, with pops between the pushes and after it ran empty.
+    /// runs of both kinds, with pops between the pushes and after it ran empty.
     #[test]
     fn the_cell_queue_is_first_in_first_out() {
         let mut queue = CellQueue::default();
@@ -1724,6 +1814,40 @@ mod tests {
                 assert_eq!(queue.pop(), expected.pop_front());
             }
         }
+        while let Some(cell) = expected.pop_front() {
+            assert_eq!(queue.pop(), Some(cell));
+        }
+        assert_eq!(queue.pop(), None);
+        // A queue of more than `NEAR_FROM` full blocks keeps its later cells as runs of
+        // candidates: steps of every length both ways, every code with the coreduction
+        // bit, places up to the last 32-bit one.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut place = 1usize << 31;
+        for round in 0..4 {
+            for _ in 0..(CellQueue::NEAR_FROM + 3) * CellQueue::BLOCK / (round + 1) {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let step = match state % 5 {
+                    0 => 0,
+                    1 => state >> 40 & 0xff,
+                    2 => state >> 40 & 0xffff,
+                    3 => state >> 40 & 0xff_ffff,
+                    _ => state >> 32,
+                } as usize;
+                place = match state >> 3 & 1 {
+                    0 => place.wrapping_add(step),
+                    _ => place.wrapping_sub(step),
+                } & 0xffff_ffff;
+                let code = (state >> 8 & 31) as u32;
+                queue.push(place, code);
+                expected.push_back((place, code));
+            }
+            for _ in 0..expected.len() / 2 {
+                assert_eq!(queue.pop(), expected.pop_front());
+            }
+        }
+        assert!(queue.full.iter().any(|block| block.kind == Kind::Near));
         while let Some(cell) = expected.pop_front() {
             assert_eq!(queue.pop(), Some(cell));
         }
