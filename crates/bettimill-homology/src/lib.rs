@@ -29,11 +29,12 @@
 //! caller's image in place, [`try_topology`] beside it) and the survivors of the thinning
 //! (four bytes each), then the remnant's complex (two bytes per voxel of address space,
 //! in 2 MiB pages backed only where the remnant is; four per owner voxel when they are
-//! few enough to list; five per queued cell, one per free face found by the first scan),
+//! few enough to list; five per queued cell, one per free face found by the first scan and
+//! about three per candidate in a long queue),
 //! and on a rough image the elimination's lists of the cells the pairs leave.
 //! `bettimill betti` (the owned route) peaked at 972 MiB on a 128^4 blob (3.8 bytes per
-//! voxel), and on random images, whose remnant is most of the image, at 124 MiB at 64^4,
-//! 512 MiB at 96^4 and 2.2 GiB at 128^4 (7.7, 6.3 and 9.0 bytes per voxel; BENCHMARKS.md).
+//! voxel), and on random images, whose remnant is most of the image, at 105 MiB at 64^4,
+//! 464 MiB at 96^4 and 2.2 GiB at 128^4 (6.6, 5.7 and 9.0 bytes per voxel; BENCHMARKS.md).
 //! On a large remnant the reduction pairs run on two threads, in parts of the grid that
 //! never meet (module `dense`).
 //!
