@@ -640,26 +640,27 @@ impl DenseComplex {
         let d = self.grid.d;
         // The vertex code: every axis even.
         let top = self.grid.all_codes;
-        // Local codes of even dimension: dimension d - popcount(code).
-        let even_codes = (0..=top)
-            .filter(|&code| (d as u32 - code.count_ones()) % 2 == 0)
-            .fold(0u16, |mask, code| mask | 1 << code);
+        // The local codes of the k-cells: dimension d - popcount(code).
+        let codes_of = |k: usize| {
+            (0..=top)
+                .filter(|&code| d - code.count_ones() as usize == k)
+                .fold(0u16, |mask, code| mask | 1 << code)
+        };
+        let even_codes = (0..=d).step_by(2).fold(0u16, |mask, k| mask | codes_of(k));
         let owners = std::mem::replace(&mut self.owners, Owners::Scanned);
         let places = self.places;
         let view = self.view();
         let everywhere = 0..usize::MAX;
-        let mut empty = true;
+        if owners.within(&everywhere, view.masks).next().is_none() {
+            return Ok((vec![0; d + 1], 0));
+        }
         let chi: i64 = owners
             .within(&everywhere, view.masks)
             .map(|o| {
-                empty = false;
                 let mask = view.mask(o);
                 (mask & even_codes).count_ones() as i64 - (mask & !even_codes).count_ones() as i64
             })
             .sum();
-        if empty {
-            return Ok((vec![0; d + 1], 0));
-        }
         let mut removed_vertices = 0u64;
         match parts {
             None => {
@@ -727,12 +728,6 @@ impl DenseComplex {
             }
             by_dim
         });
-        // The codes of the k-cells: dimension d - popcount(code).
-        let codes_of = |k: usize| {
-            (0..=top)
-                .filter(|&code| d - code.count_ones() as usize == k)
-                .fold(0u16, |mask, code| mask | 1 << code)
-        };
         // The masks go as soon as no column is left to look facets up in (before the
         // squares' elimination on a random 4D image, whose peak it is: two bytes a place).
         let grid = self.grid;
@@ -1405,9 +1400,10 @@ struct CellQueue {
 /// A block of [`CellQueue`], in an anonymous mapping of its own, so that an emptied block
 /// goes back to the system (as small heap blocks they stayed with the allocator after the
 /// pairs, and the lists of the cells left were allocated beside them: a random 64^4 image
-/// peaked at 163-204 MB from run to run instead of 135, issue 18). Plain: `len` cells, their
-/// places (four bytes each) from the start, their codes (a byte each) after
-/// [`CellQueue::BLOCK`] places. A run: `len` bytes of steps and codes ([`Block::push_run`]).
+/// peaked at 163-204 MB from run to run, 154 MB with blocks of their own, issue 18).
+/// Plain: `len` cells, their places (four bytes each) from the start, their codes (a byte
+/// each) after [`CellQueue::BLOCK`] places. A run: `len` bytes of steps and codes
+/// ([`Block::push_run`] for a scan's, [`Block::push_near`] for candidates).
 struct Block {
     map: memmap2::MmapMut,
     len: usize,

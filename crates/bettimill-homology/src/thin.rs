@@ -388,10 +388,12 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // (Four bytes a survivor, each list at its size: on a random image most of the
     // foreground survives the sweep, and the survivors and the pending lists were the
     // peak of the thinning, issue 18.)
-    let mut survivors = Vec::with_capacity(part_a.len() + seam.len() + part_b.len());
-    for part in [part_a, seam, part_b] {
-        survivors.extend_from_slice(&part);
-    }
+    // Slab A's list grows in place to take the others': no second copy of it.
+    let mut survivors = part_a;
+    survivors.reserve_exact(seam.len() + part_b.len());
+    survivors.extend_from_slice(&seam);
+    survivors.extend_from_slice(&part_b);
+    drop((seam, part_b));
     let split = split.map(|_| {
         let middle = survivors
             .get(survivors.len() / 2)
