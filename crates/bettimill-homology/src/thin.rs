@@ -69,9 +69,21 @@ fn sweep_with<const R: u32>(
     let half = window.half;
     // (Indices fit in 32 bits: `thin` checks.)
     let offset = global_offset as u32;
-    for i in range {
-        // Skips the other phase, and locked voxels (bit 2), which are never flipped.
+    let mut next = range.start;
+    while next < range.end {
+        let i = next;
+        next += 1;
+        // Skips the other phase, and locked voxels (bit 2), which are never flipped: eight
+        // at a time past the first (half of a blob's voxels are background, in runs).
         if data[i] & 5 != 1 {
+            while let Some(bytes) = data.get(next..next + 8).filter(|_| next + 8 <= range.end) {
+                let word = u64::from_le_bytes(bytes.try_into().expect("eight bytes"));
+                // Bit 0 of byte k: byte k is of the phase (bit 0) and unlocked (bit 2).
+                if word & !(word >> 2) & 0x0101_0101_0101_0101 != 0 {
+                    break;
+                }
+                next += 8;
+            }
             continue;
         }
         block = if previous.wrapping_add(1) == i {
