@@ -354,11 +354,12 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
 }
 
 fn betti(path: &Path, json: bool, strict: bool) -> anyhow::Result<ExitStatus> {
-    let image = crate::image::read_image(path, strict)?.image;
-    let shape = image.shape().to_vec();
-    let hypervolume = image.count_foreground();
-    // The image is not needed afterwards: padded in place, one copy at the peak.
-    let topology = bettimill_homology::try_topology_owned(image)?;
+    // Read into its copy with a background border, as the homology wants it: one copy at
+    // the peak, and no second pass to pad it.
+    let padded = crate::image::read_image_padded(path, strict, 1)?.image;
+    let shape: Vec<usize> = padded.shape().iter().map(|&n| n - 2).collect();
+    let hypervolume = padded.count_foreground();
+    let topology = bettimill_homology::try_topology_padded(padded)?;
     if json {
         let value = serde_json::json!({
             "betti": topology.betti,

@@ -34,6 +34,12 @@ pub fn looks_like_image(path: &Path) -> bool {
 /// Reads a `.npy` image from `path` (`-` for standard input), decompressing gzip or zstd
 /// found by its magic bytes.
 pub fn read_image(path: &Path, strict: bool) -> anyhow::Result<NpyImage> {
+    read_image_padded(path, strict, 0)
+}
+
+/// [`read_image`], its image surrounded by `width` layers of background as it is read
+/// ([`bettimill_grid::npy::read_from_padded`]).
+pub fn read_image_padded(path: &Path, strict: bool, width: usize) -> anyhow::Result<NpyImage> {
     let shown = if is_stdin(path) {
         "standard input".to_string()
     } else {
@@ -45,10 +51,14 @@ pub fn read_image(path: &Path, strict: bool) -> anyhow::Result<NpyImage> {
         let file = std::fs::File::open(path).with_context(|| format!("cannot open {shown}"))?;
         Box::new(BufReader::new(file))
     };
-    read_stream(reader, strict).with_context(|| format!("cannot use {shown} as an image"))
+    read_stream(reader, strict, width).with_context(|| format!("cannot use {shown} as an image"))
 }
 
-fn read_stream(mut reader: Box<dyn BufRead>, strict: bool) -> anyhow::Result<NpyImage> {
+fn read_stream(
+    mut reader: Box<dyn BufRead>,
+    strict: bool,
+    width: usize,
+) -> anyhow::Result<NpyImage> {
     let mut magic = Vec::with_capacity(4);
     (&mut reader)
         .take(4)
@@ -57,7 +67,7 @@ fn read_stream(mut reader: Box<dyn BufRead>, strict: bool) -> anyhow::Result<Npy
     let compression = bettimill_shard::sniff(&magic);
     let whole = Cursor::new(magic).chain(reader);
     let decoded = bettimill_shard::decoder(whole, compression)?;
-    let read = bettimill_grid::npy::read_from(decoded, strict, MAX_IMAGE_BYTES);
+    let read = bettimill_grid::npy::read_from_padded(decoded, strict, MAX_IMAGE_BYTES, width);
     Ok(match compression {
         Compression::None => read?,
         c => read.with_context(|| format!("{c}-compressed data"))?,

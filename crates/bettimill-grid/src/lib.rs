@@ -438,15 +438,28 @@ impl BinaryImage {
         out
     }
 
-    /// Whether every voxel of the outermost layer is background.
+    /// Whether every voxel of the outermost layer is background. Row by row along the last
+    /// axis: a row on the layer must be all background, any other only at its two ends
+    /// (the voxels inside are not looked at).
     pub fn border_is_background(&self) -> bool {
         let d = self.dim.get();
-        (0..self.len()).all(|i| {
-            if self.data[i] == 0 {
-                return true;
+        let last = self.shape[d - 1];
+        // The row's coordinates along the other axes, counted like an odometer.
+        let mut row = [0usize; 4];
+        self.data.chunks_exact(last).all(|line| {
+            let on_layer = (0..d - 1).any(|a| row[a] == 0 || row[a] + 1 == self.shape[a]);
+            for a in (0..d - 1).rev() {
+                row[a] += 1;
+                if row[a] < self.shape[a] {
+                    break;
+                }
+                row[a] = 0;
             }
-            let c = self.coords(i);
-            (0..d).all(|a| c[a] > 0 && c[a] + 1 < self.shape[a])
+            if on_layer {
+                line.iter().all(|&v| v == 0)
+            } else {
+                line[0] == 0 && line[last - 1] == 0
+            }
         })
     }
 }
@@ -454,6 +467,21 @@ impl BinaryImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_border_is_background_unless_a_voxel_on_it_is_set() {
+        for shape in [&[4, 5][..], &[3, 4, 5], &[3, 4, 3, 5], &[1, 3, 3]] {
+            let empty = BinaryImage::zeros(shape).unwrap();
+            assert!(empty.border_is_background(), "{shape:?}");
+            for index in 0..empty.len() {
+                let mut one = empty.clone();
+                one.data_mut()[index] = 1;
+                let c = one.coords(index);
+                let on_border = (0..shape.len()).any(|a| c[a] == 0 || c[a] + 1 == shape[a]);
+                assert_eq!(one.border_is_background(), !on_border, "{shape:?} {c:?}");
+            }
+        }
+    }
 
     #[test]
     fn pad_then_crop_round_trips() {

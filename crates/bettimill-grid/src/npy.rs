@@ -138,7 +138,21 @@ pub fn read_path(path: &Path, strict: bool) -> Result<NpyImage, NpyError> {
 /// is refused before anything is allocated for it, then exactly the promised bytes are read
 /// (the buffer grows only with bytes actually received) and one byte more is asked for, so
 /// a stream that goes on past the header's size is refused without reading the rest.
-pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<NpyImage, NpyError> {
+pub fn read_from<R: Read>(reader: R, strict: bool, limit: u64) -> Result<NpyImage, NpyError> {
+    read_from_padded(reader, strict, limit, 0)
+}
+
+/// [`read_from`], the voxels placed as they arrive in the image's copy surrounded by
+/// `width` layers of background ([`BinaryImage::padded`]), which the image of the result
+/// is: no second copy to pad it afterwards (a 4D image's pages are most of the time of
+/// reading it). An image whose shape is refused is read unpadded, so that its errors are
+/// the same as [`read_from`]'s.
+pub fn read_from_padded<R: Read>(
+    mut reader: R,
+    strict: bool,
+    limit: u64,
+    width: usize,
+) -> Result<NpyImage, NpyError> {
     let io = |source| NpyError::Io {
         path: "the stream".to_string(),
         source,
@@ -184,6 +198,13 @@ pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<Npy
     // gives them: truncation and overlong data first, then the shape, then a value.
     let size = dtype.size;
     let mut voxels: Vec<u8> = Vec::new();
+    let mut placer = match width {
+        0 => None,
+        _ => Placer::new(&shape, width),
+    };
+    // The elements converted so far, and the chunk's, converted, when they are placed.
+    let mut elements = 0usize;
+    let mut converted = Vec::new();
     let mut chunk = vec![0u8; (1 << 16) / size * size];
     let mut filled = 0usize;
     let mut found = 0u64;
@@ -200,15 +221,26 @@ pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<Npy
         found += n as u64;
         // Whole elements are converted; a partial one waits at the front for its rest.
         let whole = filled - filled % size;
-        let first = voxels.len();
+        let first = elements;
+        elements += whole / size;
+        let out = match placer {
+            Some(_) => {
+                converted.clear();
+                &mut converted
+            }
+            None => &mut voxels,
+        };
         if size == 1 {
-            voxels.extend(chunk[..whole].iter().map(|&b| (b != 0) as u8));
+            out.extend(chunk[..whole].iter().map(|&b| (b != 0) as u8));
         } else {
-            voxels.extend(
+            out.extend(
                 chunk[..whole]
                     .chunks_exact(size)
                     .map(|c| (element_value(c, dtype) != 0) as u8),
             );
+        }
+        if let Some(placer) = &mut placer {
+            placer.place(&mut voxels, &converted);
         }
         if strict && not_binary.is_none() {
             not_binary = chunk[..whole]
@@ -240,10 +272,109 @@ pub fn read_from<R: Read>(mut reader: R, strict: bool, limit: u64) -> Result<Npy
     if let Some((index, value)) = not_binary {
         return Err(NpyError::NotBinary { index, value });
     }
-    // Grown by doubling as the data came: the room past the image goes back.
-    voxels.shrink_to_fit();
-    let image = BinaryImage::from_vec(&shape, voxels)?;
+    let image = match placer {
+        Some(placer) => {
+            voxels.resize(placer.len, 0);
+            voxels.shrink_to_fit();
+            BinaryImage::from_vec(&placer.shape, voxels)?
+        }
+        None => {
+            // Grown by doubling as the data came: the room past the image goes back.
+            voxels.shrink_to_fit();
+            BinaryImage::from_vec(&shape, voxels)?
+        }
+    };
     Ok(NpyImage { image, dtype })
+}
+
+/// Where [`read_from_padded`] puts the voxels it receives, in C order: each row along the
+/// last axis at its place in the padded image, the background before it filled in.
+struct Placer {
+    /// The padded image's shape and length.
+    shape: Vec<usize>,
+    len: usize,
+    width: usize,
+    /// The padded strides of the axes before the last.
+    strides: Vec<usize>,
+    /// The row being received: its coordinates along the axes before the last, where it
+    /// starts in the padded image, and how many of its voxels came.
+    row: Vec<usize>,
+    start: usize,
+    received: usize,
+}
+
+impl Placer {
+    /// The most background placed ahead of the data.
+    const AHEAD: usize = 16 << 20;
+
+    /// None for a shape [`read_from`] refuses, or whose padded copy has more than
+    /// `usize::MAX` voxels.
+    fn new(shape: &[usize], width: usize) -> Option<Placer> {
+        check_shape(shape).ok()?;
+        let padded: Vec<usize> = shape
+            .iter()
+            .map(|&n| n.checked_add(width.checked_mul(2)?))
+            .collect::<Option<_>>()?;
+        let len = padded
+            .iter()
+            .try_fold(1usize, |len, &n| len.checked_mul(n))?;
+        let d = shape.len();
+        let mut strides = vec![1usize; d];
+        for axis in (0..d - 1).rev() {
+            strides[axis] = strides[axis + 1] * padded[axis + 1];
+        }
+        strides.pop();
+        let mut placer = Placer {
+            shape: padded,
+            len,
+            width,
+            strides,
+            row: vec![0; d - 1],
+            start: 0,
+            received: 0,
+        };
+        placer.start = placer.row_start();
+        // The background placed ahead of the data is at most twice the first row's start
+        // (the largest step between rows): bounded, as the voxels must grow only with what
+        // was received. Larger images are read unpadded (a 256^4 image's start is 17 MB).
+        (placer.start <= Placer::AHEAD / 2).then_some(placer)
+    }
+
+    /// Where the row `self.row` starts in the padded image.
+    fn row_start(&self) -> usize {
+        let inside: usize = (self.row.iter().zip(&self.strides))
+            .map(|(&x, &stride)| (x + self.width) * stride)
+            .sum();
+        inside + self.width
+    }
+
+    /// Appends `values`, the next voxels in C order, to `voxels` at their places.
+    fn place(&mut self, voxels: &mut Vec<u8>, mut values: &[u8]) {
+        let d = self.shape.len();
+        let line = self.shape[d - 1] - 2 * self.width;
+        while !values.is_empty() {
+            if self.received == 0 {
+                voxels.resize(self.start, 0);
+            }
+            let take = (line - self.received).min(values.len());
+            voxels.extend_from_slice(&values[..take]);
+            values = &values[take..];
+            self.received += take;
+            if self.received == line {
+                self.received = 0;
+                // The next row, counted like an odometer (past the last row the start is
+                // never used: no value is left).
+                for axis in (0..d - 1).rev() {
+                    self.row[axis] += 1;
+                    if self.row[axis] + 2 * self.width < self.shape[axis] {
+                        break;
+                    }
+                    self.row[axis] = 0;
+                }
+                self.start = self.row_start();
+            }
+        }
+    }
 }
 
 /// Parses `.npy` bytes. With `strict`, values other than 0 and 1 are an error; otherwise
@@ -622,9 +753,48 @@ mod tests {
                         let trickled = read_from(Trickle(bytes), strict, 1 << 30);
                         assert_eq!(format!("{trickled:?}"), expected, "{descr} case {case}");
                     }
+                    // Read into the padded copy: that copy, or the same error.
+                    let expected_padded = format!(
+                        "{:?}",
+                        read_bytes(bytes, strict).map(|npy| npy.image.padded(2))
+                    );
+                    for trickle in [false, true].into_iter().take(if case < 3 { 2 } else { 1 }) {
+                        let padded = match trickle {
+                            false => read_from_padded(&bytes[..], strict, 1 << 30, 2),
+                            true => read_from_padded(Trickle(bytes), strict, 1 << 30, 2),
+                        };
+                        let padded = format!("{:?}", padded.map(|npy| npy.image));
+                        assert_eq!(padded, expected_padded, "{descr} case {case} padded");
+                    }
                 }
             }
         }
+    }
+
+    /// Every shape of 2 to 4 axes reads into its padded copy; a shape whose first row would
+    /// start too far in (the background placed ahead of any data) is read unpadded first.
+    #[test]
+    fn a_padded_read_is_the_padded_image() {
+        for shape in [
+            &[1, 1][..],
+            &[3, 1, 2],
+            &[2, 3, 1, 4],
+            &[1, 5, 1, 1],
+            &[5, 6, 7],
+        ] {
+            let mut img = BinaryImage::zeros(shape).unwrap();
+            for index in (0..img.len()).step_by(3) {
+                img.data_mut()[index] = 1;
+            }
+            let bytes = write_bytes(&img, Dtype::U8);
+            for width in [1, 3] {
+                let padded = read_from_padded(Trickle(&bytes), true, 1 << 20, width).unwrap();
+                assert_eq!(padded.image, img.padded(width), "{shape:?} by {width}");
+            }
+        }
+        assert!(Placer::new(&[2, 2000, 2000], 1).is_some());
+        assert!(Placer::new(&[2, 3000, 3000], 1).is_none());
+        assert!(Placer::new(&[2, 0, 3], 1).is_none());
     }
 
     #[test]

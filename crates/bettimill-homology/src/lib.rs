@@ -146,7 +146,7 @@ pub fn topology(image: &BinaryImage) -> Topology {
 /// The exact Betti numbers (over Z/2) and Euler characteristic of `image`, or an error when
 /// they cannot be computed exactly ([`TopologyError`]).
 pub fn try_topology(image: &BinaryImage) -> Result<Topology, TopologyError> {
-    let route = Route::of(image)?;
+    let route = Route::of(image, 0)?;
     route.run(image.padded(1))
 }
 
@@ -154,8 +154,20 @@ pub fn try_topology(image: &BinaryImage) -> Result<Topology, TopologyError> {
 /// ([`BinaryImage::into_padded`]), so the peak memory holds one copy of the image instead
 /// of two (a 128^4 image is 268 MB).
 pub fn try_topology_owned(image: BinaryImage) -> Result<Topology, TopologyError> {
-    let route = Route::of(&image)?;
+    let route = Route::of(&image, 0)?;
     route.run(image.into_padded(1))
+}
+
+/// [`try_topology`] of the image whose copy with a background border of one voxel is
+/// `padded` ([`BinaryImage::padded`]; `bettimill betti` reads a file straight into it). If
+/// its border is not background after all, it is padded again: more background changes no
+/// homology.
+pub fn try_topology_padded(padded: BinaryImage) -> Result<Topology, TopologyError> {
+    if !padded.border_is_background() {
+        return try_topology_owned(padded);
+    }
+    let route = Route::of(&padded, 1)?;
+    route.run(padded)
 }
 
 /// How [`try_topology`] computes an image's homology, decided on the image before it is
@@ -171,12 +183,14 @@ enum Route {
 }
 
 impl Route {
-    fn of(image: &BinaryImage) -> Result<Route, TopologyError> {
+    /// The route of `image`, or of the image inside its border of `border` (0 or 1) layers.
+    fn of(image: &BinaryImage, border: usize) -> Result<Route, TopologyError> {
+        debug_assert!(border <= 1);
         if image.dim() != Dim::Four {
             return Ok(Route::Counts);
         }
         // Checked before the padded copy and the thinning, which would be wasted.
-        let padded_shape: Vec<usize> = image.shape().iter().map(|&n| n + 2).collect();
+        let padded_shape: Vec<usize> = image.shape().iter().map(|&n| n + 2 - 2 * border).collect();
         dense::check_grid(&padded_shape)?;
         // A solid cube with cavities (a foreground wall around everything that is
         // background inside it) goes through its background: the cavities thin to thin
@@ -184,7 +198,7 @@ impl Route {
         // cavity. Anything else (objects in empty space, blobs) thins the object; its
         // background stays attached to the border, where the background route would fall
         // back and pay twice.
-        Ok(if has_foreground_wall(image) {
+        Ok(if has_foreground_wall(image, border) {
             Route::Background
         } else {
             Route::Thinning
@@ -474,14 +488,19 @@ fn background_cores(
 /// from the border, is all foreground: then the background inside it is cut off from the
 /// border. Boxes that fail usually fail at their first voxels, and the one that succeeds
 /// costs its surface (side^3 voxels per pair of faces), so this is cheap next to
-/// homology.
-fn has_foreground_wall(image: &BinaryImage) -> bool {
+/// homology. With `border` layers around the image (0 or 1: its padded copy), the boxes
+/// are those of the image inside them.
+fn has_foreground_wall(image: &BinaryImage, border: usize) -> bool {
     let shape = image.shape();
     let d = shape.len();
     let last = shape[d - 1];
-    let depth = shape.iter().min().copied().unwrap_or(0) / 4;
+    let depth = shape
+        .iter()
+        .min()
+        .map_or(0, |&n| n.saturating_sub(2 * border))
+        / 4;
     let data = image.data();
-    (0..depth).any(|t| {
+    (border..border + depth).any(|t| {
         let inside = |x: usize, n: usize| (t..n - t).contains(&x);
         let on_surface = |x: usize, n: usize| x == t || x + 1 == n - t;
         // Rows along the last axis: a row on a face of the box must be foreground from t

@@ -664,9 +664,15 @@ fn both_4d_routes_agree_with_reference() {
         let expected = reference::topology(&image);
         // Carved cubes have a foreground wall, so `topology` takes the background route.
         if name.starts_with("carved") {
-            assert!(has_foreground_wall(&image), "{name}");
+            assert!(has_foreground_wall(&image, 0), "{name}");
         }
-        walls += has_foreground_wall(&image) as usize;
+        walls += has_foreground_wall(&image, 0) as usize;
+        // The same boxes in the padded copy (`try_topology_padded`).
+        assert_eq!(
+            has_foreground_wall(&image.padded(1), 1),
+            has_foreground_wall(&image, 0),
+            "{name}: padded"
+        );
         if let Ok(found) = background_cores(image.padded(1), FinalRank::Elimination).unwrap() {
             assert_eq!(found, expected, "{name}: background cores");
             by_cores += 1;
