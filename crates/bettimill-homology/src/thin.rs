@@ -400,8 +400,10 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // made a 32^4 blob about 20% slower (BENCHMARKS.md).
     let (mut cache_a, mut cache_b) = (SimpleCache::new(12), SimpleCache::new(12));
     let (mut part_a, mut seam, mut part_b) = (Vec::new(), Vec::new(), Vec::new());
-    // Slab A is planes 0..=k of the data (it flags plane k), slab B the rest.
-    let split = (planes >= 8).then_some(planes / 2);
+    // Slab A is planes 0..=k of the data (it flags plane k), slab B the rest. A sweeps
+    // planes 0..k and B planes k + 2.., as many each (at k = planes / 2, a 32^4 image's A
+    // swept 16 planes of voxels, B 14, and B waited).
+    let split = (planes >= 8).then_some((planes - 2) / 2);
     match split {
         Some(k) => {
             let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
