@@ -401,7 +401,6 @@ impl DenseComplex {
     }
 
     /// Whether the owners are listed ([`Owners`]).
-    #[cfg(test)]
     pub(crate) fn lists_owners(&self) -> bool {
         matches!(self.owners, Owners::Listed(_))
     }

@@ -322,16 +322,15 @@ fn remnant_complex_cut(
     if remaining.len() >= complex.places() / 16 {
         complex = complex.unlisted();
     }
+    let complex_listed = complex.lists_owners();
     let grid = *complex.grid();
     let places = grid.face_places(offsets);
     let strides = padded.strides().to_vec();
     let data = padded.data();
-    // The cells voxel `index` puts in the complex, as the masks of the voxels that own
-    // them (entry s is the voxel one step back along the axes in s, as
-    // `Grid::owners_around` lists them), and its place.
-    let cells_of = |index: usize| -> (usize, [u16; 16]) {
-        let config = tester.configuration_in(data, &strides, index);
-        let shared = tester.attachment_of(config);
+    // The cells a voxel whose attachment set is `shared` puts in the complex, as the masks
+    // of the voxels that own them (entry s is the voxel one step back along the axes in s,
+    // as `Grid::owners_around` lists them): they depend on that set alone.
+    let masks_of = |shared: u128| -> [u16; 16] {
         // Private cells: the voxel itself and the boundary faces no neighbour shares.
         let mut alive = cell_bit | (every_face & !shared);
         // Free-face collapses, one dimension of free face at a time, highest first. A
@@ -363,12 +362,24 @@ fn remnant_complex_cut(
         if alive & cell_bit != 0 {
             masks[0] |= 1;
         }
-        (grid.place(&padded.coords(index)), masks)
+        masks
     };
     let owned = 1 << padded.dim().get();
     let insert = |voxels: &[u32], inserter: &mut dense::Inserter| {
+        // A smooth image's remnant repeats some local shapes: each thread keeps the masks
+        // of the attachment sets it met last, and a hit skips the collapses (a 32^4 blob's
+        // voxels met 2,655 sets in 4,053, and its complex took 15% fewer instructions). A
+        // rough one's repeat too rarely (a random 24^4 image's 46,061 in 48,565).
+        let mut memo = complex_listed.then(MasksMemo::new);
         for &index in voxels {
-            let (place, masks) = cells_of(index as usize);
+            let index = index as usize;
+            let config = tester.configuration_in(data, &strides, index);
+            let shared = tester.attachment_of(config);
+            let masks = match &mut memo {
+                Some(memo) => memo.get(shared, masks_of),
+                None => masks_of(shared),
+            };
+            let place = grid.place(&padded.coords(index));
             let around = grid.owners_around(place);
             for (&owner, &mask) in around.iter().zip(&masks).take(owned) {
                 if mask != 0 {
@@ -391,6 +402,40 @@ fn remnant_complex_cut(
     let (lower, upper) = remaining.split_at(cut);
     let held = complex.insert_split(boundary, |a| insert(lower, a), |b| insert(upper, b));
     Ok((complex, held))
+}
+
+/// A direct-mapped memo of [`remnant_complex_cut`]'s masks by attachment set (a pure
+/// function memoised: it cannot change a result).
+struct MasksMemo {
+    /// Per slot: the attachment set with bit 127 set (0: empty; a set has 80 bits at most),
+    /// and its masks.
+    slots: Vec<(u128, [u16; 16])>,
+}
+
+impl MasksMemo {
+    /// 2^10 slots of 48 bytes: they stay in the core's own cache beside the image's rows.
+    const BITS: u32 = 10;
+    const USED: u128 = 1 << 127;
+
+    fn new() -> MasksMemo {
+        MasksMemo {
+            slots: vec![(0, [0; 16]); 1 << Self::BITS],
+        }
+    }
+
+    /// The masks of the attachment set `shared`, computed by `masks_of` on a miss.
+    #[inline]
+    fn get(&mut self, shared: u128, masks_of: impl Fn(u128) -> [u16; 16]) -> [u16; 16] {
+        debug_assert_eq!(shared & Self::USED, 0);
+        let folded = (shared as u64) ^ ((shared >> 64) as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93);
+        let slot = (folded.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - Self::BITS)) as usize;
+        let (key, masks) = &mut self.slots[slot];
+        if *key != shared | Self::USED {
+            *key = shared | Self::USED;
+            *masks = masks_of(shared);
+        }
+        *masks
+    }
 }
 
 /// Any dimension, through the background: the object's Betti numbers are those of the
