@@ -142,16 +142,28 @@ pub fn read_from<R: Read>(reader: R, strict: bool, limit: u64) -> Result<NpyImag
     read_from_padded(reader, strict, limit, 0)
 }
 
-/// [`read_from`], the voxels placed as they arrive in the image's copy surrounded by
-/// `width` layers of background ([`BinaryImage::padded`]), which the image of the result
-/// is: no second copy to pad it afterwards (a 4D image's pages are most of the time of
-/// reading it). An image whose shape is refused is read unpadded, so that its errors are
-/// the same as [`read_from`]'s.
+/// [`read_from`], its image the copy surrounded by `width` layers of background
+/// ([`BinaryImage::padded`]): the voxels are placed there as they arrive, with no second
+/// pass to pad them afterwards (a 4D image's pages are most of the time of reading it). An
+/// image whose first row would start too far in (more background placed ahead of the data
+/// than 16 MiB) is read as it comes and padded afterwards; the errors are
+/// [`read_from`]'s.
 pub fn read_from_padded<R: Read>(
+    reader: R,
+    strict: bool,
+    limit: u64,
+    width: usize,
+) -> Result<NpyImage, NpyError> {
+    read_padded_within(reader, strict, limit, width, Placer::AHEAD)
+}
+
+/// [`read_from_padded`] with at most `ahead` bytes of background placed ahead of the data.
+fn read_padded_within<R: Read>(
     mut reader: R,
     strict: bool,
     limit: u64,
     width: usize,
+    ahead: usize,
 ) -> Result<NpyImage, NpyError> {
     let io = |source| NpyError::Io {
         path: "the stream".to_string(),
@@ -200,7 +212,7 @@ pub fn read_from_padded<R: Read>(
     let mut voxels: Vec<u8> = Vec::new();
     let mut placer = match width {
         0 => None,
-        _ => Placer::new(&shape, width),
+        _ => Placer::new(&shape, width, ahead),
     };
     // The elements converted so far, and the chunk's, converted, when they are placed.
     let mut elements = 0usize;
@@ -281,7 +293,11 @@ pub fn read_from_padded<R: Read>(
         None => {
             // Grown by doubling as the data came: the room past the image goes back.
             voxels.shrink_to_fit();
-            BinaryImage::from_vec(&shape, voxels)?
+            let image = BinaryImage::from_vec(&shape, voxels)?;
+            match width {
+                0 => image,
+                _ => image.into_padded(width),
+            }
         }
     };
     Ok(NpyImage { image, dtype })
@@ -304,12 +320,13 @@ struct Placer {
 }
 
 impl Placer {
-    /// The most background placed ahead of the data.
+    /// The most background placed ahead of the data by [`read_from_padded`].
     const AHEAD: usize = 16 << 20;
 
-    /// None for a shape [`read_from`] refuses, or whose padded copy has more than
-    /// `usize::MAX` voxels.
-    fn new(shape: &[usize], width: usize) -> Option<Placer> {
+    /// None for a shape [`read_from`] refuses, one whose padded copy has more than
+    /// `usize::MAX` voxels, or one that would place more than `ahead` bytes of background
+    /// ahead of the data.
+    fn new(shape: &[usize], width: usize, ahead: usize) -> Option<Placer> {
         check_shape(shape).ok()?;
         let padded: Vec<usize> = shape
             .iter()
@@ -336,8 +353,8 @@ impl Placer {
         placer.start = placer.row_start();
         // The background placed ahead of the data is at most twice the first row's start
         // (the largest step between rows): bounded, as the voxels must grow only with what
-        // was received. Larger images are read unpadded (a 256^4 image's start is 17 MB).
-        (placer.start <= Placer::AHEAD / 2).then_some(placer)
+        // was received (a 256^4 image's start is 17 MB: read unpadded, then padded).
+        (placer.start <= ahead / 2).then_some(placer)
     }
 
     /// Where the row `self.row` starts in the padded image.
@@ -790,11 +807,19 @@ mod tests {
             for width in [1, 3] {
                 let padded = read_from_padded(Trickle(&bytes), true, 1 << 20, width).unwrap();
                 assert_eq!(padded.image, img.padded(width), "{shape:?} by {width}");
+                // Nothing may be placed ahead: read, then padded.
+                let after = read_padded_within(&bytes[..], true, 1 << 20, width, 0).unwrap();
+                assert_eq!(
+                    after.image,
+                    img.padded(width),
+                    "{shape:?} by {width}, after"
+                );
             }
         }
-        assert!(Placer::new(&[2, 2000, 2000], 1).is_some());
-        assert!(Placer::new(&[2, 3000, 3000], 1).is_none());
-        assert!(Placer::new(&[2, 0, 3], 1).is_none());
+        let ahead = Placer::AHEAD;
+        assert!(Placer::new(&[2, 2000, 2000], 1, ahead).is_some());
+        assert!(Placer::new(&[2, 3000, 3000], 1, ahead).is_none());
+        assert!(Placer::new(&[2, 0, 3], 1, ahead).is_none());
     }
 
     #[test]
