@@ -89,9 +89,9 @@ pub(crate) struct DenseComplex {
 }
 
 /// The Euler characteristic of the cells of one owner whose local codes are the bits of a
-/// mask: `EULER_OF_BYTE[byte]` for the codes 0-7 of a byte, each counted +1 or -1 by the
-/// parity of its number of odd axes; the codes 8-15 have the other parity (see
-/// [`euler_of`]).
+/// mask, in a grid of an even number of axes: `EULER_OF_BYTE[byte]` for the codes 0-7 of a
+/// byte, each counted +1 or -1 by the parity of its number of bits (the axes along which
+/// the cell does not extend); the codes 8-15 have the other parity ([`euler_of`]).
 const EULER_OF_BYTE: [i8; 256] = {
     let mut table = [0i8; 256];
     let mut byte = 0;
@@ -700,7 +700,6 @@ impl DenseComplex {
         if owners.within(&everywhere, view.masks).next().is_none() {
             return Ok((vec![0; d + 1], 0));
         }
-
         let mut removed_vertices = 0u64;
         match parts {
             None => {

@@ -413,7 +413,7 @@ struct MasksMemo {
 }
 
 impl MasksMemo {
-    /// 2^10 slots of 48 bytes: they stay in the core's own cache beside the image's rows.
+    /// 2^10 slots of 48 bytes, 48 KiB a thread.
     const BITS: u32 = 10;
     const USED: u128 = 1 << 127;
 

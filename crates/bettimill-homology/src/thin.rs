@@ -212,16 +212,16 @@ impl Window {
                 }
             }
             None => {
-                let mut columns = [0u32; 16];
+                let mut bits = [0u32; 16];
                 for (r, &o) in self.rows.iter().enumerate() {
                     let q = (p as isize + o) as usize;
                     let (low, high) = (word_at_end(data, q), word_at_end(data, q + 8));
                     let bytes = (low as u128 | (high as u128) << 64) & ONES;
-                    for (j, column) in columns.iter_mut().enumerate() {
+                    for (j, column) in bits.iter_mut().enumerate() {
                         *column |= ((bytes >> (8 * j)) as u32 & 1) << r;
                     }
                 }
-                columns
+                bits
             }
         };
         columns.base = p;
