@@ -154,6 +154,20 @@ impl fmt::Debug for BinaryImage {
     }
 }
 
+/// Steps `row`, the coordinates of a row along the last axis (along the axes before it),
+/// to the next row in C order of an image whose sides along those axes are `sides`,
+/// counted like an odometer (a division per row cost more than the rest of the row's
+/// work); past the last row it wraps to the first.
+pub(crate) fn next_row(row: &mut [usize], sides: &[usize]) {
+    for axis in (0..row.len()).rev() {
+        row[axis] += 1;
+        if row[axis] < sides[axis] {
+            return;
+        }
+        row[axis] = 0;
+    }
+}
+
 fn checked_len(shape: &[usize]) -> Result<(Dim, usize), GridError> {
     let dim = Dim::new(shape.len()).ok_or(GridError::BadRank(shape.len()))?;
     let mut len: usize = 1;
@@ -369,8 +383,7 @@ impl BinaryImage {
             stride *= new_shape[axis];
         }
         // The padded start of every row, in order (its coordinates along the first d - 1
-        // axes are r's digits in the old shape), counted like an odometer: a division per
-        // row cost more than moving the row.
+        // axes are r's digits in the old shape).
         let mut starts = Vec::with_capacity(rows);
         let mut digits = [0usize; 4];
         for _ in 0..rows {
@@ -380,13 +393,7 @@ impl BinaryImage {
                         .map(|axis| (digits[axis] + width) * strides[axis])
                         .sum::<usize>(),
             );
-            for axis in (0..d - 1).rev() {
-                digits[axis] += 1;
-                if digits[axis] < old_shape[axis] {
-                    break;
-                }
-                digits[axis] = 0;
-            }
+            next_row(&mut digits[..d - 1], &old_shape);
         }
         for (r, &dst) in starts.iter().enumerate().rev() {
             data.copy_within(r * row..(r + 1) * row, dst);
@@ -444,17 +451,11 @@ impl BinaryImage {
     pub fn border_is_background(&self) -> bool {
         let d = self.dim.get();
         let last = self.shape[d - 1];
-        // The row's coordinates along the other axes, counted like an odometer.
+        // The row's coordinates along the other axes.
         let mut row = [0usize; 4];
         self.data.chunks_exact(last).all(|line| {
             let on_layer = (0..d - 1).any(|a| row[a] == 0 || row[a] + 1 == self.shape[a]);
-            for a in (0..d - 1).rev() {
-                row[a] += 1;
-                if row[a] < self.shape[a] {
-                    break;
-                }
-                row[a] = 0;
-            }
+            next_row(&mut row[..d - 1], &self.shape);
             if on_layer {
                 line.iter().all(|&v| v == 0)
             } else {

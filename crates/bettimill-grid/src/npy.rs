@@ -379,15 +379,11 @@ impl Placer {
             self.received += take;
             if self.received == line {
                 self.received = 0;
-                // The next row, counted like an odometer (past the last row the start is
-                // never used: no value is left).
-                for axis in (0..d - 1).rev() {
-                    self.row[axis] += 1;
-                    if self.row[axis] + 2 * self.width < self.shape[axis] {
-                        break;
-                    }
-                    self.row[axis] = 0;
-                }
+                // The next row (past the last row the start is never used: no value is
+                // left).
+                let sides: [usize; 4] =
+                    std::array::from_fn(|a| self.shape.get(a).map_or(0, |&n| n - 2 * self.width));
+                crate::next_row(&mut self.row, &sides);
                 self.start = self.row_start();
             }
         }

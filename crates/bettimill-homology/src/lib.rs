@@ -427,8 +427,7 @@ impl MasksMemo {
     #[inline]
     fn get(&mut self, shared: u128, masks_of: impl Fn(u128) -> [u16; 16]) -> [u16; 16] {
         debug_assert_eq!(shared & Self::USED, 0);
-        let folded = (shared as u64) ^ ((shared >> 64) as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93);
-        let slot = (folded.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - Self::BITS)) as usize;
+        let slot = (simple::mix(shared) >> (64 - Self::BITS)) as usize;
         let (key, masks) = &mut self.slots[slot];
         if *key != shared | Self::USED {
             *key = shared | Self::USED;

@@ -64,8 +64,7 @@ impl SimpleCache {
 
     #[inline]
     fn slot(&self, key: u128) -> usize {
-        let folded = (key as u64) ^ ((key >> 64) as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93);
-        (folded.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
+        (mix(key) >> self.shift) as usize
     }
 
     /// Whether a voxel with configuration `config` (as [`SimpleTester::configuration`]) is
@@ -105,6 +104,14 @@ impl SimpleCache {
         self.entries[slot] = key | Self::USED | if answer { Self::ANSWER } else { 0 };
         answer
     }
+}
+
+/// A 128-bit key mixed into 64 bits whose high bits pick a memo's slot: the high half
+/// folded into the low one, then a Fibonacci multiply.
+#[inline]
+pub(crate) fn mix(key: u128) -> u64 {
+    let folded = (key as u64) ^ ((key >> 64) as u64).wrapping_mul(0xD6E8_FEB8_6659_FD93);
+    folded.wrapping_mul(0x9E37_79B9_7F4A_7C15)
 }
 
 /// Precomputed tables for one dimension; cloning shares them.
