@@ -7,8 +7,8 @@
 //!
 //! Simple points are not jointly deletable, so deletion is sequential: one raster sweep
 //! in index order, each voxel tested against the image as it is at that moment (the
-//! sweep splits into two slabs too far apart to interact, swept on two threads, then the
-//! seam between them; see [`thin`]). Raster order is deterministic and needs no queue, and
+//! sweep splits into two slabs too far apart to interact, swept on two threads towards
+//! each other, then the seam between them; see [`thin`]). Raster order is deterministic and needs no queue, and
 //! because the voxels before x are already gone when x is visited, the sweep deletes about
 //! 99% of a blob. Then only the survivors whose neighbourhood changed since their last
 //! test are tested again, from a stack of pending voxels, until none is pending. The
@@ -376,7 +376,17 @@ pub(crate) enum Phase {
 /// planes k and k + 1 between them. A voxel of A and a voxel of B are at least three planes
 /// apart, so neither ever reads what the other writes (flags included: A's reach plane k
 /// at most, B's plane k + 1), and sweeping A and B at once is exactly sweeping A and then
-/// B. The seam is swept after both. The pending voxels after the sweep are cut the same
+/// B. The seam is swept after both.
+///
+/// A sweeps forwards and B backwards, towards the seam. A raster sweep leaves more
+/// survivors the further it goes (what cannot go, the loops and shells, is pushed ahead of
+/// it), and they pile up against whatever it meets last: the image's last plane, or a
+/// seam whose far side was swept already. Both sweeps forwards, a 32^4 blob kept 1,138
+/// voxels in the seam's second plane and 381 in the last plane, 24% of its 6,364; meeting
+/// at the seam, the two piles are one, and the remnant is 5,088 voxels (a 64^4 blob's
+/// 107,497 fell to 84,594, issue 18).
+///
+/// The pending voxels after the sweep are cut the same
 /// way, but at the plane of the middle survivor (the sweep's cut halves the planes, which
 /// can leave one slab twice the other's survivors), and tested in rounds: A's and B's at
 /// once, then the seam's, each part handing the voxels it makes pending in another part to
@@ -402,7 +412,7 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     let (mut part_a, mut seam, mut part_b) = (Vec::new(), Vec::new(), Vec::new());
     // Slab A is planes 0..=k of the data (it flags plane k), slab B the rest. A sweeps
     // planes 0..k and B planes k + 2.., as many each (at k = planes / 2, a 32^4 image's A
-    // swept 16 planes of voxels, B 14, and B waited).
+    // swept 16 planes of voxels, B 14, and B waited). B sweeps from its end: see [`thin`].
     let split = (planes >= 8).then_some((planes - 2) / 2);
     match split {
         Some(k) => {
@@ -413,9 +423,17 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
                     sweep(&thinner, slab_a, range, 0, &mut part_a, &mut cache_a)
                 },
                 || {
-                    let range = plane..slab_b.len();
-                    let offset = (k + 1) * plane;
-                    sweep(&thinner, slab_b, range, offset, &mut part_b, &mut cache_b)
+                    // Backwards: point-reflected (its bytes reversed, which reverses every
+                    // axis and keeps the shape), swept forwards, reflected back.
+                    slab_b.reverse();
+                    let n = slab_b.len();
+                    sweep(&thinner, slab_b, 0..n - plane, 0, &mut part_b, &mut cache_b);
+                    slab_b.reverse();
+                    let last = ((k + 1) * plane + n - 1) as u32;
+                    part_b.reverse();
+                    for i in &mut part_b {
+                        *i = last - *i;
+                    }
                 },
             );
             let range = k * plane..(k + 2) * plane;
