@@ -296,28 +296,47 @@ struct Halves {
 }
 
 impl Halves {
-    /// `places` cut at the unit where the weight up to it passes half (`weights`, one per
-    /// unit), kept one unit from either end. None with fewer than three units, the fewest
-    /// a cut can have, or no weight.
-    fn balanced(places: std::ops::Range<usize>, unit: usize, weights: &[usize]) -> Option<Halves> {
+    /// `places` cut at the seam unit that makes the split cheapest (`weights`, one per
+    /// unit, stand for the work): the larger part's weight, which the two parts take at
+    /// once, plus the seam's, taken after them, `seam_share` of it on the critical path
+    /// (a half for a seam split again, all of it for the last seam). Kept one unit from
+    /// either end; the first of equally cheap seams. None with fewer than three units,
+    /// the fewest a cut can have, or no weight.
+    ///
+    /// The seam was the unit where the weight passed half; when that unit was heavy (the
+    /// pile of a 32^4 blob's thinning, a third of its owners) the lower part then held
+    /// three times the upper's work.
+    fn cheapest(
+        places: std::ops::Range<usize>,
+        unit: usize,
+        weights: &[usize],
+        seam_share: SeamShare,
+    ) -> Option<Halves> {
         let units = weights.len();
         let total: usize = weights.iter().sum();
         if units < 3 || total == 0 {
             return None;
         }
-        let mut before = 0;
-        let half = weights
-            .iter()
-            .position(|&w| {
-                before += w;
-                2 * before >= total
-            })
-            .unwrap_or(units);
+        // Twice the cost, in whole weights.
+        let cost = |below: usize, seam: usize| {
+            let larger = below.max(total - below - seam);
+            2 * larger
+                + match seam_share {
+                    SeamShare::Half => seam,
+                    SeamShare::Whole => 2 * seam,
+                }
+        };
+        let mut below = weights[0];
+        let mut best = (cost(below, weights[1]), 1);
+        for half in 2..units - 1 {
+            below += weights[half - 1];
+            best = best.min((cost(below, weights[half]), half));
+        }
         Some(Halves {
             start: places.start,
             end: places.end,
             unit,
-            half: half.clamp(1, units - 2),
+            half: best.1,
         })
     }
 
@@ -332,6 +351,15 @@ impl Halves {
     fn upper(&self) -> std::ops::Range<usize> {
         self.start + (self.half + 1) * self.unit..self.end
     }
+}
+
+/// How much of a seam's work [`Halves::cheapest`] counts after the parts'.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum SeamShare {
+    /// The seam is cut again, its two parts reduced at once: half.
+    Half,
+    /// The seam is reduced alone: all of it.
+    Whole,
 }
 
 /// How the two parts of a split reduction run.
@@ -653,11 +681,15 @@ impl DenseComplex {
         }
         let everywhere = 0..self.places;
         let row = self.grid.brick_step[0];
-        let rows = Halves::balanced(everywhere.clone(), row, &self.weights(&everywhere, row))?;
+        let weights = self.weights(&everywhere, row);
+        let rows = Halves::cheapest(everywhere.clone(), row, &weights, SeamShare::Half)?;
         let seam = rows.seam();
         let column = self.grid.brick_step[1];
         let columns = (self.grid.d >= 2)
-            .then(|| Halves::balanced(seam.clone(), column, &self.weights(&seam, column)))
+            .then(|| {
+                let weights = self.weights(&seam, column);
+                Halves::cheapest(seam.clone(), column, &weights, SeamShare::Whole)
+            })
             .flatten();
         Some(Split { rows, columns })
     }
@@ -1828,6 +1860,33 @@ mod tests {
     /// A queue of cells gives them back in the order they came, across blocks, plain and
     /// runs of both kinds, with pops between the pushes and after it ran empty.
     #[test]
+    fn the_cheapest_seam_spares_the_parts_a_heavy_unit() {
+        let half = |weights: &[usize], share| {
+            Halves::cheapest(0..10 * weights.len(), 10, weights, share).map(|h| h.half)
+        };
+        for share in [SeamShare::Half, SeamShare::Whole] {
+            // Even weights: the middle; too few units or no weight: no cut.
+            assert_eq!(half(&[5; 7], share), Some(3));
+            assert_eq!(half(&[5; 8], share), Some(3));
+            assert_eq!(half(&[5, 5], share), None);
+            assert_eq!(half(&[0; 5], share), None);
+            // Never an end unit, however the weight lies.
+            assert_eq!(half(&[100, 1, 1, 1], share), Some(1));
+            assert_eq!(half(&[1, 1, 1, 100], share), Some(2));
+        }
+        // A 32^4 blob's owners by brick row: the weight passes half in the heavy unit 4,
+        // which would leave the parts 12,671 and 3,858; seam 3 leaves them 6,797 and
+        // 13,229 and the seam 5,874, half of it after them.
+        let blob = [816, 2018, 3963, 5874, 9371, 1712, 1575, 550, 21];
+        assert_eq!(half(&blob, SeamShare::Half), Some(3));
+        // A heavy unit in the middle with light parts around it is still the seam when
+        // its share is a half, not when it is reduced alone.
+        let heavy = [1, 7, 30, 7, 12, 1];
+        assert_eq!(half(&heavy, SeamShare::Half), Some(2));
+        assert_eq!(half(&heavy, SeamShare::Whole), Some(3));
+    }
+
+    #[test]
     fn the_cell_queue_is_first_in_first_out() {
         let mut queue = CellQueue::default();
         let mut expected = VecDeque::new();
@@ -1994,9 +2053,9 @@ mod tests {
             let mut whole = DenseComplex::of_image(image);
             let row = whole.grid.brick_step[0];
             let everywhere = 0..whole.places;
-            let balanced =
-                Halves::balanced(everywhere.clone(), row, &whole.weights(&everywhere, row))
-                    .expect("seven brick rows split");
+            let weights = whole.weights(&everywhere, row);
+            let balanced = Halves::cheapest(everywhere.clone(), row, &weights, SeamShare::Half)
+                .expect("seven brick rows split");
             assert!(balanced.half >= 1 && balanced.half <= 5);
             let splits: Vec<Split> = (1..=5)
                 .flat_map(|half| [None, Some(1)].map(|column| whole.split_at(half, column)))
