@@ -372,11 +372,11 @@ pub(crate) enum Phase {
 /// be background, in the background phase locked.
 ///
 /// The work runs on two threads without depending on their timing: the image is cut across
-/// its first axis into slabs A (planes below k) and B (planes from k + 2 on) with the seam
-/// planes k and k + 1 between them. A voxel of A and a voxel of B are at least three planes
-/// apart, so neither ever reads what the other writes (flags included: A's reach plane k
-/// at most, B's plane k + 1), and sweeping A and B at once is exactly sweeping A and then
-/// B. The seam is swept after both.
+/// its first axis into slabs A (planes 0..=k) and B (planes from k + 2 on) with the seam
+/// plane k + 1 between them, which both read and neither writes during the sweeps (A's
+/// last plane reads it from a copy, as B's data holds it). So neither reads what the
+/// other writes, and sweeping A and B at once is exactly sweeping A and then B. The seam
+/// is swept after both.
 ///
 /// A sweeps forwards and B backwards, towards the seam. A raster sweep leaves more
 /// survivors the further it goes (what cannot go, the loops and shells, is pushed ahead of
@@ -386,12 +386,13 @@ pub(crate) enum Phase {
 /// at the seam, the two piles are one, and the remnant is 5,088 voxels (a 64^4 blob's
 /// 107,497 fell to 84,594, issue 18).
 ///
-/// The pending voxels after the sweep are cut the same
-/// way, but at the plane of the middle survivor (the sweep's cut halves the planes, which
-/// can leave one slab twice the other's survivors), and tested in rounds: A's and B's at
-/// once, then the seam's, each part handing the voxels it makes pending in another part to
-/// that part for the next round. Every flip is a simple-point flip of the image as it is
-/// at that moment, so the topology is kept, and the survivors are the same on every run.
+/// The pending voxels after the sweep are cut the same way, but with a seam of two planes
+/// (a flip marks its neighbours pending: A's reach plane k at most, B's plane k + 1) at
+/// the plane of the middle survivor (what is left to test is not spread like the
+/// foreground), and tested in rounds: A's and B's at once, then the seam's, each part
+/// handing the voxels it makes pending in another part to that part for the next round.
+/// Every flip is a simple-point flip of the image as it is at that moment, so the topology
+/// is kept, and the survivors are the same on every run.
 pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase) -> Vec<u32> {
     debug_assert!(match phase {
         Phase::Foreground => image.border_is_background(),
@@ -409,42 +410,7 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // 2^12 slots (64 KiB) stay in the core's own cache; 2^16 slots hit more often but
     // made a 32^4 blob about 20% slower (BENCHMARKS.md).
     let (mut cache_a, mut cache_b) = (SimpleCache::new(12), SimpleCache::new(12));
-    let (mut part_a, mut seam, mut part_b) = (Vec::new(), Vec::new(), Vec::new());
-    // Slab A is planes 0..=k of the data (it flags plane k), slab B the rest. A sweeps
-    // planes 0..k and B planes k + 2.., as many each (at k = planes / 2, a 32^4 image's A
-    // swept 16 planes of voxels, B 14, and B waited). B sweeps from its end: see [`thin`].
-    let split = (planes >= 8).then_some((planes - 2) / 2);
-    match split {
-        Some(k) => {
-            let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
-            rayon::join(
-                || {
-                    let range = 0..k * plane;
-                    sweep(&thinner, slab_a, range, 0, &mut part_a, &mut cache_a)
-                },
-                || {
-                    // Backwards: point-reflected (its bytes reversed, which reverses every
-                    // axis and keeps the shape), swept forwards, reflected back.
-                    slab_b.reverse();
-                    let n = slab_b.len();
-                    sweep(&thinner, slab_b, 0..n - plane, 0, &mut part_b, &mut cache_b);
-                    slab_b.reverse();
-                    let last = ((k + 1) * plane + n - 1) as u32;
-                    part_b.reverse();
-                    for i in &mut part_b {
-                        *i = last - *i;
-                    }
-                },
-            );
-            let range = k * plane..(k + 2) * plane;
-            let data = image.data_mut();
-            sweep(&thinner, data, range, 0, &mut seam, &mut cache_a);
-        }
-        None => {
-            let data = image.data_mut();
-            sweep(&thinner, data, 0..len, 0, &mut part_a, &mut cache_a);
-        }
-    }
+    let (survivors, split) = sweep_slabs(&thinner, image, [&mut cache_a, &mut cache_b]);
     // After the sweep: a voxel can only have become simple if a neighbour was flipped
     // since its last test. Every survivor is pending once; each flip makes its unflipped
     // neighbours of the same phase pending again (bit 1 of their byte, which
@@ -465,12 +431,6 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // (Four bytes a survivor, each list at its size: on a random image most of the
     // foreground survives the sweep, and the survivors and the pending lists were the
     // peak of the thinning, issue 18.)
-    // Slab A's list grows in place to take the others': no second copy of it.
-    let mut survivors = part_a;
-    survivors.reserve_exact(seam.len() + part_b.len());
-    survivors.extend_from_slice(&seam);
-    survivors.extend_from_slice(&part_b);
-    drop((seam, part_b));
     let split = split.map(|_| {
         let middle = survivors
             .get(survivors.len() / 2)
@@ -548,6 +508,69 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // Nothing is pending: every flag was cleared when its voxel was tested.
     debug_assert!(data.iter().all(|&v| v & 2 == 0));
     remaining
+}
+
+/// The sweep of [`thin`]: slabs A and B at once (B backwards), then the seam plane between
+/// them, or one sweep of the whole image if it has fewer than eight planes. Returns the
+/// survivors in increasing order, and the plane k that ends slab A if the image was cut.
+fn sweep_slabs(
+    thinner: &Thinner,
+    image: &mut BinaryImage,
+    [cache_a, cache_b]: [&mut SimpleCache; 2],
+) -> (Vec<u32>, Option<usize>) {
+    let planes = image.shape()[0];
+    let plane = thinner.strides[0];
+    let len = image.len();
+    let (mut part_a, mut seam, mut part_b) = (Vec::new(), Vec::new(), Vec::new());
+    // Slab A is planes 0..=k of the data, slab B the rest. A sweeps planes 0..=k and B
+    // planes k + 2.., as many each, or A one more. B sweeps from its end: see [`thin`].
+    let split = (planes >= 8).then_some((planes - 2) / 2);
+    match split {
+        Some(k) => {
+            // Plane k + 1 as it is before the sweeps: A's last plane reads it from this
+            // copy (B's data holds it; neither writes it).
+            let next = image.data()[(k + 1) * plane..(k + 2) * plane].to_vec();
+            let (slab_a, slab_b) = image.data_mut().split_at_mut((k + 1) * plane);
+            rayon::join(
+                || {
+                    let range = 0..k * plane;
+                    sweep(thinner, slab_a, range, 0, &mut part_a, cache_a);
+                    // Plane k, between plane k - 1 and the copy of plane k + 1.
+                    let ends = &mut slab_a[(k - 1) * plane..];
+                    let mut tail = [&*ends, &next].concat();
+                    let (range, offset) = (plane..2 * plane, (k - 1) * plane);
+                    sweep(thinner, &mut tail, range, offset, &mut part_a, cache_a);
+                    ends[plane..].copy_from_slice(&tail[plane..2 * plane]);
+                },
+                || {
+                    // Backwards: point-reflected (its bytes reversed, which reverses every
+                    // axis and keeps the shape), swept forwards, reflected back.
+                    slab_b.reverse();
+                    let n = slab_b.len();
+                    sweep(thinner, slab_b, 0..n - plane, 0, &mut part_b, cache_b);
+                    slab_b.reverse();
+                    let last = ((k + 1) * plane + n - 1) as u32;
+                    part_b.reverse();
+                    for i in &mut part_b {
+                        *i = last - *i;
+                    }
+                },
+            );
+            let range = (k + 1) * plane..(k + 2) * plane;
+            let data = image.data_mut();
+            sweep(thinner, data, range, 0, &mut seam, cache_a);
+        }
+        None => {
+            let data = image.data_mut();
+            sweep(thinner, data, 0..len, 0, &mut part_a, cache_a);
+        }
+    }
+    // Slab A's list grows in place to take the others': no second copy of it.
+    let mut survivors = part_a;
+    survivors.reserve_exact(seam.len() + part_b.len());
+    survivors.extend_from_slice(&seam);
+    survivors.extend_from_slice(&part_b);
+    (survivors, split)
 }
 
 /// What the sweeps and passes of [`thin`] need besides the data.
@@ -799,6 +822,69 @@ mod tests {
                 tester.memo_key(later),
                 "{dim:?}"
             );
+        }
+    }
+
+    /// The cut sweep deletes exactly what one thread deletes reading every configuration
+    /// afresh in the order [`thin`] documents: slab A forwards (planes 0..=k), slab B
+    /// backwards (from the last plane to k + 2), then the seam plane k + 1; in both phases,
+    /// for first sides at and above the cut's eight planes, odd and even.
+    #[test]
+    fn the_cut_sweep_is_the_documented_order_read_afresh() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for dim in Dim::ALL {
+            let d = dim.get();
+            let tester = SimpleTester::new(dim);
+            let all = (1u128 << tester.offsets().len()) - 1;
+            for trial in 0..12 {
+                let side = [12, 8, 6][d - 2];
+                let mut shape: Vec<usize> = (0..d).map(|a| side + a % 2).collect();
+                shape[0] = [8, 9, 12, 17][trial % 4];
+                let density: f64 = rng.gen_range(0.3..0.9);
+                let mut image = random_inside(&shape, density, &mut rng);
+                let phase = if trial % 3 == 2 {
+                    for index in 0..image.len() {
+                        let inner = is_interior(&image, index, 1);
+                        let v = &mut image.data_mut()[index];
+                        *v = if inner { 1 - *v } else { 5 };
+                    }
+                    Phase::Background
+                } else {
+                    Phase::Foreground
+                };
+                let mut fresh = image.clone();
+                let plane = image.strides()[0];
+                let k = (shape[0] - 2) / 2;
+                let order = (0..(k + 1) * plane)
+                    .chain(((k + 2) * plane..image.len()).rev())
+                    .chain((k + 1) * plane..(k + 2) * plane);
+                for i in order {
+                    if fresh.data()[i] & 5 != 1 {
+                        continue;
+                    }
+                    let config = tester.configuration_unchecked(&fresh, i);
+                    let flips = match phase {
+                        Phase::Foreground => tester.is_simple_configuration(config),
+                        Phase::Background => {
+                            let object = !config & all;
+                            object != 0 && tester.is_simple_configuration(object)
+                        }
+                    };
+                    if flips {
+                        fresh.data_mut()[i] = 0;
+                    }
+                }
+                let thinner = Thinner::new(&image, &tester, phase);
+                let (mut a, mut b) = (SimpleCache::new(12), SimpleCache::new(12));
+                let (survivors, split) = sweep_slabs(&thinner, &mut image, [&mut a, &mut b]);
+                assert_eq!(split, Some(k));
+                assert_eq!(image.data(), fresh.data(), "{d}D trial {trial}");
+                let expected: Vec<u32> = (0..image.len() as u32)
+                    .filter(|&i| fresh.data()[i as usize] & 5 == 1)
+                    .collect();
+                assert_eq!(survivors, expected, "{d}D trial {trial}");
+            }
         }
     }
 
