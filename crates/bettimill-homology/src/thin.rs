@@ -753,6 +753,16 @@ mod tests {
         image
     }
 
+    /// The image's complement with its border locked (value 5), as the background phase
+    /// wants it.
+    fn complement_locked(image: &mut BinaryImage) {
+        for index in 0..image.len() {
+            let inner = is_interior(image, index, 1);
+            let v = &mut image.data_mut()[index];
+            *v = if inner { 1 - *v } else { 5 };
+        }
+    }
+
     /// Thinning ends with no simple survivor, whether the image splits into slabs or not
     /// and in both phases: every survivor was tested after its neighbours' last flip.
     #[test]
@@ -772,12 +782,7 @@ mod tests {
                 let phase = if trial % 2 == 0 {
                     Phase::Foreground
                 } else {
-                    // The complement, its border locked.
-                    for index in 0..image.len() {
-                        let inner = is_interior(&image, index, 1);
-                        let v = &mut image.data_mut()[index];
-                        *v = if inner { 1 - *v } else { 5 };
-                    }
+                    complement_locked(&mut image);
                     Phase::Background
                 };
                 let survivors = thin(&mut image, &tester, phase);
@@ -844,11 +849,7 @@ mod tests {
                 let density: f64 = rng.gen_range(0.3..0.9);
                 let mut image = random_inside(&shape, density, &mut rng);
                 let phase = if trial % 3 == 2 {
-                    for index in 0..image.len() {
-                        let inner = is_interior(&image, index, 1);
-                        let v = &mut image.data_mut()[index];
-                        *v = if inner { 1 - *v } else { 5 };
-                    }
+                    complement_locked(&mut image);
                     Phase::Background
                 } else {
                     Phase::Foreground
