@@ -1857,8 +1857,8 @@ mod tests {
         assert!(DenseComplex::new(&[300; 4]).is_err());
     }
 
-    /// A queue of cells gives them back in the order they came, across blocks, plain and
-    /// runs of both kinds, with pops between the pushes and after it ran empty.
+    /// The reduction's cut: the middle of even weights, never an end unit, and off a heavy
+    /// unit that would leave one part most of the work, by the seam's share.
     #[test]
     fn the_cheapest_seam_spares_the_parts_a_heavy_unit() {
         let half = |weights: &[usize], share| {
@@ -1886,6 +1886,8 @@ mod tests {
         assert_eq!(half(&heavy, SeamShare::Whole), Some(3));
     }
 
+    /// A queue of cells gives them back in the order they came, across blocks, plain and
+    /// runs of both kinds, with pops between the pushes and after it ran empty.
     #[test]
     fn the_cell_queue_is_first_in_first_out() {
         let mut queue = CellQueue::default();

@@ -8,14 +8,15 @@
 //! Simple points are not jointly deletable, so deletion is sequential: one raster sweep
 //! in index order, each voxel tested against the image as it is at that moment (the
 //! sweep splits into two slabs too far apart to interact, swept on two threads towards
-//! each other, then the seam between them; see [`thin`]). Raster order is deterministic and needs no queue, and
-//! because the voxels before x are already gone when x is visited, the sweep deletes about
-//! 99% of a blob. Then only the survivors whose neighbourhood changed since their last
-//! test are tested again, from a stack of pending voxels, until none is pending. The
-//! sweep slides the 3^d block along the last axis, reading one new column per voxel
-//! instead of the whole block, and reads the columns sixteen at a time.
-//! The 4D test has no table, so its answers are memoised in a small direct-mapped cache,
-//! [`SimpleCache`] (a pure function memoised: it cannot change a result).
+//! each other, then the seam between them; see [`thin`]). Raster order is deterministic
+//! and needs no queue, and because the voxels before x are already gone when x is
+//! visited, the sweep deletes about 99% of a blob. Then only the survivors whose
+//! neighbourhood changed since their last test are tested again, from a stack of pending
+//! voxels, until none is pending. The sweep slides the 3^d block along the last axis,
+//! reading one new column per voxel instead of the whole block, and reads the columns
+//! sixteen at a time. The 4D test has no table, so its answers are memoised in a small
+//! direct-mapped cache, [`SimpleCache`] (a pure function memoised: it cannot change a
+//! result).
 
 use crate::simple::{SimpleCache, SimpleTester};
 use bettimill_grid::neighbourhood::flat_offsets;
