@@ -168,6 +168,29 @@ pub(crate) fn next_row(row: &mut [usize], sides: &[usize]) {
     }
 }
 
+/// The C-order strides of `shape` (2 to 4 axes; 0 past the last), products of a length
+/// already checked to fit.
+pub(crate) fn strides_of(shape: &[usize]) -> [usize; 4] {
+    let mut strides = [0usize; 4];
+    let mut stride = 1;
+    for axis in (0..shape.len()).rev() {
+        strides[axis] = stride;
+        stride *= shape[axis];
+    }
+    strides
+}
+
+/// Where the row along the last axis whose coordinates along the other axes are `row`
+/// starts in the copy padded by `width` layers whose strides are `strides`.
+pub(crate) fn padded_row_start(row: &[usize], strides: &[usize], width: usize) -> usize {
+    let inside: usize = row
+        .iter()
+        .zip(strides)
+        .map(|(&x, &s)| (x + width) * s)
+        .sum();
+    inside + width
+}
+
 fn checked_len(shape: &[usize]) -> Result<(Dim, usize), GridError> {
     let dim = Dim::new(shape.len()).ok_or(GridError::BadRank(shape.len()))?;
     let mut len: usize = 1;
@@ -231,16 +254,10 @@ impl BinaryImage {
         debug_assert_eq!(data.len(), shape.iter().product::<usize>());
         let mut full = [1usize; 4];
         full[..shape.len()].copy_from_slice(shape);
-        let mut strides = [0usize; 4];
-        let mut stride = 1;
-        for axis in (0..shape.len()).rev() {
-            strides[axis] = stride;
-            stride *= shape[axis];
-        }
         BinaryImage {
             dim,
             shape: full,
-            strides,
+            strides: strides_of(shape),
             data,
         }
     }
@@ -349,19 +366,9 @@ impl BinaryImage {
         let mut c = [0usize; 4];
         for r in 0..rows {
             let src = r * row;
-            let mut dst_coords = [width; 4];
-            for axis in 0..d - 1 {
-                dst_coords[axis] = c[axis] + width;
-            }
-            let dst = out.index(&dst_coords[..d]);
+            let dst = padded_row_start(&c[..d - 1], &out.strides, width);
             out.data[dst..dst + row].copy_from_slice(&self.data[src..src + row]);
-            for axis in (0..d - 1).rev() {
-                c[axis] += 1;
-                if c[axis] < self.shape[axis] {
-                    break;
-                }
-                c[axis] = 0;
-            }
+            next_row(&mut c[..d - 1], &self.shape);
         }
         out
     }
@@ -380,23 +387,13 @@ impl BinaryImage {
         let rows = self.len() / row;
         let mut data = self.data;
         data.resize(new_len, 0);
-        let mut strides = [0usize; 4];
-        let mut stride = 1;
-        for axis in (0..d).rev() {
-            strides[axis] = stride;
-            stride *= new_shape[axis];
-        }
+        let strides = strides_of(&new_shape);
         // The padded start of every row, in order (its coordinates along the first d - 1
         // axes are r's digits in the old shape).
         let mut starts = Vec::with_capacity(rows);
         let mut digits = [0usize; 4];
         for _ in 0..rows {
-            starts.push(
-                width
-                    + (0..d - 1)
-                        .map(|axis| (digits[axis] + width) * strides[axis])
-                        .sum::<usize>(),
-            );
+            starts.push(padded_row_start(&digits[..d - 1], &strides, width));
             next_row(&mut digits[..d - 1], &old_shape);
         }
         for (r, &dst) in starts.iter().enumerate().rev() {

@@ -310,8 +310,9 @@ struct Placer {
     shape: Vec<usize>,
     len: usize,
     width: usize,
-    /// The padded strides of the axes before the last.
-    strides: Vec<usize>,
+    /// The padded image's strides, and the image's own sides.
+    strides: [usize; 4],
+    sides: [usize; 4],
     /// The row being received: its coordinates along the axes before the last, where it
     /// starts in the padded image, and how many of its voxels came.
     row: Vec<usize>,
@@ -336,16 +337,14 @@ impl Placer {
             .iter()
             .try_fold(1usize, |len, &n| len.checked_mul(n))?;
         let d = shape.len();
-        let mut strides = vec![1usize; d];
-        for axis in (0..d - 1).rev() {
-            strides[axis] = strides[axis + 1] * padded[axis + 1];
-        }
-        strides.pop();
+        let mut sides = [0usize; 4];
+        sides[..d].copy_from_slice(shape);
         let mut placer = Placer {
+            strides: crate::strides_of(&padded),
             shape: padded,
             len,
             width,
-            strides,
+            sides,
             row: vec![0; d - 1],
             start: 0,
             received: 0,
@@ -359,16 +358,12 @@ impl Placer {
 
     /// Where the row `self.row` starts in the padded image.
     fn row_start(&self) -> usize {
-        let inside: usize = (self.row.iter().zip(&self.strides))
-            .map(|(&x, &stride)| (x + self.width) * stride)
-            .sum();
-        inside + self.width
+        crate::padded_row_start(&self.row, &self.strides, self.width)
     }
 
     /// Appends `values`, the next voxels in C order, to `voxels` at their places.
     fn place(&mut self, voxels: &mut Vec<u8>, mut values: &[u8]) {
-        let d = self.shape.len();
-        let line = self.shape[d - 1] - 2 * self.width;
+        let line = self.sides[self.row.len()];
         while !values.is_empty() {
             if self.received == 0 {
                 voxels.resize(self.start, 0);
@@ -381,9 +376,7 @@ impl Placer {
                 self.received = 0;
                 // The next row (past the last row the start is never used: no value is
                 // left).
-                let sides: [usize; 4] =
-                    std::array::from_fn(|a| self.shape.get(a).map_or(0, |&n| n - 2 * self.width));
-                crate::next_row(&mut self.row, &sides);
+                crate::next_row(&mut self.row, &self.sides);
                 self.start = self.row_start();
             }
         }
