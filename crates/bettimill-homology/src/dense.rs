@@ -531,13 +531,11 @@ impl DenseComplex {
     #[inline]
     pub(crate) fn insert_mask(&mut self, owner: usize, cells: u16) {
         let mask = &mut self.masks.get_mut()[owner];
-        if *mask == 0 {
-            if let Owners::Listed(list) = &mut self.owners {
-                list.push(owner as u32);
-            }
-        }
-        self.chi += euler_of(cells & !*mask, self.grid.d);
-        *mask |= cells;
+        let list = match &mut self.owners {
+            Owners::Listed(list) => Some(list),
+            Owners::Scanned => None,
+        };
+        *mask = add_cells(*mask, cells, owner, list, self.grid.d, &mut self.chi);
     }
 
     /// Inserts cells on two threads at once: `lower` and `upper` each get an [`Inserter`],
@@ -912,15 +910,38 @@ impl Inserter<'_> {
         }
         // A load and a store: no other thread touches these places.
         let mask = &self.masks[owner];
-        let old = mask.load(Relaxed);
-        if old == 0 {
-            if let Some(list) = &mut self.owners {
-                list.push(owner as u32);
-            }
-        }
-        self.chi += euler_of(cells & !old, self.d);
-        mask.store(old | cells, Relaxed);
+        let list = self.owners.as_mut();
+        let new = add_cells(
+            mask.load(Relaxed),
+            cells,
+            owner,
+            list,
+            self.d,
+            &mut self.chi,
+        );
+        mask.store(new, Relaxed);
     }
+}
+
+/// The mask of `owner` once `cells` join its mask `old`, for both ways of inserting: the
+/// owner is listed in `owners` (if they are listed) when it had no cell, and the new
+/// cells' Euler characteristic (in a grid of `d` axes) is added to `chi`.
+#[inline]
+fn add_cells(
+    old: u16,
+    cells: u16,
+    owner: usize,
+    owners: Option<&mut Vec<u32>>,
+    d: usize,
+    chi: &mut i64,
+) -> u16 {
+    if old == 0 {
+        if let Some(list) = owners {
+            list.push(owner as u32);
+        }
+    }
+    *chi += euler_of(cells & !old, d);
+    old | cells
 }
 
 /// The grid and the masks of a [`DenseComplex`], as a reduction shares them between its
