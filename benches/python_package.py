@@ -1,4 +1,4 @@
-"""Benchmarks of the Python package (issue 19), results in BENCHMARKS.md.
+"""Benchmarks of the Python package, results in BENCHMARKS.md.
 
     python benches/python_package.py betti     # needs bettimill and cripser (a scratch venv)
     python benches/python_package.py loader    # needs bettimill[torch], webdataset, the CLI

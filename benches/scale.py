@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Scale benchmark of the dataset directory (issue 15): does the index, and do `verify`,
+"""Scale benchmark of the dataset directory: does the index, and do `verify`,
 `status`, `finalize` and a build's start-up, stay flat as a dataset grows?
 
 Builds 2D datasets of tiny samples (side 12, one class, shard_size 1000) of 10^4, 10^5 and

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Variety of the 4D mixed 128 preset, per stratum (issue 17 item 2).
+"""Variety of the 4D mixed 128 preset, per stratum.
 
 Builds a reduced copy of `manifests/4d-mixed-128.toml` with a given bettimill binary (the
 preset's classes, components, bins, mode and seed; `samples` set so every stratum that can

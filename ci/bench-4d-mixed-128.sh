@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 17's benchmark: the 4D mixed 128 preset reduced to 8 samples (its classes, bins,
+# The CLI benchmark: the 4D mixed 128 preset reduced to 8 samples (its classes, bins,
 # components and resolutions unchanged; the seed chosen so that the 8 cover every family
 # and every bin), built by one worker under /usr/bin/time; one
 # extracted sample compressed by `zstd -3` in the same run; the ratio of the build's CPU
@@ -45,7 +45,7 @@ cpu=$(echo "$user + $sys" | bc -l)
 per_sample=$(echo "$cpu / 8" | bc -l)
 printf 'wall %.1f s, cpu %.1f s (%.2f cpu-s per sample), peak RSS %d MiB\n' \
     "$wall" "$cpu" "$per_sample" $((rss_kib / 1024))
-# The dataset's bytes (shards), beside plan's compressed estimate (issue 17 item 5).
+# The dataset's bytes (shards), beside plan's compressed estimate.
 shard_bytes=$(cat "$work"/ds/shards/*.tar | wc -c)
 printf 'shards: %d bytes (%.0f a sample)\n' "$shard_bytes" "$(echo "$shard_bytes / 8" | bc -l)"
 echo "== samples built"

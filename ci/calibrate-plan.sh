@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Calibrates the cost model of `bettimill plan` (crates/bettimill-plan/src/estimate.rs,
-# issue 17 item 5): builds small datasets of one family, side and mode each with one worker
+# Calibrates the cost model of `bettimill plan` (crates/bettimill-plan/src/estimate.rs):
+# builds small datasets of one family, side and mode each with one worker
 # under /usr/bin/time and prints, per case, CPU seconds (user + system: the machine is
 # shared, wall time is not a measure) per sample, nanoseconds per voxel, and the
 # compressed bytes per sample and ratio to the uncompressed bound, beside what

@@ -1,4 +1,4 @@
-//! Memory bounds (issue 16, item 3): huge but valid manifests plan and start building in
+//! Memory bounds: huge but valid manifests plan and start building in
 //! bounded memory, checked under `ulimit -v` (a process over the limit gets allocation
 //! failures, not swap); a sample too big for a worker's memory limit is refused with the
 //! numbers before anything is written or any worker starts.

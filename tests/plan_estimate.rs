@@ -1,4 +1,4 @@
-//! `bettimill plan`'s estimates (issue 17 item 5, issue 20 item 5): the cost model's fields
+//! `bettimill plan`'s estimates: the cost model's fields
 //! in `--json`, `--pilot` building and measuring real samples, and the model's compressed
 //! size against a pilot's measured bytes, and the line on carved tubes for the copies.
 //! Nothing here compares times: CPU and wall seconds depend on the machine and its load,

@@ -29,7 +29,7 @@
 //!
 //! Constants come from `ci/calibrate-plan.sh` (one-worker builds of one family, side and
 //! mode each under `/usr/bin/time`, user + system seconds) and `ci/bench-4d-mixed-128.sh`;
-//! the runs are in BENCHMARKS.md, "Plan estimates (issue 17 item 5, issue 20 item 5)".
+//! the runs are in BENCHMARKS.md, "Plan estimates".
 //! They are estimates for planning, within 2x of the measured builds there, not promises.
 
 use crate::{Plan, Stratum};
