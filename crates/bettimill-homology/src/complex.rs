@@ -6,7 +6,7 @@
 //! of odd coordinates. Cells are packed into one `u64` key, 64/d bits per coordinate with
 //! the first axis most significant, so that a complex is a sorted `Vec<u64>` in
 //! lexicographic order and coordinates, parities and neighbours are shifts and masks rather
-//! than divisions (which made collapsing several times slower). 16 bits per axis in 4D
+//! than divisions, which would dominate collapsing. 16 bits per axis in 4D
 //! limit an axis to 32766 voxels, far beyond any 4D image that fits in memory.
 //!
 //! This is the plain representation the slow oracle ([`crate::reference`]) works on: every

@@ -85,7 +85,7 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
 pub(crate) fn count_components_of(data: &mut [u8], voxels: &[u32], steps: &[isize]) -> u64 {
     let mut count = 0;
     // Four bytes a voxel, like `voxels`: on a random image the stack holds a good part of
-    // the remnant at once (150 MB of `usize` on a random 96^4 image, issue 18).
+    // the remnant at once.
     let mut stack: Vec<u32> = Vec::new();
     for &start in voxels {
         if data[start as usize] != 1 {

@@ -89,9 +89,9 @@ fn check_pool(n: usize) -> Result<(), PoolOverflow> {
 /// Many short lists of `u32` in one pool: list i is `data[start[i]..start[i] + len[i]]`,
 /// with room for `room(cap[i])` entries there (9 bytes of header per list: a place, a
 /// length and a one-byte room code). A list that outgrows its room moves to the end of the
-/// pool with twice the room (the old place is left unused), where a `Vec` per list cost a
-/// 24-byte header and a heap block each (about 70 bytes per list before any entry: most of
-/// the peak memory on a random 4D image, issue 18). When the pool is full and at most half
+/// pool with twice the room (the old place is left unused). A `Vec` per list would cost a
+/// 24-byte header and a heap block each, more than the entries of most lists here, and the
+/// lists are the peak memory on a random 4D image. When the pool is full and at most half
 /// of it holds entries (rooms left behind by moved lists, and lists emptied by the
 /// elimination's pivots), it is compacted in place instead of grown, so it stays within
 /// about twice the entries the lists hold at once.

@@ -22,8 +22,8 @@
 //!   thinning would leave a 3-dimensional shell around every cavity. Instead the background
 //!   is thinned (its simple voxels are given to the object) down to thin cores of the
 //!   cavities, and duality (labels note) turns the cores' homology in the other
-//!   construction into the object's. A carved 128^4 cube takes seconds and well under
-//!   1 GB instead of ~50 s and ~7 GB.
+//!   construction into the object's: the cost follows the cavities, which are small, not
+//!   the wall.
 //!
 //! Memory: the padded copy (one byte per voxel; [`try_topology_owned`] makes it from the
 //! caller's image in place, [`try_topology`] beside it) and the survivors of the thinning
@@ -31,10 +31,9 @@
 //! in 2 MiB pages backed only where the remnant is; four per owner voxel when they are
 //! few enough to list; five per queued cell, one per free face found by the first scan and
 //! about three per candidate in a long queue),
-//! and on a rough image the elimination's lists of the cells the pairs leave.
-//! `bettimill betti` (the owned route) peaked at 972 MiB on a 128^4 blob (3.8 bytes per
-//! voxel), and on random images, whose remnant is most of the image, at 105 MiB at 64^4,
-//! 464 MiB at 96^4 and 2.2 GiB at 128^4 (6.6, 5.7 and 9.0 bytes per voxel; BENCHMARKS.md).
+//! and on a rough image the elimination's lists of the cells the pairs leave. So the peak
+//! is a few bytes per voxel, more on random images, whose remnant is most of the image
+//! (figures per size in BENCHMARKS.md).
 //! On a large remnant the reduction pairs run on two threads, in parts of the grid that
 //! never meet (module `dense`).
 //!
@@ -275,9 +274,8 @@ fn topology_by_thinning_with(
 /// them) and each half is done on its own thread, in the voxels' order: each inserts the
 /// cells owned on its side of the cut, and the few that the second half's first plane owns
 /// one step back, on the first half's side, are inserted after both. The complex is the
-/// same whatever the threads' timing. (Two threads faulting in the masks' fresh 4 KiB
-/// pages at once were about three times slower per voxel on the test machine, issue 18;
-/// in huge pages they fault a few times, not thousands.)
+/// same whatever the threads' timing. (The masks live in huge pages: two threads filling
+/// fresh masks at once in 4 KiB pages take thousands of page faults, in huge pages a few.)
 fn remnant_complex(
     padded: &BinaryImage,
     remaining: &[u32],
@@ -367,9 +365,8 @@ fn remnant_complex_cut(
     let owned = 1 << padded.dim().get();
     let insert = |voxels: &[u32], inserter: &mut dense::Inserter| {
         // A smooth image's remnant repeats some local shapes: each thread keeps the masks
-        // of the attachment sets it met last, and a hit skips the collapses (a 32^4 blob's
-        // voxels met 2,655 sets in 4,053, and its complex took 15% fewer instructions). A
-        // rough one's repeat too rarely (a random 24^4 image's 46,061 in 48,565).
+        // of the attachment sets it met last, and a hit skips the collapses. A rough
+        // image's sets repeat too rarely to pay for the memo, so it has none.
         let mut memo = complex_listed.then(MasksMemo::new);
         for &index in voxels {
             let index = index as usize;

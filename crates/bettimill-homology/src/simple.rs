@@ -152,7 +152,7 @@ struct Tables {
     even_faces: u128,
     odd_faces: u128,
     // The neighbours below are held as one-bit masks, tested with an AND: a test by a
-    // shift of the 128-bit configuration took about twice the instructions.
+    // shift of the 128-bit configuration costs more instructions.
     /// The neighbour bit of each face-neighbour (slot s = 2 * axis + (sign > 0)).
     face_neighbours: Vec<u128>,
     /// (slot a, slot b, the neighbour bit of the voxel that joins them).
@@ -167,7 +167,7 @@ struct Tables {
 
 /// The union of the entries of per-byte tables (`low` for bits 0-63 of the result, `high`
 /// for bits 64-79) picked by the bytes of `bits`: one lookup per byte, read from its two
-/// 64-bit halves (a loop shifting the 128-bit value took twice the instructions).
+/// 64-bit halves (a loop shifting the 128-bit value costs more instructions).
 #[inline]
 fn by_bytes(low: &[[u64; 256]], high: &[[u16; 256]], bits: u128) -> u128 {
     let (mut result_low, mut result_high) = (0u64, 0u16);
@@ -458,8 +458,7 @@ impl Tables {
     #[inline]
     fn evaluate_attachment(&self, faces: u128) -> bool {
         // The Euler characteristic first: two counts, and it is what rejects most often
-        // (54% of the memo's misses on a 48^4 blob, where the background condition
-        // rejected 2.4%).
+        // (far more often than the background condition).
         let chi = (faces & self.even_faces).count_ones() as i32
             - (faces & self.odd_faces).count_ones() as i32;
         chi == 1 && self.background_faces_connected(faces) && self.attachment_connected(faces)
@@ -515,10 +514,9 @@ fn table_3d(tables: &Tables) -> &'static [u64] {
 }
 
 impl SimpleTester {
-    /// The tables for `dim`: built on the process's first call for that dimension (about
-    /// 0.25 ms in 4D, a pure function of the dimension), shared by the later ones (every
-    /// sample a build verifies or deforms asks for them again). The 3D bitset is built on
-    /// first use.
+    /// The tables for `dim`: built on the process's first call for that dimension (a pure
+    /// function of the dimension), shared by the later ones (every sample a build verifies
+    /// or deforms asks for them again). The 3D bitset is built on first use.
     pub fn new(dim: Dim) -> SimpleTester {
         static TESTERS: [OnceLock<SimpleTester>; 3] = [const { OnceLock::new() }; 3];
         TESTERS[dim.get() - 2]

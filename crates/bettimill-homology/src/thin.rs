@@ -10,7 +10,7 @@
 //! sweep splits into two slabs too far apart to interact, swept on two threads towards
 //! each other, then the seam between them; see [`thin`]). Raster order is deterministic
 //! and needs no queue, and because the voxels before x are already gone when x is
-//! visited, the sweep deletes about 99% of a blob. Then only the survivors whose
+//! visited, the sweep deletes nearly all of a blob. Then only the survivors whose
 //! neighbourhood changed since their last test are tested again, from a stack of pending
 //! voxels, until none is pending. The sweep slides the 3^d block along the last axis,
 //! reading one new column per voxel instead of the whole block, and reads the columns
@@ -65,8 +65,8 @@ fn sweep_with<const R: u32>(
     let neighbours = window.all_bits & !window.centre_bit;
     // The block of a voxel whose earlier neighbours (in raster order) are all gone and
     // later ones all present: its attachment set is a closed half of the voxel's boundary,
-    // a ball, so it is simple. A third of a blob's voxels look like this in the first
-    // sweep; they skip the memo.
+    // a ball, so it is simple. Many of a blob's voxels look like this in the first sweep,
+    // so they skip the memo.
     let half = window.half;
     // (Indices fit in 32 bits: `thin` checks.)
     let offset = global_offset as u32;
@@ -93,8 +93,8 @@ fn sweep_with<const R: u32>(
             window.block_of::<R>(data, i, &mut columns)
         };
         previous = i;
-        // A voxel whose face neighbours are all foreground is never simple (the background
-        // part of its neighbourhood is empty); that check is much cheaper than the test.
+        // A foreground voxel whose block is `half` (above) is simple: it is deleted
+        // without the memo or the test.
         if phase == Phase::Foreground && block == half {
             data[i] = 0;
             block &= !window.centre_bit;
@@ -268,9 +268,9 @@ impl Window {
 /// bytes j are column j's four bytes.
 ///
 /// On x86-64 in SSE2 vectors, part of the baseline target (through `safe_arch`, without
-/// unsafe code): three instructions a row and eight unpacks. The portable code below
-/// compiled to about 520 instructions for 27 rows where these take about 300: the
-/// compiler neither unrolled the rows nor kept a group in one register (issue 18).
+/// unsafe code): three instructions a row and eight unpacks. The portable code below is
+/// the fallback elsewhere; the compiler neither unrolls its rows nor keeps a group in one
+/// register.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn pack_rows<const R: usize>(rows: &[isize], span: &[u8], offset: isize) -> [u32; 16] {
@@ -382,10 +382,8 @@ pub(crate) enum Phase {
 /// A sweeps forwards and B backwards, towards the seam. A raster sweep leaves more
 /// survivors the further it goes (what cannot go, the loops and shells, is pushed ahead of
 /// it), and they pile up against whatever it meets last: the image's last plane, or a
-/// seam whose far side was swept already. Both sweeps forwards, a 32^4 blob kept 1,138
-/// voxels in the seam's second plane and 381 in the last plane, 24% of its 6,364; meeting
-/// at the seam, the two piles are one, and the remnant is 5,088 voxels (a 64^4 blob's
-/// 107,497 fell to 84,594, issue 18).
+/// seam whose far side was swept already. Meeting at the seam, the two piles are one, so
+/// the remnant the reduction gets is smaller than with both sweeps forwards.
 ///
 /// The pending voxels after the sweep are cut the same way, but with a seam of two planes
 /// (a flip marks its neighbours pending: A's reach plane k at most, B's plane k + 1) at
@@ -408,8 +406,8 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     let planes = image.shape()[0];
     let plane = thinner.strides[0];
     let len = image.len();
-    // 2^12 slots (64 KiB) stay in the core's own cache; 2^16 slots hit more often but
-    // made a 32^4 blob about 20% slower (BENCHMARKS.md).
+    // 2^12 slots (64 KiB) stay in the core's own cache; a larger memo hits more often but
+    // its misses in the shared cache cost more than the hits save.
     let (mut cache_a, mut cache_b) = (SimpleCache::new(12), SimpleCache::new(12));
     let (survivors, split) = sweep_slabs(&thinner, image, [&mut cache_a, &mut cache_b]);
     // After the sweep: a voxel can only have become simple if a neighbour was flipped
@@ -422,15 +420,14 @@ pub(crate) fn thin(image: &mut BinaryImage, tester: &SimpleTester, phase: Phase)
     // rounds end when nothing is pending. Skipping a voxel never flips anything, so it
     // cannot affect correctness, and at the end every survivor was last tested after its
     // neighbours' last flip: no survivor is simple, as with full sweeps. (Passes over all
-    // survivors took 58 passes on a 64^4 blob, the tip of a curve eaten one voxel a
-    // pass.)
+    // survivors would need one pass per voxel of a curve eaten from its tip.)
     // The survivors in index order. The pending rounds cut the image again, at the plane
     // of the middle survivor: what is left to test is not spread like the foreground (it
     // piles up where the sweeps meet, and grows along each sweep), so a cut by planes
     // left one thread testing twice as long as the other.
     // (Four bytes a survivor, each list at its size: on a random image most of the
-    // foreground survives the sweep, and the survivors and the pending lists were the
-    // peak of the thinning, issue 18.)
+    // foreground survives the sweep, and the survivors and the pending lists are the
+    // peak of the thinning.)
     let split = split.map(|_| {
         let middle = survivors
             .get(survivors.len() / 2)
