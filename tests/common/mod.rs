@@ -1,6 +1,5 @@
-//! The one harness of the end-to-end test files in `tests/` (`cli_ux.rs`, `docs_links.rs`,
-//! `end_to_end.rs`, `image_input.rs`, `reliability.rs`, `slurm.rs`, `tidy.rs`, `workers.rs`;
-//! ripgrep's `tests/util.rs` in spirit): start the real `bettimill` binary, in a fresh temporary directory when the
+//! The one harness of the end-to-end test files in `tests/` (ripgrep's `tests/util.rs` in
+//! spirit): start the real `bettimill` binary, in a fresh temporary directory when the
 //! working directory matters, compare its exit code, stdout and stderr, and look at its
 //! child processes and output directory. Helpers shared with the tests of other crates
 //! (the fuzz runner, the seeded generator, fail-in-CI for missing tools) live in
