@@ -522,7 +522,8 @@ fn deform_keeps_topology_shape_and_dtype() {
     assert!(!tmp.path().join("x.npy").exists());
 }
 
-/// `bettimill plan | head` used to panic in `println!` when `head` closed the pipe.
+/// `bettimill plan | head`: a closed pipe ends the output quietly, where `println!` would
+/// panic.
 #[test]
 fn a_closed_stdout_pipe_is_not_a_panic() {
     use std::io::Read;

@@ -10,9 +10,9 @@ use std::time::Duration;
 mod common;
 use common::{assert_exit, kill, run, stderr, stdout, text, wait_until, Dir, BETTIMILL};
 
-/// Address space a huge plan or build may use (KiB). The two huge manifests below aborted
-/// allocating 4 GiB and 7 GiB before; a bounded plan needs a few MiB of it (threads and
-/// allocator arenas reserve most of the rest).
+/// Address space a huge plan or build may use (KiB): far below what the two huge manifests
+/// below would take if the plan held them whole; a bounded plan needs a few MiB of it
+/// (threads and allocator arenas reserve most of the rest).
 const ULIMIT_KIB: u64 = 1_000_000;
 
 /// The 4D demo with `samples` and `shard_size` replaced.
@@ -248,8 +248,8 @@ fn in_slurm_job(args: &[&str], vars: &[(&str, &str)]) -> Output {
     command.output().unwrap()
 }
 
-/// An array task on a shared node used to check the node's MemAvailable, not its job's
-/// allocation: inside a Slurm job the limit is `SLURM_MEM_PER_NODE`, or
+/// An array task on a shared node checks its job's allocation, not the node's
+/// MemAvailable: inside a Slurm job the limit is `SLURM_MEM_PER_NODE`, or
 /// `SLURM_MEM_PER_CPU` x `SLURM_CPUS_ON_NODE`, and the message says which.
 #[test]
 fn inside_a_slurm_job_the_memory_limit_is_the_jobs_allocation_and_is_named() {
@@ -292,8 +292,8 @@ fn inside_a_slurm_job_the_memory_limit_is_the_jobs_allocation_and_is_named() {
     assert_exit(&in_slurm_job(&["plan", m, "--max-memory", "1G"], &job), 0);
 }
 
-/// `bettimill k8s` had no memory setting: its pods ran with none asked for and each
-/// checked its node's MemAvailable.
+/// `bettimill k8s --max-memory`: the pods ask Kubernetes for the memory and check it, rather
+/// than running with none asked for and checking their node's MemAvailable.
 #[test]
 fn k8s_max_memory_is_checked_and_written_into_the_jobs_resources_and_command() {
     let tmp = Dir::new();

@@ -616,8 +616,8 @@ fn only_a_really_foreign_directory_is_refused_and_it_is_left_untouched() {
 }
 
 /// Two builds started together into a fresh directory: the one that does not get the
-/// directory is told another build holds its lock (it used to be told the directory was
-/// foreign), and the directory ends as a clean build.
+/// directory is told another build holds its lock (not that the directory is foreign), and
+/// the directory ends as a clean build.
 #[test]
 fn the_loser_of_two_builds_into_a_fresh_directory_is_told_about_the_lock() {
     let tmp = Dir::new();
@@ -708,9 +708,9 @@ fn sigint_and_sigterm_stop_every_worker_and_the_rerun_is_identical() {
     }
 }
 
-/// The start-up of a build (planning, creating and checking the directory) used to run
-/// before any signal handler: a signal there killed the build with no message (exit 143,
-/// or death by SIGINT; for 10^7 one-sample shards the window was minutes). The test hook
+/// The start-up of a build (planning, creating and checking the directory) runs under the
+/// signal handlers: a signal there ends the build with its message, not a silent death
+/// (exit 143, or death by SIGINT), and for a huge plan start-up is not short. The test hook
 /// `BETTIMILL_TEST_PAUSE_AT_STARTUP` holds the build in start-up, after the directory is
 /// bound and before any worker starts, so the signal lands there on any machine.
 #[test]
@@ -777,14 +777,13 @@ fn signals_in_the_first_milliseconds_exit_130_and_resume() {
 // ---------------------------------------------------------------- inflated shards
 
 /// The readers' peak resident set allowed on a damaged shard: far below the 6 GiB the
-/// shard claims (each reader used to peak at the file's size, or run out of memory).
+/// shard claims, which a reader that holds a whole shard would need.
 const READER_PEAK_KIB: u64 = 200 * 1024;
 
-/// `verify`, `status`, `stats`, `preview` and `audit` each used to read a whole shard into
-/// memory: a shard sparse-truncated to 3 GB made each peak at 3.15 GB, and one that is a
-/// link to /dev/zero made them run out of memory. Now each checks the file against its
-/// completion record before reading and streams through a fixed buffer: each finishes
-/// with a finding that names the shard, in small memory.
+/// `verify`, `status`, `stats`, `preview` and `audit` on a shard sparse-truncated to 3 GB or
+/// a link to /dev/zero: each checks the file against its completion record before reading
+/// and streams through a fixed buffer, so each finishes with a finding that names the
+/// shard, in small memory.
 #[test]
 fn an_inflated_shard_or_a_link_to_dev_zero_is_a_finding_of_every_reader_in_small_memory() {
     let tmp = Dir::new();
@@ -865,9 +864,9 @@ fn flip_member_hash(record: &Path) {
     std::fs::write(record, text.replace(&hash, &flipped)).unwrap();
 }
 
-/// A record with one member hash flipped used to pass `status` (only the shard's own size
-/// and hash were compared) and be copied into index.json by `finalize` and `build`, after
-/// which `verify` called the intact shard damaged forever.
+/// A record with one member hash flipped fails `status` (the whole record is checked, not
+/// only the shard's own size and hash), so `finalize` and `build` never copy it into
+/// index.json, where `verify` would call the intact shard damaged forever.
 #[test]
 fn a_flipped_member_hash_in_a_record_makes_the_shard_incomplete_and_build_repairs_it() {
     let tmp = Dir::new();
@@ -899,8 +898,8 @@ fn a_flipped_member_hash_in_a_record_makes_the_shard_incomplete_and_build_repair
     assert_same(&clean, &out);
 }
 
-/// A symlinked `shards/` or `records/` used to be followed, writing tars outside the
-/// dataset directory.
+/// A symlinked `shards/` or `records/` is refused: following it would write tars outside
+/// the dataset directory.
 #[test]
 fn a_symlinked_shards_or_records_directory_is_refused_and_nothing_is_written_through_it() {
     let tmp = Dir::new();
@@ -932,8 +931,8 @@ fn a_symlinked_shards_or_records_directory_is_refused_and_nothing_is_written_thr
     }
 }
 
-/// `preview DIR --out DIR/index.json` and `stats --plot DIR/shards/X.tar` used to overwrite
-/// dataset files.
+/// `preview DIR --out DIR/index.json` and `stats --plot DIR/shards/X.tar` would overwrite
+/// dataset files: they are refused.
 #[test]
 fn output_files_inside_a_dataset_directory_are_refused() {
     let tmp = Dir::new();
@@ -1035,10 +1034,9 @@ fn file_identities(
     out
 }
 
-/// The tour's no-op `build --out demo-out` used to rewrite index.json, the wids indexes and
-/// the card, and `stats` then took the build time from their mtimes (64 s for a 0.2 s
-/// build). A build or finalize that changes nothing now writes nothing, and `stats` reports
-/// the build time from the timings the build recorded.
+/// The tour's no-op `build --out demo-out`: a build or finalize that changes nothing writes
+/// nothing (not even index.json, the wids indexes or the card), and `stats` reports the
+/// build time from the timings the build recorded, never from file modification times.
 #[test]
 fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     let tmp = Dir::new();
@@ -1058,7 +1056,7 @@ fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     assert_exit(&build(&m, &out, 2), 0);
     let finalize = run(&["finalize", out.to_str().unwrap()]);
     assert_exit(&finalize, 0);
-    // It used to say "wrote index.json" when it had written nothing.
+    // It does not claim "wrote index.json" when it wrote nothing.
     assert!(
         stderr(&finalize).contains("nothing changed") && !stderr(&finalize).contains("wrote"),
         "{}",

@@ -214,8 +214,7 @@ impl Dataset {
         let tasks = self.plan.shard_tasks(shard);
         let compression = self.plan.compression;
         // Each sample becomes its (compressed) members as soon as it is verified, so a
-        // worker holds a shard's compressed bytes, not every uncompressed image of the shard
-        // (150 samples of 56^4 held 1.5 GB that way).
+        // worker holds a shard's compressed bytes, not every uncompressed image of the shard.
         let samples: Vec<(Vec<Member>, String, u32)> = tasks
             .par_iter()
             .map(|task| {

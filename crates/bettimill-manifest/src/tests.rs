@@ -214,7 +214,7 @@ fn ranges_expand_into_classes() {
 
 #[test]
 fn a_manifest_file_larger_than_the_limit_is_refused_without_reading_it_whole() {
-    // /dev/zero once read 4.2 GB before running out of memory.
+    // /dev/zero read whole would run out of memory.
     if Path::new("/dev/zero").exists() {
         let err = Manifest::from_path(Path::new("/dev/zero")).unwrap_err();
         assert!(

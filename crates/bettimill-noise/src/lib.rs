@@ -158,7 +158,7 @@ const GRADIENTS4: [[f64; 4]; 32] = {
 /// terms +-c summed from +0.0 in axis order, and on the zero axis c * 0.0 = +-0.0 in its
 /// place. Adding +-0.0 changes no non-zero sum, and a running sum started at +0.0 is never
 /// -0.0, so this is bit for bit the sum of the three terms alone (the golden values pin
-/// it), without the branches that made the 4D noise several times slower.
+/// it), without branches in the 4D noise's inner loop.
 #[inline]
 fn grad4(hash: u8, p: [f64; 4]) -> f64 {
     let g = &GRADIENTS4[gradient_index4(hash) as usize];

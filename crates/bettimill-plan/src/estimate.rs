@@ -14,10 +14,10 @@
 //! ```
 //!
 //! and a build costs [`BUILD_FIXED_SECONDS`] on top (the process, the plan, the workers).
-//! The family's own parts (a connected sum's summands) measured no extra cost (4D 64 carve:
-//! a connected sum of four summands 37.6 ns/voxel, a ball 46.8: a big ball's cavity is the
-//! costlier), so only the copies of a scene count. `NS_PER_VOXEL` includes generating, targeting, verifying (the
-//! homology), labelling and compressing one sample with the calibration's compression.
+//! The family's own parts (a connected sum's summands) measure no extra cost (a big ball's
+//! cavity costs more than a connected sum's), so only the copies of a scene count.
+//! `NS_PER_VOXEL` includes generating, targeting, verifying (the homology), labelling and
+//! compressing one sample with the calibration's compression.
 //!
 //! The compressed size of an array of side `s` in `d` dimensions is
 //! `128 + s^d` bytes without compression and otherwise
@@ -42,19 +42,16 @@ pub const NS_PER_VOXEL: [[f64; 2]; 3] = [[51.0, 81.0], [34.0, 105.0], [39.0, 46.
 
 /// Factor on [`NS_PER_VOXEL`] for a stratum brought into a hypervolume bin, by dimension:
 /// binned samples are sized for their bin (the box and cavities are chosen to land in it),
-/// which measured cheaper than an unbinned sample of the same family (3D 64 carve ball
-/// 70.6 vs 108.7 ns/voxel, 4D 64 carve ball 34.9 vs 46.8; 4D 128 binned carve, the
-/// preset reduced to 8 samples, about 18.5 ns/voxel for the whole sample, copies included,
-/// on an idle machine and twice that on a loaded one). 2D was not measured: the 3D factor
-/// is used.
+/// which costs less than an unbinned sample of the same family (the calibration cases and
+/// the reduced 4D mixed 128 preset). 2D is not calibrated: the 3D factor is used.
 pub const BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.5];
 
-/// Extra cost of each copy past the first in a scene of `components` copies (4D 48 carve
-/// handle: 0.235 CPU-s alone, 0.330 with two copies).
+/// Extra cost of each copy past the first in a scene of `components` copies (calibrated on
+/// a 4D 48 carved handle with one and two copies).
 pub const COPY_WEIGHT: f64 = 0.4;
 
-/// CPU nanoseconds per voxel and deformation step (3D 64 embed ball with 200 `moves`
-/// steps: 0.37 CPU-s against 0.009 without).
+/// CPU nanoseconds per voxel and deformation step (calibrated on a 3D 64 embedded ball
+/// with and without 200 `moves` steps).
 pub const DEFORM_NS_PER_STEP_VOXEL: f64 = 6.9;
 
 /// CPU nanoseconds per voxel of each downscaled copy (pooling, its homology, compressing).
@@ -275,7 +272,6 @@ mod tests {
             "[hypervolume]\nunit = \"fraction\"\nbins = [[0.55, 0.65]]\n",
             ball,
         ));
-        // Measured: 3D 64 embed 34, carve 109, carve binned 71 ns/voxel.
         assert!(carve > 2.0 * embed, "carve {carve} embed {embed}");
         assert!(binned < carve && binned > embed, "binned {binned}");
         let single = per_sample(&manifest(4, 32, "carve", "", "family = \"handle\""));

@@ -776,7 +776,7 @@ mod tests {
 
     #[test]
     fn rows_and_tiles_of_a_small_4d_object_all_hold_part_of_it() {
-        // A small object in a big 4D image: the old layout drew empty first and last rows.
+        // A small object in a big 4D image: no row of the sheet may be empty.
         let mut image = BinaryImage::zeros(&[24, 24, 24, 24]).unwrap();
         let small = solid_torus(4, 10, (2, 3), 2.5, 1.2);
         for i in 0..small.len() {
