@@ -1,0 +1,542 @@
+#!/usr/bin/env python3
+"""Learnability: does a CNN trained on bettimill's data see holes in shapes it never saw?
+
+Trains ``bettimill.torch.BettiNet4d`` (the package's 4D CNN) on 4D side-16 samples of one
+KIND at a time and scores exact-Betti-vector accuracy (all four Betti numbers right) on
+held-out samples of every kind. The kinds:
+
+- ``canonical``: the constructions as built, no deformation;
+- one kind per deformation method, that method alone (``moves``, ``dilate``, ``erode``,
+  and ``tentacles``, ``walk`` when the installed bettimill knows them);
+- ``mix``: canonical and every deformation, in equal shares; ``mix-no-X``: the same
+  without the deformation X (X is then a kind that model never saw);
+- ``independent``: shapes of a generator written here in numpy, which no bettimill
+  construction uses: thickened random-walk curves, unions of randomly oriented
+  ellipsoids, closed random polygons, bumpy and bent 2-spheres, hollow bumpy blobs, in
+  random 4D frames, splatted voxel by voxel. Each is labelled by ``bettimill.betti`` of its
+  voxels (the verifier); a shape whose label is not the class it was drawn for is drawn
+  again, so the held-out set has the same classes, in the same shares, as the others.
+
+Every kind has the same label classes, balanced (chance is 1/classes; the table's chance
+row is the held-out set's most common class): Betti vectors [1,0,0,0], [1,1,0,0],
+[2,0,0,0], [1,0,1,0], [1,0,0,1] in embed mode (a ball, S1xB3, two balls, S2xB2, a
+thickened 3-sphere); in carve mode the carved cube's vectors of the same objects as
+cavities, [1 + b3, b2, b1, b0], of those bettimill can carve at side 16 (the others are
+left out with the plan's reason; [1,2,1,0], T2xB2, fits neither mode at side 16).
+bettimill makes each class with its canonical construction (``betti = [...]`` classes of
+the manifest).
+
+Rows of the table are what a model trained on, columns the held-out kinds; a model is
+trained on each single kind (``independent`` included: the ceiling of this small set-up on
+that generator), on the mix and on each mix that leaves one deformation out. Seeds are
+fixed (numpy, torch, the manifests' seed; torch on one thread), so a re-run prints the
+same table on the same machine. The run prints wall seconds per training.
+
+Run by hand (not in CI), from the repository root, with bettimill and torch installed
+(``ci/python-env.sh`` makes a venv with torch; build the package into it with
+``pip install ./python`` or ``ci/python-package.sh``):
+
+    python benches/learnability.py                     # embed mode, the table of BENCHMARKS.md
+    python benches/learnability.py --mode carve        # the same classes as cavities
+    python benches/learnability.py --quick             # 48 samples a kind, 2 epochs: a smoke run
+
+On a 2-core machine the default run takes about an hour (most of it training; the
+samples are made on 2 threads, ``--threads``). ``--cache DIR`` keeps the made samples
+(``.npz`` per kind, named by the manifest's text and bettimill's version) for re-runs.
+"""
+
+import argparse
+import concurrent.futures
+import hashlib
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import bettimill
+from bettimill.torch import BettiNet4d
+
+SIDE = 16
+# The objects' Betti vectors; carve mode asks for the carved cube's vectors of the same
+# objects as cavities (see `carved`).
+CLASSES = [[1, 0, 0, 0], [1, 1, 0, 0], [2, 0, 0, 0], [1, 0, 1, 0], [1, 0, 0, 1]]
+MAX_BETTI = 2
+
+# Deformations, each alone, in the manifest's `[[deform]]` steps with ranges drawn per
+# sample (the current schema) ...
+DEFORMS = {
+    "moves": [{"method": "moves", "steps": [100, 600], "max_distance": [1, 2]}],
+    "dilate": [{"method": "dilate", "steps": [1, 6], "noise_frequency": [0.05, 0.3],
+                "growth_probability": [0.2, 0.8]}],
+    "erode": [{"method": "erode", "steps": [1, 6], "noise_frequency": [0.05, 0.3],
+               "growth_probability": [0.2, 0.8]}],
+    "tentacles": [{"method": "tentacles", "count": [1, 4]}],
+    "walk": [{"method": "walk", "count": [1, 3]}],
+}
+# ... or, for a bettimill whose `[deform]` is one table of fixed values: the strengths
+# first measured (dilate x4, moves x300) and erode like dilate.
+DEFORMS_SINGLE = {
+    "moves": {"method": "moves", "steps": 300},
+    "dilate": {"method": "dilate", "steps": 4},
+    "erode": {"method": "erode", "steps": 4},
+}
+
+
+def carved(betti):
+    """The carved cube's Betti vector when the object with vector `betti` is its cavity
+    (Alexander duality): b0 = 1 + b3, b1 = b2, b2 = b1, b3 = b0 of the object."""
+    return [1 + betti[3], betti[2], betti[1], betti[0]]
+
+
+def toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    return "[" + ", ".join(toml_value(x) for x in v) + "]"
+
+
+def manifest(kind_deform, mode, samples, seed, single, classes=CLASSES):
+    """A manifest of `samples` samples of the object classes `classes` (as the carved
+    cube's vectors in carve mode), with the deformation `kind_deform` (steps, or one table
+    when `single`)."""
+    classes = classes if mode == "embed" else [carved(c) for c in classes]
+    lines = [
+        "schema_version = 1",
+        'name = "learnability"',
+        "dimension = 4",
+        f"side = {SIDE}",
+        f'mode = "{mode}"',
+        f"samples = {samples}",
+        f"shard_size = {samples}",
+        f"seed = {seed}",
+    ]
+    for c in classes:
+        lines += ["", "[[classes]]", f"betti = {toml_value(c)}"]
+    if kind_deform is not None:
+        steps = [kind_deform] if single else kind_deform
+        for step in steps:
+            lines += ["", "[deform]" if single else "[[deform]]"]
+            lines += [f"{k} = {toml_value(v)}" for k, v in step.items()]
+    return "\n".join(lines) + "\n"
+
+
+def feasible(mode):
+    """The classes of CLASSES that bettimill builds at side SIDE in this mode (each class
+    planned alone); the others are logged with the plan's reason."""
+    keep = []
+    for c in CLASSES:
+        try:
+            bettimill.Plan(manifest(None, mode, 1, 1, False, [c]))
+            keep.append(c)
+        except ValueError as err:
+            log(f"class {c if mode == 'embed' else carved(c)} left out: {str(err).splitlines()[-1]}")
+    if len(keep) < 2:
+        sys.exit(f"fewer than two classes can be built in {mode} mode at side {SIDE}")
+    return keep
+
+
+def deformations(mode, classes):
+    """The deformation kinds the installed bettimill accepts, and whether its `[deform]` is
+    the single-table schema. Probed by planning a one-step manifest per method."""
+    kinds = {}
+    for name, steps in DEFORMS.items():
+        try:
+            bettimill.Plan(manifest(steps, mode, 5, 1, False, classes))
+            kinds[name] = steps
+        except ValueError:
+            pass
+    if kinds:
+        return kinds, False
+    for name, table in DEFORMS_SINGLE.items():
+        bettimill.Plan(manifest(table, mode, 5, 1, True, classes))
+        kinds[name] = table
+    return kinds, True
+
+
+# ---------------------------------------------------------------- bettimill's samples
+
+
+def plan_samples(text, count, threads):
+    """Voxels [count, SIDE^4] uint8 and Betti vectors [count, 4] of a plan's first samples
+    (plan.sample releases the GIL, so threads make them in parallel)."""
+    plan = bettimill.Plan(text)
+    with concurrent.futures.ThreadPoolExecutor(threads) as pool:
+        made = list(pool.map(plan.sample, range(count)))
+    voxels = np.stack([v for v, _ in made])
+    betti = np.array([label["betti"] for _, label in made], dtype=np.int64)
+    return voxels, betti
+
+
+# ---------------------------------------------------------------- the independent generator
+
+# Integer offsets of the voxels near a point's floor, from -2 to 3 on each axis (enough
+# for radius 2.4), with how near each can come to a point inside the floor's unit cell.
+_OFFSETS = np.stack(np.meshgrid(*[np.arange(-2, 4)] * 4, indexing="ij"), -1).reshape(-1, 4)
+_REACH = np.sqrt((np.maximum(0, np.maximum(-_OFFSETS, _OFFSETS - 1)) ** 2).sum(1))
+
+
+def splat(points, radii):
+    """A boolean image: the voxels (centres at integer coordinates) within radii[i] of
+    points[i] for some i."""
+    image = np.zeros((SIDE,) * 4, bool)
+    offsets = _OFFSETS[_REACH <= radii.max()]
+    for start in range(0, len(points), 512):
+        p = points[start:start + 512]
+        r = radii[start:start + 512]
+        cells = np.floor(p).astype(np.int64)[:, None, :] + offsets[None]
+        near = ((cells - p[:, None, :]) ** 2).sum(-1) <= (r[:, None] ** 2)
+        inside = ((cells >= 0) & (cells < SIDE)).all(-1)
+        hit = cells[near & inside]
+        image[tuple(hit.T)] = True
+    return image
+
+
+def frame(rng):
+    """A random orthonormal basis of R^4 (rows)."""
+    q, r = np.linalg.qr(rng.normal(size=(4, 4)))
+    return (q * np.sign(np.diag(r))).T
+
+
+def polyline(vertices, closed, spacing=0.25):
+    if closed:
+        vertices = np.vstack([vertices, vertices[:1]])
+    out = []
+    for a, b in zip(vertices[:-1], vertices[1:]):
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / spacing)))
+        out.append(a + (b - a) * np.linspace(0, 1, n, endpoint=False)[:, None])
+    return np.vstack(out)
+
+
+def wavy_radii(rng, n, lo, hi):
+    """Tube radii along a curve of n points: a random level with a slow wave on it."""
+    base = rng.uniform(lo, hi)
+    wave = rng.uniform(0.0, 0.3) * np.sin(np.linspace(0, rng.uniform(2, 12), n) + rng.uniform(0, 6.3))
+    return np.clip(base * (1 + wave), 1.05, 2.4)
+
+
+def walk(rng, lo, hi):
+    """A thickened open random walk inside the box [lo, hi]^4 (a ball, if it does not cross
+    itself)."""
+    vertices = [rng.uniform(lo + 1.5, hi - 1.5, 4)]
+    for _ in range(rng.integers(2, 7)):
+        step = rng.normal(size=4)
+        nxt = vertices[-1] + step / np.linalg.norm(step) * rng.uniform(2.0, 4.5)
+        vertices.append(np.clip(nxt, lo, hi))
+    points = polyline(np.array(vertices), closed=False)
+    return splat(points, wavy_radii(rng, len(points), 1.1, 2.0))
+
+
+def blob(rng, lo, hi):
+    """A chain of 1-4 overlapping, randomly oriented ellipsoids inside [lo, hi]^4."""
+    grid = np.stack(np.meshgrid(*[np.arange(SIDE)] * 4, indexing="ij"), -1).astype(float)
+    image = np.zeros((SIDE,) * 4, bool)
+    centre = rng.uniform(lo + 1, hi - 1, 4)
+    for _ in range(rng.integers(1, 5)):
+        axes = frame(rng)
+        semi = rng.uniform(1.3, 3.5, 4)
+        local = (grid - centre) @ axes.T / semi
+        image |= (local ** 2).sum(-1) <= 1
+        centre = np.clip(centre + rng.normal(size=4) * 1.5, lo + 1, hi - 1)
+    box = np.zeros((SIDE,) * 4, bool)
+    a, b = int(np.ceil(lo)), int(np.floor(hi)) + 1
+    box[a:b, a:b, a:b, a:b] = True
+    return image & box
+
+
+def loop(rng):
+    """A thickened closed random polygon around the middle, in a random 2-plane with jitter
+    out of it."""
+    axes = frame(rng)
+    centre = rng.uniform(6.5, 8.5, 4)
+    n = rng.integers(5, 10)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, n))
+    radius = rng.uniform(3.5, 5.8, n)
+    plane = np.stack([radius * np.cos(angles), radius * np.sin(angles)], 1)
+    off = rng.normal(scale=0.8, size=(n, 2))
+    vertices = centre + plane @ axes[:2] + off @ axes[2:]
+    points = polyline(vertices, closed=True)
+    return splat(points, wavy_radii(rng, len(points), 1.1, 1.7))
+
+
+def fibonacci_sphere(n):
+    k = np.arange(n) + 0.5
+    z = 1 - 2 * k / n
+    phi = np.pi * (1 + 5 ** 0.5) * k
+    s = np.sqrt(1 - z * z)
+    return np.stack([s * np.cos(phi), s * np.sin(phi), z], 1)
+
+
+def sphere(rng):
+    """A bumpy, stretched 2-sphere in a random 3-space of R^4, bent into the fourth
+    direction, thickened."""
+    axes = frame(rng)
+    d = fibonacci_sphere(2500)
+    bumps = rng.normal(size=(3, 3)) * 0.12
+    radius = rng.uniform(3.6, 5.2) * (1 + ((d @ bumps) * d).sum(1)) * np.exp(d @ rng.normal(scale=0.1, size=3))
+    surface = (d * radius[:, None]) * rng.uniform(0.85, 1.15, 3)
+    bend = (d @ rng.normal(scale=1.2, size=3)) ** 2 * rng.choice([-1, 1])
+    points = rng.uniform(7.0, 8.0, 4) + surface @ axes[:3] + bend[:, None] * 0.4 * axes[3]
+    return splat(points, np.full(len(points), rng.uniform(1.05, 1.5)))
+
+
+def shell(rng):
+    """A hollow blob: the voxels between two nested bumpy, stretched 3-spheres about a
+    point, in a random frame."""
+    grid = np.stack(np.meshgrid(*[np.arange(SIDE)] * 4, indexing="ij"), -1).astype(float)
+    y = (grid - rng.uniform(7.0, 8.0, 4)) @ frame(rng).T / rng.uniform(0.85, 1.15, 4)
+    rho = np.sqrt((y ** 2).sum(-1)) + 1e-9
+    u = y / rho[..., None]
+    bumps = rng.normal(size=(4, 4)) * 0.08
+    outer = rng.uniform(4.6, 6.0) * (1 + np.einsum("...i,ij,...j->...", u, bumps, u)) + u @ rng.normal(scale=0.3, size=4)
+    return (rho <= outer) & (rho > outer - rng.uniform(1.4, 2.2))
+
+
+def candidate(rng, target):
+    """One shape drawn for the object vector `target` (its label may still differ)."""
+    if target == [1, 0, 0, 0]:
+        return walk(rng, 1.5, 13.5) if rng.random() < 0.5 else blob(rng, 1, 14)
+    if target == [2, 0, 0, 0]:
+        axis, gap = rng.integers(4), rng.uniform(7.0, 8.0)
+        parts = []
+        for lo, hi in ((1.5, gap - 1.2), (gap + 1.2, 13.5)):
+            part = walk(rng, 1.5, 13.5) if rng.random() < 0.5 else blob(rng, 1, 14)
+            keep = np.zeros(SIDE, bool)
+            keep[int(np.ceil(lo)):int(np.floor(hi)) + 1] = True
+            shape = [1, 1, 1, 1]
+            shape[axis] = SIDE
+            parts.append(part & keep.reshape(shape))
+        return parts[0] | parts[1]
+    if target == [1, 1, 0, 0]:
+        return loop(rng)
+    if target == [1, 0, 1, 0]:
+        return sphere(rng)
+    if target == [1, 0, 0, 1]:
+        return shell(rng)
+    raise ValueError(target)
+
+
+def independent_samples(count, mode, seed, classes, tries=400):
+    """`count` shapes of the numpy generator, the classes in turn, each labelled by
+    bettimill.betti; returns voxels, Betti vectors and the share of candidates accepted."""
+    rng = np.random.default_rng(seed)
+    voxels, betti, drawn = [], [], 0
+    for i in range(count):
+        target = classes[i % len(classes)]
+        want = target if mode == "embed" else carved(target)
+        for _ in range(tries):
+            drawn += 1
+            shape = candidate(rng, target)
+            # Carve mode: the shape is a cavity of the full cube; the cube's border stays
+            # solid (the generator's shapes stay at least one voxel inside it).
+            image = shape if mode == "embed" else ~shape
+            if mode == "carve":
+                image = image.copy()
+                for axis in range(4):
+                    index = [slice(None)] * 4
+                    index[axis] = [0, SIDE - 1]
+                    image[tuple(index)] = True
+            image = image.astype(np.uint8)
+            label = bettimill.betti(image)
+            if label == want:
+                voxels.append(image)
+                betti.append(label)
+                break
+        else:
+            sys.exit(f"independent generator: no {want} in {tries} candidates")
+    return np.stack(voxels), np.array(betti, dtype=np.int64), count / drawn
+
+
+# ---------------------------------------------------------------- data sets
+
+
+def cached(cache, key, make):
+    if cache is None:
+        return make()
+    path = Path(cache) / (hashlib.blake2b(key.encode(), digest_size=10).hexdigest() + ".npz")
+    if path.exists():
+        data = np.load(path)
+        return data["voxels"], data["betti"]
+    voxels, betti = make()
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, voxels=voxels, betti=betti)
+    os.replace(tmp, path)
+    return voxels, betti
+
+
+def datasets(args):
+    """{kind: (train voxels, train betti, test voxels, test betti)}, the deformation kinds,
+    and whether the installed bettimill's `[deform]` is one table."""
+    classes = feasible(args.mode)
+    deforms, single = deformations(args.mode, classes)
+    kinds = {"canonical": None, **deforms}
+    count = args.train + args.test
+    data = {}
+    for name, deform in kinds.items():
+        text = manifest(deform, args.mode, count, args.seed, single, classes)
+        start = time.perf_counter()
+        voxels, betti = cached(args.cache, f"{bettimill.__version__}\n{text}",
+                               lambda: plan_samples(text, count, args.threads))
+        log(f"{name}: {count} samples in {time.perf_counter() - start:.1f} s")
+        data[name] = (voxels[:args.train], betti[:args.train], voxels[args.train:], betti[args.train:])
+    start = time.perf_counter()
+    accepted = []
+
+    def make():
+        voxels, betti, share = independent_samples(count, args.mode, args.seed, classes)
+        accepted.append(share)
+        return voxels, betti
+
+    voxels, betti = cached(args.cache, f"independent v1 {args.mode} {count} {args.seed} {classes}", make)
+    log(f"independent: {count} samples in {time.perf_counter() - start:.1f} s"
+        + (f", {accepted[0]:.0%} of the candidates accepted" if accepted else " (cached)"))
+    data["independent"] = (voxels[:args.train], betti[:args.train], voxels[args.train:], betti[args.train:])
+    return data, list(deforms), single
+
+
+def mix(data, kinds, size):
+    """`size` training samples, in equal shares from each kind's training set (its first
+    ones, which go through the classes in turn)."""
+    share = size // len(kinds)
+    voxels = np.concatenate([data[k][0][:share] for k in kinds])
+    betti = np.concatenate([data[k][1][:share] for k in kinds])
+    return voxels, betti
+
+
+# ---------------------------------------------------------------- training
+
+
+def train(voxels, betti, args, seed):
+    torch.manual_seed(seed)
+    model = BettiNet4d(dimension=4, max_betti=MAX_BETTI, width=args.width)
+    optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
+    x = torch.from_numpy(voxels)
+    y = torch.from_numpy(betti).clamp(max=MAX_BETTI)
+    order_rng = torch.Generator().manual_seed(seed)
+    model.train()
+    for _ in range(args.epochs):
+        order = torch.randperm(len(x), generator=order_rng)
+        for start in range(0, len(x), args.batch):
+            pick = order[start:start + args.batch]
+            logits = model(x[pick].unsqueeze(1).float())
+            loss = torch.nn.functional.cross_entropy(logits.reshape(-1, MAX_BETTI + 1), y[pick].reshape(-1))
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+    model.eval()
+    return model
+
+
+def exact_accuracy(model, voxels, betti):
+    with torch.no_grad():
+        predicted = torch.cat([model(torch.from_numpy(voxels[s:s + 32]).unsqueeze(1).float()).argmax(dim=2)
+                               for s in range(0, len(voxels), 32)])
+    truth = torch.from_numpy(betti).clamp(max=MAX_BETTI)
+    return (predicted == truth).all(dim=1).float().mean().item()
+
+
+def chance(betti):
+    _, counts = np.unique(betti, axis=0, return_counts=True)
+    return counts.max() / len(betti)
+
+
+def log(message):
+    print(message, file=sys.stderr, flush=True)
+
+
+def machine():
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, torch {torch.__version__}"
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mode", choices=["embed", "carve"], default="embed")
+    parser.add_argument("--train", type=int, default=480, help="training samples a kind")
+    parser.add_argument("--test", type=int, default=150, help="held-out samples a kind")
+    parser.add_argument("--mix", type=int, default=960, help="training samples of a mix")
+    parser.add_argument("--epochs", type=int, default=6)
+    parser.add_argument("--batch", type=int, default=8)
+    parser.add_argument("--width", type=int, default=8, help="BettiNet4d's width")
+    parser.add_argument("--lr", type=float, default=3e-3)
+    parser.add_argument("--seed", type=int, default=20261204)
+    parser.add_argument("--threads", type=int, default=2, help="threads that make the samples")
+    parser.add_argument("--cache", help="directory that keeps the made samples for re-runs")
+    parser.add_argument("--quick", action="store_true", help="48 samples a kind, 20 held out, 2 epochs")
+    parser.add_argument("--json", help="also write the table as JSON to this file")
+    args = parser.parse_args()
+    if args.quick:
+        args.train, args.test, args.mix, args.epochs = 50, 20, 100, 2
+    if args.cache:
+        os.makedirs(args.cache, exist_ok=True)
+    # One intra-op thread: the same seed gives the same weights run after run.
+    torch.set_num_threads(1)
+    np.random.seed(args.seed)
+
+    started = time.perf_counter()
+    data, deforms, single = datasets(args)
+    columns = list(data)
+    runs = [(k, [k]) for k in columns]
+    runs.append(("mix", ["canonical", *deforms]))
+    for left in deforms:
+        runs.append((f"mix-no-{left}", ["canonical", *[d for d in deforms if d != left]]))
+
+    # The first forward and backward pass sets up torch's kernels (seconds); not a
+    # training's time.
+    warm = BettiNet4d(dimension=4, max_betti=MAX_BETTI, width=args.width)
+    warm(torch.zeros(2, 1, SIDE, SIDE, SIDE, SIDE)).sum().backward()
+
+    rows = []
+    for number, (name, kinds) in enumerate(runs):
+        voxels, betti = (data[name][0], data[name][1]) if len(kinds) == 1 else mix(data, kinds, args.mix)
+        start = time.perf_counter()
+        model = train(voxels, betti, args, args.seed + number)
+        seconds = time.perf_counter() - start
+        scores = {k: exact_accuracy(model, data[k][2], data[k][3]) for k in columns}
+        rows.append({"trained_on": name, "kinds": kinds, "samples": len(voxels), "seconds": seconds, "scores": scores})
+        log(f"{name} ({len(voxels)} samples, {seconds:.0f} s): "
+            + ", ".join(f"{k} {v:.2f}" for k, v in scores.items()))
+
+    command = "python benches/learnability.py " + " ".join(sys.argv[1:])
+    schema = "[deform] one table" if single else "[[deform]] steps with per-sample ranges"
+    print(f"Learnability, {args.mode} mode, 4D side {SIDE}: exact Betti vector accuracy "
+          f"(bettimill {bettimill.__version__}, {schema}; {args.train} training samples a kind, "
+          f"{args.mix} in a mix, {args.test} held out a kind, {args.epochs} epochs, "
+          f"BettiNet4d width {args.width}).\n")
+    print("| trained on | samples | " + " | ".join(f"held-out {k}" for k in columns) + " | training s |")
+    print("|---|---|" + "---|" * len(columns) + "---|")
+    for row in rows:
+        cells = []
+        for k in columns:
+            cell = f"{row['scores'][k]:.2f}"
+            cells.append(cell if k in row["kinds"] else f"*{cell}*")
+        print(f"| {row['trained_on']} | {row['samples']} | " + " | ".join(cells) + f" | {row['seconds']:.0f} |")
+    print("| chance (most common class) | | " + " | ".join(f"{chance(data[k][3]):.2f}" for k in columns) + " | |")
+    print("\nItalic: a kind the model never saw in training.")
+    for name, deform in [(k, None if k == "canonical" else (DEFORMS_SINGLE if single else DEFORMS)[k]) for k in columns[:-1]]:
+        if deform is not None:
+            print(f"- {name}: `{json.dumps(deform)}`")
+    print(f"\nCommand: `{command.strip()}`; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; "
+          f"{machine()}; total {time.perf_counter() - started:.0f} s.")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"args": vars(args), "rows": rows, "chance": {k: chance(data[k][3]) for k in columns},
+                       "bettimill": bettimill.__version__, "machine": machine()}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
