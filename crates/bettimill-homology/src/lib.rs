@@ -52,6 +52,7 @@ mod thin;
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::{BinaryImage, Dim};
 use dense::{DenseComplex, FinalRank};
+use eliminate::rank_by_elimination;
 use serde::{Deserialize, Serialize};
 use thin::Phase;
 
@@ -236,7 +237,7 @@ fn topology_from_counts(padded: &BinaryImage) -> Topology {
 /// Any dimension: thin, then explicit homology of the remnant. `padded` must have a
 /// background border.
 fn topology_by_thinning(padded: BinaryImage) -> Result<Topology, TopologyError> {
-    Ok(topology_by_thinning_with(padded, FinalRank::Elimination)?.0)
+    Ok(topology_by_thinning_with(padded, rank_by_elimination)?.0)
 }
 
 /// [`topology_by_thinning`] with the remnant's final rank computed as `final_rank` says;
@@ -446,7 +447,7 @@ impl MasksMemo {
 /// object would leave a shell around every cavity. Otherwise the grown object (same
 /// topology) goes through [`topology_by_thinning`].
 fn topology_by_background(padded: BinaryImage) -> Result<Topology, TopologyError> {
-    match background_cores(padded, FinalRank::Elimination)? {
+    match background_cores(padded, rank_by_elimination)? {
         Ok(topology) => Ok(topology),
         Err(grown) => topology_by_thinning(grown),
     }

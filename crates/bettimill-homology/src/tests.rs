@@ -3,6 +3,7 @@
 //! slow oracles on thousands of random and adversarial small images.
 
 use super::*;
+use crate::dense::seams::column_reduction;
 use crate::simple::SimpleTester;
 use bettimill_grid::neighbourhood::is_interior;
 use rand::{Rng, SeedableRng};
@@ -251,17 +252,19 @@ fn every_route_agrees(name: &str, image: &BinaryImage, expected: &Topology) -> u
             expected,
             "{name}: background route"
         );
-        for final_rank in [FinalRank::Elimination, FinalRank::ColumnReduction] {
+        let routes: [(&str, FinalRank); 2] = [
+            ("elimination", rank_by_elimination),
+            ("column reduction", column_reduction),
+        ];
+        for (route, final_rank) in routes {
             if let Ok(found) = background_cores(image.padded(1), final_rank).unwrap() {
-                assert_eq!(&found, expected, "{name}: background cores, {final_rank:?}");
+                assert_eq!(&found, expected, "{name}: background cores, {route}");
             }
         }
     }
-    let (found, _) =
-        topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction).unwrap();
+    let (found, _) = topology_by_thinning_with(image.padded(1), column_reduction).unwrap();
     assert_eq!(&found, expected, "{name}: thinning, column reduction");
-    let (found, general) =
-        topology_by_thinning_with(image.padded(1), FinalRank::Elimination).unwrap();
+    let (found, general) = topology_by_thinning_with(image.padded(1), rank_by_elimination).unwrap();
     assert_eq!(&found, expected, "{name}: thinning, elimination");
     general
 }
@@ -277,8 +280,7 @@ fn every_4d_route_agrees_on_rough_images() {
     for (side, density) in [(10, 0.5), (12, 0.35), (12, 0.5), (12, 0.65), (16, 0.5)] {
         let image = random_image(&mut rng, &[side; 4], density);
         let name = format!("4D {side} density {density}");
-        let (expected, _) =
-            topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction).unwrap();
+        let (expected, _) = topology_by_thinning_with(image.padded(1), column_reduction).unwrap();
         if side <= 10 {
             assert_eq!(
                 reference::topology_by_duality(&image),
@@ -334,7 +336,7 @@ fn the_split_reduction_agrees_with_the_whole_one() {
         // The random image's remnant is rough enough to scan its owners, the blob's not:
         // both kinds of owners are reduced here, split and whole.
         assert_eq!(split.lists_owners(), name == "blob", "{name}");
-        let found = split.betti_with(b0, FinalRank::Elimination).unwrap().0;
+        let found = split.betti_with(b0, rank_by_elimination).unwrap().0;
         assert_eq!(found, whole.betti_unsplit(b0).unwrap().0, "{name}");
         let mut betti = found;
         betti.truncate(4);
@@ -379,7 +381,7 @@ fn results_do_not_depend_on_the_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| topology_by_thinning_with(image.padded(1), FinalRank::Elimination))
+            .install(|| topology_by_thinning_with(image.padded(1), rank_by_elimination))
             .unwrap()
     };
     let one = run(1);
@@ -672,18 +674,18 @@ fn both_4d_routes_agree_with_reference() {
             has_foreground_wall(&image, 0),
             "{name}: padded"
         );
-        if let Ok(found) = background_cores(image.padded(1), FinalRank::Elimination).unwrap() {
+        if let Ok(found) = background_cores(image.padded(1), rank_by_elimination).unwrap() {
             assert_eq!(found, expected, "{name}: background cores");
             by_cores += 1;
         } else {
             assert!(!name.starts_with("carved"), "{name} fell back");
         }
         let (found, pivots) =
-            topology_by_thinning_with(image.padded(1), FinalRank::Elimination).unwrap();
+            topology_by_thinning_with(image.padded(1), rank_by_elimination).unwrap();
         general += pivots;
         assert_eq!(found, expected, "{name}: object route");
         assert_eq!(
-            topology_by_thinning_with(image.padded(1), FinalRank::ColumnReduction)
+            topology_by_thinning_with(image.padded(1), column_reduction)
                 .unwrap()
                 .0,
             expected,
