@@ -6,6 +6,7 @@
 //!   this file checks that every crate inherits those lints and that no library crate
 //!   allows them anywhere in its sources.
 //! - Every Rust file opens with a `//!` doc; the crates are on the code map.
+//! - One `rust-version` for the workspace, at least every resolved dependency's.
 
 use std::path::{Path, PathBuf};
 
@@ -280,4 +281,65 @@ fn every_crate_is_on_the_code_map() {
             p.name
         );
     }
+}
+
+/// `rust-version`, version-wise: `(major, minor, patch)`, a missing part 0.
+fn rust_version(text: &str) -> (u64, u64, u64) {
+    let mut parts = text.split('.').map(|p| p.parse::<u64>().unwrap());
+    let mut next = || parts.next().unwrap_or(0);
+    (next(), next(), next())
+}
+
+/// The declared `rust-version` is one claim for the whole workspace, and it is not below
+/// any package the lock file resolves to: a dependency that needs a newer Rust would make
+/// the claim false for every crate above it. (Newer standard-library APIs in our own code
+/// are caught by clippy's `incompatible_msrv`, which reads the same field.)
+#[test]
+fn the_declared_rust_version_is_the_workspaces_and_covers_every_dependency() {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = std::process::Command::new(cargo)
+        .args(["metadata", "--format-version", "1", "--offline", "--locked"])
+        .arg("--manifest-path")
+        .arg(repo_root().join("Cargo.toml"))
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        out.status.success(),
+        "cargo metadata: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let metadata: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let members: Vec<&str> = metadata["workspace_members"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|id| id.as_str().unwrap())
+        .collect();
+    let workspace = std::fs::read_to_string(repo_root().join("Cargo.toml")).unwrap();
+    let declared = workspace
+        .lines()
+        .find_map(|line| line.strip_prefix("rust-version = "))
+        .expect("the workspace declares rust-version")
+        .trim_matches('"');
+    let mut problems = Vec::new();
+    for package in metadata["packages"].as_array().unwrap() {
+        let name = package["name"].as_str().unwrap();
+        let version = package["rust_version"].as_str();
+        if members.contains(&package["id"].as_str().unwrap()) {
+            if version != Some(declared) {
+                problems.push(format!(
+                    "{name} declares rust-version {version:?}, not the workspace's {declared} \
+                     (use `rust-version.workspace = true`)"
+                ));
+            }
+        } else if let Some(version) = version {
+            if rust_version(version) > rust_version(declared) {
+                problems.push(format!(
+                    "dependency {name} {} needs Rust {version}, above the declared {declared}",
+                    package["version"].as_str().unwrap()
+                ));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
