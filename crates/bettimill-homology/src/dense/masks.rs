@@ -5,10 +5,9 @@ use zerocopy::FromBytes;
 
 /// The masks' memory: an anonymous mapping of two bytes per place, rounded up to whole
 /// 2 MiB pages and one more for the alignment, zeroed by the kernel (pages no cell touches
-/// are never written) and asked for as transparent huge pages on Linux. On the test
-/// machine a fault on a fresh 4 KiB page cost about 2.3 us, so the 14.6 MB of a 48^4
-/// image's masks took 8 ms of faults, most of the inserts' time; a huge page costs one
-/// fault per 2 MiB (issue 18, BENCHMARKS.md).
+/// are never written) and asked for as transparent huge pages on Linux. Fresh memory
+/// costs a page fault per page touched, and in 4 KiB pages those faults are most of the
+/// inserts' time; a huge page costs one fault per 2 MiB.
 pub(super) struct Masks {
     pub(super) map: memmap2::MmapMut,
     /// Where the masks start in `map`: its first 2 MiB boundary, so that they lie in whole
@@ -26,7 +25,7 @@ impl Masks {
         let len = 2 * places.max(1);
         // Room for whole huge pages after the first boundary: with only `len` there, the
         // huge page holding the masks' end could stick out of the mapping and be faulted
-        // in 4 KiB pages (about 540 more faults on a 32^4 image, in about half the runs).
+        // in 4 KiB pages.
         let map = memmap2::MmapMut::map_anon(len.next_multiple_of(Masks::HUGE) + Masks::HUGE)
             .unwrap_or_else(|error| panic!("no memory for the complex's masks: {error}"));
         // Only a hint: without huge pages the mapping works the same.

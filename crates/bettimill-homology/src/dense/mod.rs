@@ -27,8 +27,8 @@
 //! restricted boundary (an S-complex in the sense of Mrozek and Batko): the reduced chain
 //! complex differs from the old one only by the deleted pair. Coreductions need a start, so
 //! when no pair is left an alive vertex v is removed (the first time, the one nearest the
-//! centre of the grid: started from a corner, the waves stalled on a random 4D image with
-//! ten times the cells, issue 18; on a grid large enough, one start per part of the grid,
+//! centre of the grid: started from a corner, the waves stall on a random 4D image with
+//! many times the cells; on a grid large enough, one start per part of the grid,
 //! the parts reduced on two threads, see [`DenseComplex::betti_with`]), which turns the
 //! homology into that of the pair (X, V) with V the removed vertices. For k >= 2 the long
 //! exact sequence of (X, V)
@@ -40,9 +40,8 @@
 //! mismatch panics rather than returning a wrong answer. The cells left are ranked
 //! explicitly (boundary matrices, top dimension first, with clearing) by elimination with
 //! free pivots first ([`crate::eliminate`]). That matters on rough images: the pairs can
-//! stall with over a million edges and squares left (a random 48^4 image, issue 18), where
-//! a plain column reduction filled in quadratically (over 1000 s at 32^4 when the waves
-//! started in a corner).
+//! stall with over a million edges and squares left on a random 4D image, where a plain
+//! column reduction fills in quadratically.
 //!
 //! [`crate::reference`] reduces the plain boundary matrices of the whole, unreduced complex
 //! (`CellComplex::betti_by_boundaries`), so the two check each other.
@@ -93,7 +92,7 @@ pub(crate) struct DenseComplex {
     /// The voxels that own cells ([`Owners`]).
     owners: Owners,
     /// The Euler characteristic of the cells inserted, counted as they come (a scan of the
-    /// owners' masks afterwards took 0.5 ms of a 32^4 blob's 20: they are far apart).
+    /// owners' masks afterwards would be slow: they are far apart).
     chi: i64,
 }
 
@@ -143,8 +142,8 @@ pub(crate) enum Owners {
     /// few owners among many places.
     Listed(Vec<u32>),
     /// Not listed: every place in order, those that own nothing skipped. On a rough
-    /// image nearly every voxel owns cells, and the list was four bytes a voxel, the
-    /// largest part of the peak (a random 64^4 image: 16.5 million owners, issue 18).
+    /// image nearly every voxel owns cells, and a list would be four bytes a voxel, the
+    /// largest part of the peak.
     Scanned,
 }
 
@@ -327,8 +326,8 @@ impl DenseComplex {
     /// second axis, its two parts taking the cells left queued in them, and only the last
     /// seam, one brick along each of the first two axes, and whatever is still queued go
     /// on one thread. The extra vertices are more vertices in V, which the bookkeeping
-    /// below counts anyway; where the waves of two parts meet, a few more cells stall
-    /// (issue 18 measured the trade: BENCHMARKS.md).
+    /// below counts anyway; where the waves of two parts meet, a few more cells stall, a
+    /// small price for the second thread.
     ///
     /// The final rank is computed as `final_rank` says; also returns how many general
     /// (fill-in) pivots the elimination took. An error when the elimination's lists would
@@ -408,10 +407,9 @@ impl DenseComplex {
         // cell: the columns are built in that order, and a facet's row is its rank in it.
         // When the cells left are many (a rough image), the masks are in that order
         // already: a scan gives the columns, and [`Ranks`] the rows, a quarter of a byte a
-        // place where a list took eight bytes a cell (190 MB of a random 96^4 image's
-        // peak). When they are few (a smooth image), they are listed from the owners and
-        // sorted: a scan would cost more than the sort (a 64^4 blob has 21 million places
-        // and a few thousand cells left).
+        // place where a list takes eight bytes a cell. When they are few (a smooth image),
+        // they are listed from the owners and sorted: a scan would cost more than the sort
+        // (a large blob has millions of places and a few thousand cells left).
         let few = counts.iter().sum::<usize>() < places / 64;
         // The ranks only look cells up in the masks: the owners go before the lists grow
         // (unless the lists come from them).

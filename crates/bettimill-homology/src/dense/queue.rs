@@ -7,13 +7,13 @@ use std::collections::VecDeque;
 /// 32-bit place and a code); a run of cells pushed with [`CellQueue::push_scanned`] in
 /// increasing order of place, as a scan of the owners finds the free faces, takes one byte
 /// a cell (the step from the one before and the code), five where the step is 15 or more.
-/// On a random 4D image the free faces are about one cell per voxel, and they were the
-/// pairs' peak (85 MB of a random 64^4 image's 150, issue 18). Past
+/// On a random 4D image the free faces are about one cell per voxel, the largest part of
+/// the pairs' peak at five bytes a cell. Past
 /// [`CellQueue::NEAR_FROM`] full blocks, the cells of `push` (the candidates a removal
 /// makes) are kept as runs too, their steps either way in 0 to 4 bytes ([`Kind::Near`]):
 /// the steps from one candidate to the next are spread (a quarter under 8 places, a
 /// quarter under 128, a quarter under 32,768), about 2.7 bytes a cell against 5. A
-/// `VecDeque<u64>` took 16 bytes per cell (8 bytes, doubled capacity, and every page
+/// `VecDeque<u64>` would take 16 bytes per cell (8 bytes, doubled capacity, and every page
 /// touched as the ring turns).
 pub(super) struct CellQueue {
     /// Full blocks, oldest first.
@@ -35,9 +35,9 @@ pub(super) struct CellQueue {
 }
 
 /// A block of [`CellQueue`], in an anonymous mapping of its own, so that an emptied block
-/// goes back to the system (as small heap blocks they stayed with the allocator after the
-/// pairs, and the lists of the cells left were allocated beside them: a random 64^4 image
-/// peaked at 163-204 MB from run to run, 154 MB with blocks of their own, issue 18).
+/// goes back to the system (small heap blocks stay with the allocator after the pairs, and
+/// the lists of the cells left would be allocated beside them, raising the peak by an
+/// amount that varies from run to run).
 /// Plain: `len` cells, their places (four bytes each) from the start, their codes (a byte
 /// each) after [`CellQueue::BLOCK`] places. A run: `len` bytes of steps and codes
 /// ([`Block::push_run`] for a scan's, [`Block::push_near`] for candidates).
@@ -242,7 +242,7 @@ impl CellQueue {
 
     /// [`CellQueue::pop`] from a run of candidates at the front (not empty there). Out of
     /// line, as is [`CellQueue::push_other`]: a smooth image's queue never holds such a
-    /// run, and with both in the reduction's loop it took 1.7% more instructions.
+    /// run, and both in the reduction's loop would make it larger for every image.
     #[inline(never)]
     pub(super) fn pop_near(&mut self) -> (usize, u32) {
         let block = self.full.front().unwrap_or(&self.tail);
@@ -252,8 +252,8 @@ impl CellQueue {
         (self.read_place as usize, code as u32)
     }
 
-    // Always inlined: the reduction's loop is large enough that it was not, which cost
-    // 3% of a random 24^4 image's instructions.
+    // Always inlined: the reduction's loop is large enough that the compiler would not
+    // inline it, and a call per cell costs more than the code it saves.
     #[inline(always)]
     pub(super) fn pop(&mut self) -> Option<(usize, u32)> {
         loop {

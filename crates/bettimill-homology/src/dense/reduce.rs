@@ -313,7 +313,7 @@ impl<const PART: bool> Cells<'_, PART> {
     /// which holds just them at the end. Returns the number of vertices removed.
     ///
     /// The first wave starts at the centre: from a corner (the first owner) the waves of
-    /// a rough image's coreductions stalled with ten times the cells (issue 18).
+    /// a rough image's coreductions stall with many times the cells.
     pub(super) fn reduce(
         &mut self,
         queue: &mut CellQueue,

@@ -131,11 +131,10 @@ impl DenseComplex {
         self.sides[0].div_ceil(4)
     }
 
-    /// How [`DenseComplex::betti_with`](super::DenseComplex::betti_with) splits the reduction, if it does: from 8,192
-    /// owners and five brick rows. With a seam of one brick row, a 32^4 blob (35,183
-    /// owners, nine rows) reduced in 6.3 ms instead of 10.3, a random 24^4 image (seven
-    /// rows) in 104 ms instead of 186; a 16^4 blob (1,205 owners) took longer split
-    /// (BENCHMARKS.md).
+    /// How [`DenseComplex::betti_with`](super::DenseComplex::betti_with) splits the
+    /// reduction, if it does: from 8,192 owners and five brick rows, with a seam of one
+    /// brick row. Below that the second thread's start-up and the seam cost more than the
+    /// halved work saves.
     pub(super) fn split(&mut self) -> Option<Split> {
         let few = match &self.owners {
             Owners::Listed(list) => list.len() < 1 << 13,
