@@ -144,7 +144,7 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
         Some(index) if index < count => index,
         Some(index) => bail!("--task-index {index} is not below --task-count {count}"),
         None => {
-            let found = worker::task_index_from_env(|name| std::env::var(name).ok(), count)?;
+            let found = worker::task_index_from_environment(count)?;
             if !quiet {
                 eprintln!("task index {} from {}", found.index, found.variable);
             }
@@ -385,11 +385,7 @@ pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
 /// `SLURM_MEM_PER_CPU` x `SLURM_CPUS_ON_NODE`, and the job's cgroup `memory.max` when it
 /// sets a lower one.
 pub(crate) fn job_memory_limit(workers: u64) -> Option<(u64, String)> {
-    job_memory_limit_from(
-        &|name| std::env::var(name).ok(),
-        cgroup_memory_max(),
-        workers,
-    )
+    job_memory_limit_from(&bettimill_env::var, cgroup_memory_max(), workers)
 }
 
 /// [`job_memory_limit`] from an environment and a cgroup limit (bytes, and the file).

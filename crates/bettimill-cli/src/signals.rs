@@ -113,17 +113,12 @@ impl Drop for Watching {
     }
 }
 
-/// Test hook: seconds `build` sleeps once its directory is bound, before the coordinator
-/// starts, so a test can signal it in the middle of start-up. Never set it otherwise.
-pub const PAUSE_AT_STARTUP_ENV: &str = "BETTIMILL_TEST_PAUSE_AT_STARTUP";
-
-/// Sleeps for [`PAUSE_AT_STARTUP_ENV`] seconds when it is set.
+/// Test hook (`BETTIMILL_TEST_PAUSE_AT_STARTUP`): seconds `build` sleeps once its
+/// directory is bound, before the coordinator starts, so a test can signal it in the middle
+/// of start-up.
 pub fn test_pause_at_startup() {
-    let pause = std::env::var(PAUSE_AT_STARTUP_ENV)
-        .ok()
-        .and_then(|v| v.parse::<f64>().ok())
-        .filter(|s| s.is_finite() && *s > 0.0);
-    if let Some(seconds) = pause {
-        std::thread::sleep(std::time::Duration::from_secs_f64(seconds));
+    let pause = bettimill_env::seconds(bettimill_env::EnvVars::BETTIMILL_TEST_PAUSE_AT_STARTUP);
+    if let Some(pause) = pause {
+        std::thread::sleep(pause);
     }
 }

@@ -603,18 +603,11 @@ impl Dataset {
     }
 }
 
-/// Test hook: seconds to sleep between writing a shard's temporary file and renaming it
-/// into place, so tests can kill a build in exactly that window. Never set it otherwise.
-pub const PAUSE_BEFORE_RENAME_ENV: &str = "BETTIMILL_TEST_PAUSE_BEFORE_RENAME";
-
-/// [`shard::write_atomic`] for shard tars, with the [`PAUSE_BEFORE_RENAME_ENV`] hook between
-/// the durable temporary file and the rename.
+/// [`shard::write_atomic`] for shard tars, with the `BETTIMILL_TEST_PAUSE_BEFORE_RENAME`
+/// test hook between the durable temporary file and the rename.
 fn write_tar_atomically(path: &Path, bytes: &[u8]) -> Result<(), BuildError> {
-    let pause = std::env::var(PAUSE_BEFORE_RENAME_ENV)
-        .ok()
-        .and_then(|v| v.parse::<f64>().ok())
-        .filter(|s| s.is_finite() && *s > 0.0);
-    let Some(seconds) = pause else {
+    let pause = bettimill_env::seconds(bettimill_env::EnvVars::BETTIMILL_TEST_PAUSE_BEFORE_RENAME);
+    let Some(pause) = pause else {
         return Ok(shard::write_atomic(path, bytes)?);
     };
     let temporary = shard::atomic::temporary_path(path);
@@ -622,7 +615,7 @@ fn write_tar_atomically(path: &Path, bytes: &[u8]) -> Result<(), BuildError> {
     std::io::Write::write_all(&mut file, bytes).map_err(io(&temporary))?;
     file.sync_all().map_err(io(&temporary))?;
     drop(file);
-    std::thread::sleep(std::time::Duration::from_secs_f64(seconds));
+    std::thread::sleep(pause);
     std::fs::rename(&temporary, path).map_err(io(path))?;
     Ok(())
 }

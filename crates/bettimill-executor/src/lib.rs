@@ -37,6 +37,6 @@ pub mod worker;
 
 pub use dataset::{
     BuildError, BuildInfo, BuildSummary, CompletionRecord, Dataset, SampleEvent, ShardOutcome,
-    ShardState, PAUSE_BEFORE_RENAME_ENV,
+    ShardState,
 };
 pub use lock::{DirLock, LockError};

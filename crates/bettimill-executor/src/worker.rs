@@ -10,23 +10,17 @@
 //!   Slurm/Kubernetes/PBS/SGE/LSF array job. Task `t` builds the shards `s` with
 //!   `s % N == t` that are not complete yet; the directory is the only coordination.
 //!
-//! Test hooks (documented in docs/cluster.md; never set them otherwise):
-//! [`FAIL_TASK_ENV`] makes array task `t` fail before any work, [`FAIL_SHARD_ENV`] makes
-//! every attempt at one shard fail, [`FAKE_VERSION_ENV`] makes a served worker claim another
-//! version, and [`crate::PAUSE_BEFORE_RENAME_ENV`] widens the window between a shard's
-//! temporary file and its rename.
+//! Test hooks (internal, listed in `bettimill_env::EnvVars`; never set them otherwise):
+//! `BETTIMILL_TEST_FAIL_TASK` makes array task `t` fail before any work,
+//! `BETTIMILL_TEST_FAIL_SHARD` makes every attempt at one shard fail, and
+//! `BETTIMILL_TEST_WORKER_VERSION` makes a served worker claim another version.
 
 use crate::protocol::{self, FromWorker, Handshake, Peer, ProtocolError, ToWorker};
 use crate::{BuildError, Dataset, SampleEvent};
+use bettimill_env::EnvVars;
 use bettimill_sample::TOOL_VERSION;
 use std::io::{Read, Write};
 use std::sync::Mutex;
-
-/// Test hook: the array task with this index exits with code 3 before doing any work.
-pub const FAIL_TASK_ENV: &str = "BETTIMILL_TEST_FAIL_TASK";
-
-/// Test hook: every attempt at the shard with this index fails (nothing is written).
-pub const FAIL_SHARD_ENV: &str = "BETTIMILL_TEST_FAIL_SHARD";
 
 /// Why a worker stopped.
 #[derive(Debug, thiserror::Error)]
@@ -56,7 +50,10 @@ pub enum WorkerError {
         base: u64,
     },
     /// The failure-injection hook fired.
-    #[error("{FAIL_TASK_ENV}={index}: failing array task {index} on purpose (test hook)")]
+    #[error(
+        "{}={index}: failing array task {index} on purpose (test hook)",
+        EnvVars::BETTIMILL_TEST_FAIL_TASK
+    )]
     InjectedTaskFailure {
         /// The task index.
         index: u64,
@@ -65,11 +62,11 @@ pub enum WorkerError {
 
 /// Environment variables that carry an array task index, with the index of the first task.
 pub const TASK_INDEX_VARIABLES: [(&str, u64); 5] = [
-    ("SLURM_ARRAY_TASK_ID", 0),
-    ("JOB_COMPLETION_INDEX", 0),
-    ("PBS_ARRAY_INDEX", 0),
-    ("SGE_TASK_ID", 1),
-    ("LSB_JOBINDEX", 1),
+    (EnvVars::SLURM_ARRAY_TASK_ID, 0),
+    (EnvVars::JOB_COMPLETION_INDEX, 0),
+    (EnvVars::PBS_ARRAY_INDEX, 0),
+    (EnvVars::SGE_TASK_ID, 1),
+    (EnvVars::LSB_JOBINDEX, 1),
 ];
 
 /// Where a task index came from.
@@ -81,8 +78,14 @@ pub struct TaskIndex {
     pub variable: &'static str,
 }
 
+/// This process's array task index, from the scheduler's variables (see
+/// [`task_index_from_env`]).
+pub fn task_index_from_environment(count: u64) -> Result<TaskIndex, WorkerError> {
+    task_index_from_env(bettimill_env::var, count)
+}
+
 /// Reads the array task index from the first of [`TASK_INDEX_VARIABLES`] that is set
-/// (SGE's "undefined" counts as unset), converting 1-based schedulers to 0-based.
+/// (SGE's "undefined" counts as unset) in `lookup`, converting 1-based schedulers to 0-based.
 pub fn task_index_from_env(
     lookup: impl Fn(&str) -> Option<String>,
     count: u64,
@@ -112,20 +115,14 @@ pub fn task_index_from_env(
 }
 
 fn injected_shard_failure(shard_index: u64) -> bool {
-    std::env::var(FAIL_SHARD_ENV)
-        .ok()
-        .and_then(|v| v.parse::<u64>().ok())
-        == Some(shard_index)
+    bettimill_env::number::<u64>(EnvVars::BETTIMILL_TEST_FAIL_SHARD) == Some(shard_index)
 }
-
-/// Test hook: the version a served worker claims in its handshake, to exercise the
-/// coordinator's mismatch message with real processes.
-pub const FAKE_VERSION_ENV: &str = "BETTIMILL_TEST_WORKER_VERSION";
 
 fn our_handshake(dataset: &Dataset) -> Handshake {
     Handshake {
         protocol_version: protocol::PROTOCOL_VERSION,
-        tool_version: std::env::var(FAKE_VERSION_ENV).unwrap_or_else(|_| TOOL_VERSION.to_string()),
+        tool_version: bettimill_env::var(EnvVars::BETTIMILL_TEST_WORKER_VERSION)
+            .unwrap_or_else(|| TOOL_VERSION.to_string()),
         plan_hash: dataset.plan.hash(),
     }
 }
@@ -238,7 +235,10 @@ fn serve_requests(
         if injected_shard_failure(shard_index) {
             send(&FromWorker::Failed {
                 shard_index,
-                reason: format!("{FAIL_SHARD_ENV}={shard_index}: failing on purpose (test hook)"),
+                reason: format!(
+                    "{}={shard_index}: failing on purpose (test hook)",
+                    EnvVars::BETTIMILL_TEST_FAIL_SHARD
+                ),
             })?;
             continue;
         }
@@ -412,11 +412,7 @@ pub fn run_task(
     mut on_shard: impl FnMut(&str, Result<(), &str>),
     on_sample: &(dyn Fn(&str, SampleEvent<'_>) + Sync),
 ) -> Result<TaskReport, WorkerError> {
-    if std::env::var(FAIL_TASK_ENV)
-        .ok()
-        .and_then(|v| v.parse::<u64>().ok())
-        == Some(task_index)
-    {
+    if bettimill_env::number::<u64>(EnvVars::BETTIMILL_TEST_FAIL_TASK) == Some(task_index) {
         return Err(WorkerError::InjectedTaskFailure { index: task_index });
     }
     let mut report = TaskReport::default();
@@ -435,7 +431,8 @@ pub fn run_task(
         }
         let result = if injected_shard_failure(shard.index) {
             Err(format!(
-                "{FAIL_SHARD_ENV}={}: failing on purpose (test hook)",
+                "{}={}: failing on purpose (test hook)",
+                EnvVars::BETTIMILL_TEST_FAIL_SHARD,
                 shard.index
             ))
         } else {

@@ -18,10 +18,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// The multiplier of every fuzz test's number of cases: `BETTIMILL_FUZZ_CASES` (default 1;
 /// the longer run in docs/reliability.md uses 200).
 pub fn fuzz_scale() -> u32 {
-    std::env::var("BETTIMILL_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1)
+    bettimill_env::number(bettimill_env::EnvVars::BETTIMILL_FUZZ_CASES).unwrap_or(1)
 }
 
 /// Runs `cases * fuzz_scale()` inputs from `strategy` through `check` (no failure
@@ -78,7 +75,7 @@ impl Xorshift {
 
 /// Whether this run is CI (`CI=true` or `CI=1`).
 pub fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
+    bettimill_env::var(bettimill_env::EnvVars::CI).is_some_and(|v| v == "true" || v == "1")
 }
 
 /// What a test does when something it needs from outside (`what`: GNU tar, Slurm, root)
