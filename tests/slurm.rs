@@ -1,16 +1,18 @@
 //! A real single-node Slurm builds a dataset as an array job, survives a failing task by
 //! resubmission of only the missing shards, and ends byte-identical to a local build.
 //!
-//! The test starts Slurm itself with ci/slurm-up.sh (idempotent; a no-op when it is up).
-//! When Slurm cannot be started it fails in CI (CI=true or BETTIMILL_SLURM_REQUIRED=1) and
-//! is skipped with a message elsewhere (for example without root).
+//! A system test: it runs only with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it), because
+//! it starts Slurm itself with ci/slurm-up.sh (idempotent; a no-op when it is up), which
+//! installs packages, writes /etc/slurm and starts daemons. When Slurm cannot be started it
+//! fails in CI (CI=true or BETTIMILL_SLURM_REQUIRED=1) and is skipped with a message
+//! elsewhere (for example without root).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
-use bettimill_testkit::skip_unless_ci;
+use bettimill_testkit::{skip_unless_ci, system_test};
 use common::{assert_exit, ball_and_handle, repo_root, run, text, Dir};
 
 /// Starts Slurm; `false` (skip) only outside CI.
@@ -102,7 +104,7 @@ fn status(dir: &Path) -> serde_json::Value {
 
 #[test]
 fn slurm_array_builds_resubmits_and_matches_a_local_build() {
-    if !slurm_up() {
+    if !system_test("a real Slurm (ci/slurm-up.sh)") || !slurm_up() {
         return;
     }
     let tmp = Dir::new_in("/tmp", "bettimill-slurm-");

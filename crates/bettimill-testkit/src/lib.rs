@@ -90,6 +90,30 @@ pub fn skip_unless_ci(what: &str, reason: &str) {
     eprintln!("SKIPPED: {what} is unavailable ({reason}); CI runs this test for real");
 }
 
+/// The variable that turns the system tests on: `BETTIMILL_SYSTEM_TESTS=1`.
+pub const SYSTEM_TESTS: &str = "BETTIMILL_SYSTEM_TESTS";
+
+/// Whether the system tests run: those that install packages, start daemons (Slurm),
+/// mount file systems or need root. Only with `BETTIMILL_SYSTEM_TESTS=1`, which
+/// `ci/test.sh` sets, so that a plain `cargo test` reads and writes temporary directories
+/// only; once on, a system test whose tool is missing fails in CI as any other
+/// ([`skip_unless_ci`]).
+pub fn system_tests() -> bool {
+    std::env::var(SYSTEM_TESTS).is_ok_and(|v| v == "1")
+}
+
+/// What a system test (`what`: what it needs) does first: `true` when the system tests
+/// run ([`system_tests`]); otherwise it prints a SKIPPED line naming the variable that
+/// turns it on, and the caller returns.
+#[track_caller]
+pub fn system_test(what: &str) -> bool {
+    if system_tests() {
+        return true;
+    }
+    eprintln!("SKIPPED: {what}: a system test, run with {SYSTEM_TESTS}=1 (ci/test.sh sets it)");
+    false
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
