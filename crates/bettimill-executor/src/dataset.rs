@@ -604,19 +604,15 @@ impl Dataset {
 }
 
 /// [`shard::write_atomic`] for shard tars, with the `BETTIMILL_TEST_PAUSE_BEFORE_RENAME`
-/// test hook between the durable temporary file and the rename.
+/// test hook waiting in its seam between the durable temporary file and the rename, so
+/// the tests that kill a build in that window exercise the real write.
 fn write_tar_atomically(path: &Path, bytes: &[u8]) -> Result<(), BuildError> {
     let pause = bettimill_env::seconds(bettimill_env::EnvVars::BETTIMILL_TEST_PAUSE_BEFORE_RENAME);
-    let Some(pause) = pause else {
-        return Ok(shard::write_atomic(path, bytes)?);
-    };
-    let temporary = shard::atomic::temporary_path(path);
-    let mut file = std::fs::File::create(&temporary).map_err(io(&temporary))?;
-    std::io::Write::write_all(&mut file, bytes).map_err(io(&temporary))?;
-    file.sync_all().map_err(io(&temporary))?;
-    drop(file);
-    std::thread::sleep(pause);
-    std::fs::rename(&temporary, path).map_err(io(path))?;
+    shard::atomic::write_atomic_then(path, bytes, || {
+        if let Some(pause) = pause {
+            std::thread::sleep(pause);
+        }
+    })?;
     Ok(())
 }
 

@@ -23,6 +23,17 @@ pub fn temporary_path(path: &Path) -> PathBuf {
 /// Replaces `path` with `bytes` atomically and durably (see the module documentation).
 /// The parent directory must exist.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ShardError> {
+    write_atomic_then(path, bytes, || {})
+}
+
+/// [`write_atomic`], calling `before_rename` once the temporary file is durable and before
+/// it is renamed into place: the one write path, with a seam where the executor's test
+/// hook waits so that tests can kill a build in exactly that window.
+pub fn write_atomic_then(
+    path: &Path,
+    bytes: &[u8],
+    before_rename: impl FnOnce(),
+) -> Result<(), ShardError> {
     if path.file_name().is_none() {
         return Err(ShardError::io(
             "cannot write",
@@ -31,7 +42,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ShardError> {
         ));
     }
     let temporary = temporary_path(path);
-    let result = write_and_rename(&temporary, path, bytes);
+    let result = write_and_rename(&temporary, path, bytes, before_rename);
     if result.is_err() {
         // Best effort: the error being returned is the one that matters.
         let _ = std::fs::remove_file(&temporary);
@@ -104,7 +115,12 @@ impl Drop for AtomicFile {
     }
 }
 
-fn write_and_rename(temporary: &Path, path: &Path, bytes: &[u8]) -> Result<(), ShardError> {
+fn write_and_rename(
+    temporary: &Path,
+    path: &Path,
+    bytes: &[u8],
+    before_rename: impl FnOnce(),
+) -> Result<(), ShardError> {
     let mut file = OpenOptions::new()
         .write(true)
         .create(true)
@@ -116,6 +132,7 @@ fn write_and_rename(temporary: &Path, path: &Path, bytes: &[u8]) -> Result<(), S
     file.sync_all()
         .map_err(|e| ShardError::io("cannot fsync", temporary, e))?;
     drop(file);
+    before_rename();
     std::fs::rename(temporary, path).map_err(|e| ShardError::io("cannot rename into", path, e))?;
     sync_parent(path)
 }
@@ -154,6 +171,24 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("index.json")]);
+    }
+
+    #[test]
+    fn the_seam_runs_with_the_durable_temporary_and_before_the_rename() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.tar");
+        write_atomic(&path, b"old").unwrap();
+        let mut seen = None;
+        write_atomic_then(&path, b"new", || {
+            seen = Some((
+                std::fs::read(temporary_path(&path)).unwrap(),
+                std::fs::read(&path).unwrap(),
+            ));
+        })
+        .unwrap();
+        assert_eq!(seen, Some((b"new".to_vec(), b"old".to_vec())));
+        assert_eq!(std::fs::read(&path).unwrap(), b"new");
+        assert!(!temporary_path(&path).exists());
     }
 
     #[test]
