@@ -2,16 +2,16 @@
 //! (`python/`). It is a thin binding: every answer comes from the crates the CLI uses, so
 //! that Python and the CLI cannot disagree.
 //!
-//! - [`topology`]: an array's Betti numbers, with the checks and messages of
+//! - `topology`: an array's Betti numbers, with the checks and messages of
 //!   `bettimill betti` (`bettimill_grid::npy`) and its computation
 //!   (`bettimill_homology::topology`). The array is borrowed, in any memory order, and read
 //!   once into a [`BinaryImage`] with the GIL released.
-//! - [`PyPlan`]: a manifest's plan (`bettimill_plan::Plan`) and its samples, made by
+//! - `PyPlan`: a manifest's plan (`bettimill_plan::Plan`) and its samples, made by
 //!   `bettimill_sample::make_sample` from `Plan::task`, the same path the build's workers
 //!   take, so `plan.sample(i)` equals `KEY.npy` and `KEY.json` of the built dataset.
-//! - [`build`] and [`verify`]: `bettimill_executor` and `bettimill_format`, in this process
+//! - `build` and `verify`: `bettimill_executor` and `bettimill_format`, in this process
 //!   or with worker processes of the console script.
-//! - [`run_cli`]: the `bettimill` command line itself (`bettimill_cli::run_as`), for the
+//! - `run_cli`: the `bettimill` command line itself (`bettimill_cli::run_as`), for the
 //!   package's console script.
 //!
 //! Errors: bad input is `ValueError` (a missing file `FileNotFoundError`, a failed write
