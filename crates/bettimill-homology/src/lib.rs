@@ -133,6 +133,24 @@ impl From<eliminate::PoolOverflow> for TopologyError {
 
 /// The exact Betti numbers (over Z/2) and Euler characteristic of `image`.
 ///
+/// ```
+/// use bettimill_grid::BinaryImage;
+/// use bettimill_homology::topology;
+///
+/// // A 3x3x3 cube with its centre voxel removed: one piece around one cavity.
+/// let mut image = BinaryImage::from_vec(&[3, 3, 3], vec![1; 27]).unwrap();
+/// image.set(&[1, 1, 1], false);
+/// let t = topology(&image);
+/// assert_eq!(t.betti, [1, 0, 1]);
+/// assert_eq!(t.euler, 2);
+///
+/// // In 4D: a 5x5 square one voxel thick along the last two axes, its centre removed, is
+/// // a loop.
+/// let mut ring = BinaryImage::from_vec(&[5, 5, 1, 1], vec![1; 25]).unwrap();
+/// ring.set(&[2, 2, 0, 0], false);
+/// assert_eq!(topology(&ring).betti, [1, 1, 0, 0]);
+/// ```
+///
 /// # Panics
 ///
 /// When [`try_topology`] returns an error: only on a 4D image too large for 32-bit places

@@ -125,6 +125,38 @@ pub struct SampleTask {
 ///
 /// Shards are not stored: a dataset of 10^7 one-sample shards has a plan of a few
 /// kilobytes, and [`Plan::shard`] computes any shard from the split table in constant time.
+///
+/// ```
+/// use bettimill_plan::Plan;
+/// use std::path::Path;
+///
+/// let manifest = r#"
+/// schema_version = 1
+/// name = "rings"
+/// dimension = 2
+/// side = 32
+/// mode = ["embed", "carve"]
+/// samples = 240
+/// shard_size = 40
+/// seed = 20261122
+///
+/// [[classes]]
+/// family = "ball"
+///
+/// [[classes]]
+/// family = "handle"
+/// "#;
+/// let plan = Plan::parse(manifest, Path::new("rings.toml")).unwrap();
+/// // Two classes in two modes: four strata, dealt out so that each has 60 samples.
+/// assert_eq!(plan.strata.len(), 4);
+/// assert_eq!(plan.total_counts(), [60, 60, 60, 60]);
+/// assert_eq!(plan.shard_count(), 6);
+/// let shard = plan.shard(5);
+/// assert_eq!((shard.first_sample, shard.samples), (200, 40));
+/// // A pure function of the manifest: the same text plans the same everywhere.
+/// let again = Plan::parse(manifest, Path::new("elsewhere/rings.toml")).unwrap();
+/// assert_eq!(plan.hash(), again.hash());
+/// ```
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// The manifest's canonical hash.
