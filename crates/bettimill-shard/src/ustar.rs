@@ -402,6 +402,32 @@ pub type StreamEntry<'a> = (&'a str, u64, &'a [u8]);
 /// refused by that header, before anything of it is read, so memory is bounded by the
 /// limit, never by the file. The caller bounds the reader (a file's recorded size with
 /// [`std::io::Read::take`]); `path` names the source in I/O errors.
+///
+/// ```
+/// use bettimill_shard::{tar_bytes, Member, TarStream};
+///
+/// let shard = tar_bytes(&[
+///     Member::new("s000000.cls", b"3"),
+///     Member::new("s000000.json", br#"{"betti": [1, 1]}"#),
+/// ])
+/// .unwrap();
+/// // A header and a padded data block per member, then the two-block end marker.
+/// assert_eq!(shard.len(), 2 * (512 + 512) + 2 * 512);
+///
+/// let mut stream = TarStream::new(&shard[..], "s.tar", 1 << 20);
+/// let mut members = Vec::new();
+/// while let Some((name, header_offset, data)) = stream.next_entry().unwrap() {
+///     members.push((name.to_string(), header_offset, data.to_vec()));
+/// }
+/// assert_eq!(members[0], ("s000000.cls".to_string(), 0, b"3".to_vec()));
+/// assert_eq!(members[1].1, 1024);
+/// assert_eq!(members[1].2, br#"{"betti": [1, 1]}"#);
+///
+/// // A member over the limit is refused by its header, before its data is read.
+/// let mut small = TarStream::new(&shard[..], "s.tar", 8);
+/// assert!(small.next_entry().is_ok());
+/// assert!(small.next_entry().is_err());
+/// ```
 pub struct TarStream<R> {
     reader: R,
     path: std::path::PathBuf,
