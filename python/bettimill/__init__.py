@@ -5,9 +5,12 @@
 - ``Plan(manifest)``: a manifest's plan; ``plan.sample(i)`` makes sample ``i`` on demand,
   equal to ``KEY.npy`` and ``KEY.json`` of the dataset ``bettimill build`` writes.
 - ``build(manifest, out)``, ``verify(dir)``: the library's build and check, in-process.
+- ``set_threads(n)``, ``threads()``: the threads the computations use in this process.
 - ``bettimill.torch``: ``SyntheticDataset``, ``Conv4d``, ``BettiNet4d`` (needs torch).
 
 The computing is Rust (the extension module ``bettimill._bettimill``) and releases the GIL.
+It runs on a thread pool of this process's own, made again in a child after ``fork``, so
+the package works in DataLoader workers under fork, spawn and forkserver alike.
 """
 
 import os
@@ -20,7 +23,27 @@ import numpy
 from . import _bettimill
 from ._bettimill import Plan, __version__
 
-__all__ = ["betti", "euler", "topology", "Plan", "build", "verify", "__version__"]
+__all__ = ["betti", "euler", "topology", "Plan", "build", "verify", "set_threads", "threads", "__version__"]
+
+# Whether set_threads was called (in this process or, through fork, its parent): a
+# DataLoader worker then keeps that count instead of the one thread it takes by default.
+_threads_chosen = False
+
+
+def set_threads(n):
+    """Uses ``n`` threads for the computations of this process from now on (0: the
+    ``RAYON_NUM_THREADS`` environment variable, else one per core); returns the count.
+
+    ``bettimill.torch.SyntheticDataset`` uses one thread in each DataLoader worker (the
+    workers are the parallelism) unless this was called before."""
+    global _threads_chosen
+    _threads_chosen = True
+    return _bettimill.set_threads(int(n))
+
+
+def threads():
+    """The number of threads the computations of this process use."""
+    return _bettimill.threads()
 
 
 def _as_array(array):

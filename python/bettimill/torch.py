@@ -5,15 +5,19 @@ Only this module imports torch (``pip install "bettimill[torch]"``).
 - ``SyntheticDataset(plan, split=None, transform=None, resolution=None)``: a map-style
   Dataset over a plan's samples, each made when asked (``plan.sample(i)``), equal to the
   sample the dataset's shards hold. Works in a DataLoader with ``num_workers > 0`` under
-  fork and spawn (the plan pickles as its manifest text).
+  fork, spawn and forkserver (the plan pickles as its manifest text); each worker makes its
+  samples on one thread unless ``bettimill.set_threads`` was called.
 - ``Conv4d``: a 4D convolution assembled from ``Conv3d`` (one per kernel offset along the
   first spatial axis), with padding, stride, dilation and bias.
 - ``BettiNet4d``: a small 4D CNN that predicts each Betti number as a class (0..max).
 """
 
+import os
+
 import torch
 from torch import nn
 
+import bettimill
 from . import Plan
 
 __all__ = ["SyntheticDataset", "Conv4d", "BettiNet4d", "betti_targets"]
@@ -45,11 +49,18 @@ class SyntheticDataset(torch.utils.data.Dataset):
         self.indices = range(len(self.plan)) if split is None else self.plan.split(split)
         self.transform = transform
         self.resolution = resolution
+        self._pid = os.getpid()
 
     def __len__(self):
         return len(self.indices)
 
     def __getitem__(self, item):
+        if self._pid != os.getpid():
+            # The first item in a new process: in a DataLoader worker, one thread, because
+            # the workers already use the cores and threads would only add their overhead.
+            self._pid = os.getpid()
+            if not bettimill._threads_chosen and torch.utils.data.get_worker_info() is not None:
+                bettimill._bettimill.set_threads(1)
         voxels, label = self.plan.sample(self.indices[item], self.resolution)
         voxels = torch.from_numpy(voxels)
         if self.transform is not None:

@@ -14,6 +14,12 @@
 //! - `run_cli`: the `bettimill` command line itself (`bettimill_cli::run_as`), for the
 //!   package's console script.
 //!
+//! Threads: every computation runs on [`WorkPool`], a rayon pool the module owns, never on
+//! rayon's global pool. A process made by `fork` (a DataLoader's workers on Linux) inherits
+//! the parent's memory but none of its threads, so a pool made before the fork would take
+//! the child's work and never run it; the module notices the new process id and makes a
+//! fresh pool there. rayon's global pool cannot be made again, so nothing here uses it.
+//!
 //! Errors: bad input is `ValueError` (a missing file `FileNotFoundError`, a failed write
 //! `OSError`) with the message the CLI prints after `error: `. Nothing here prints.
 
@@ -34,10 +40,86 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyRange};
 use std::ffi::OsString;
 use std::path::PathBuf;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 fn value_error(err: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(err.to_string())
+}
+
+/// The module's rayon pool for this process, and the thread count asked for.
+struct WorkPool {
+    /// The process the pool's threads run in; another id means this is a forked child.
+    pid: u32,
+    /// Threads asked for by `set_threads`; 0 is rayon's default (`RAYON_NUM_THREADS`, else
+    /// one per core).
+    threads: usize,
+    pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+static WORK_POOL: Mutex<WorkPool> = Mutex::new(WorkPool {
+    pid: 0,
+    threads: 0,
+    pool: None,
+});
+
+impl WorkPool {
+    /// The pool of this process, made on first use and again after a fork.
+    fn current() -> PyResult<Arc<rayon::ThreadPool>> {
+        let mut slot = WORK_POOL.lock().unwrap_or_else(PoisonError::into_inner);
+        let pid = std::process::id();
+        if slot.pid != pid {
+            // The parent's pool: its threads do not exist here, and dropping it would
+            // signal them through locks their last state may hold, so it is left alone.
+            if let Some(inherited) = slot.pool.take() {
+                std::mem::forget(inherited);
+            }
+            slot.pid = pid;
+        }
+        if let Some(pool) = &slot.pool {
+            return Ok(Arc::clone(pool));
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(slot.threads)
+            .thread_name(|i| format!("bettimill-{i}"))
+            .build()
+            .map_err(|err| {
+                PyOSError::new_err(format!("cannot start bettimill's threads: {err}"))
+            })?;
+        let pool = Arc::new(pool);
+        slot.pool = Some(Arc::clone(&pool));
+        Ok(pool)
+    }
+
+    /// Asks for `threads` threads (0: rayon's default) from the next computation on.
+    fn set_threads(threads: usize) {
+        let mut slot = WORK_POOL.lock().unwrap_or_else(PoisonError::into_inner);
+        if slot.threads != threads {
+            slot.threads = threads;
+            // A pool of this process ends its threads when its last user drops it; one
+            // inherited from the parent is left alone, as in `current`.
+            if slot.pid != std::process::id() {
+                if let Some(inherited) = slot.pool.take() {
+                    std::mem::forget(inherited);
+                }
+            }
+            slot.pool = None;
+        }
+    }
+
+    fn threads() -> PyResult<usize> {
+        Ok(WorkPool::current()?.current_num_threads())
+    }
+}
+
+/// `py.detach(work)` on the module's pool: the GIL released, and every rayon call of `work`
+/// on this process's own threads.
+fn detach_in_pool<T, F>(py: Python<'_>, work: F) -> PyResult<T>
+where
+    T: Send,
+    F: Send + FnOnce() -> T,
+{
+    let pool = WorkPool::current()?;
+    Ok(py.detach(|| pool.install(work)))
 }
 
 /// Reads one borrowed numpy array of element type `T` into an image, GIL released.
@@ -105,10 +187,10 @@ fn topology<'py>(
     let image = read_array(py, array, strict)?;
     let shape = image.shape().to_vec();
     // The image is not needed afterwards: padded in place, one copy at the peak.
-    let (topology, hypervolume) = py.detach(|| {
+    let (topology, hypervolume) = detach_in_pool(py, || {
         let hypervolume = image.count_foreground();
         (bettimill_homology::try_topology_owned(image), hypervolume)
-    });
+    })?;
     // An image too large (or too large and rough) for the exact route is a ValueError,
     // never a panic.
     let topology = topology.map_err(|error| PyValueError::new_err(error.to_string()))?;
@@ -350,22 +432,21 @@ impl PyPlan {
             }
         }
         let plan = Arc::clone(&self.plan);
-        let (image, json) = py
-            .detach(move || {
-                let task = plan.task(index).expect("the index was checked");
-                let sample = bettimill_sample::make_sample(&plan, &task)?;
-                let json = String::from_utf8(sample.json_bytes()).expect("labels are JSON");
-                let image = match resolution {
-                    Some(side) if side != plan.side => sample
-                        .downscaled
-                        .into_iter()
-                        .find(|d| d.shape()[0] == side as usize)
-                        .expect("the resolution was checked"),
-                    _ => sample.image,
-                };
-                Ok::<_, bettimill_sample::SampleError>((image, json))
-            })
-            .map_err(|err| pyo3::exceptions::PyRuntimeError::new_err(err.to_string()))?;
+        let (image, json) = detach_in_pool(py, move || {
+            let task = plan.task(index).expect("the index was checked");
+            let sample = bettimill_sample::make_sample(&plan, &task)?;
+            let json = String::from_utf8(sample.json_bytes()).expect("labels are JSON");
+            let image = match resolution {
+                Some(side) if side != plan.side => sample
+                    .downscaled
+                    .into_iter()
+                    .find(|d| d.shape()[0] == side as usize)
+                    .expect("the resolution was checked"),
+                _ => sample.image,
+            };
+            Ok::<_, bettimill_sample::SampleError>((image, json))
+        })?
+        .map_err(|err| pyo3::exceptions::PyRuntimeError::new_err(err.to_string()))?;
         let shape = image.shape().to_vec();
         let array = ArrayD::from_shape_vec(IxDyn(&shape), image.into_vec())
             .expect("an image's data fits its shape");
@@ -406,14 +487,13 @@ fn build<'py>(
     let dict = PyDict::new(py);
     match workers {
         None | Some(1) => {
-            let summary = py
-                .detach(|| {
-                    let _lock = DirLock::acquire(&dataset.dir).map_err(|e| e.to_string())?;
-                    dataset
-                        .build_in_process(|_, _| {})
-                        .map_err(|e| e.to_string())
-                })
-                .map_err(PyOSError::new_err)?;
+            let summary = detach_in_pool(py, || {
+                let _lock = DirLock::acquire(&dataset.dir).map_err(|e| e.to_string())?;
+                dataset
+                    .build_in_process(|_, _| {})
+                    .map_err(|e| e.to_string())
+            })?
+            .map_err(PyOSError::new_err)?;
             dict.set_item("built", summary.built)?;
             dict.set_item("skipped", summary.skipped)?;
             dict.set_item("regenerations", summary.regenerations)?;
@@ -444,9 +524,9 @@ fn build<'py>(
                     }
                 }
             };
-            let report = py
-                .detach(|| coordinator::run(&dataset, &options, control, |_| {}))
-                .map_err(value_error)?;
+            let report =
+                detach_in_pool(py, || coordinator::run(&dataset, &options, control, |_| {}))?
+                    .map_err(value_error)?;
             if report.interrupted {
                 return Err(PyKeyboardInterrupt::new_err(format!(
                     "interrupted: {} of {} shards complete, nothing partial is visible; build again to resume",
@@ -487,9 +567,10 @@ fn build<'py>(
 /// `problems` list is empty when every shard matches `index.json`.
 #[pyfunction]
 fn verify<'py>(py: Python<'py>, dir: PathBuf) -> PyResult<Bound<'py, PyAny>> {
-    let report = py
-        .detach(|| bettimill_format::DatasetDir::new(&dir).verify(&mut |_, _| {}))
-        .map_err(value_error)?;
+    let report = detach_in_pool(py, || {
+        bettimill_format::DatasetDir::new(&dir).verify(&mut |_, _| {})
+    })?
+    .map_err(value_error)?;
     let json = serde_json::to_string(&report).map_err(value_error)?;
     json_to_py(py, &json)
 }
@@ -497,8 +578,23 @@ fn verify<'py>(py: Python<'py>, dir: PathBuf) -> PyResult<Bound<'py, PyAny>> {
 /// The `bettimill` command line: `args` as `sys.argv` (the program name first), `program`
 /// the file that runs it again (for workers). Returns the exit code; the GIL is released.
 #[pyfunction]
-fn run_cli(py: Python<'_>, args: Vec<OsString>, program: PathBuf) -> i32 {
-    py.detach(|| bettimill_cli::run_as(args, program))
+fn run_cli(py: Python<'_>, args: Vec<OsString>, program: PathBuf) -> PyResult<i32> {
+    detach_in_pool(py, || bettimill_cli::run_as(args, program))
+}
+
+/// `bettimill.set_threads(n)`: the number of threads the module's computations use from now
+/// on in this process (0: `RAYON_NUM_THREADS`, else one per core). Returns the count now in
+/// force.
+#[pyfunction]
+fn set_threads(threads: usize) -> PyResult<usize> {
+    WorkPool::set_threads(threads);
+    WorkPool::threads()
+}
+
+/// `bettimill.threads()`: the number of threads the module's computations use.
+#[pyfunction]
+fn threads() -> PyResult<usize> {
+    WorkPool::threads()
 }
 
 /// The extension module.
@@ -509,6 +605,8 @@ fn _bettimill(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(verify, m)?)?;
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
     m.add_function(wrap_pyfunction!(_plan_from_text, m)?)?;
+    m.add_function(wrap_pyfunction!(set_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(threads, m)?)?;
     m.add_class::<PyPlan>()?;
     m.add("__version__", bettimill_format::TOOL_VERSION)?;
     Ok(())
