@@ -1,13 +1,13 @@
 //! Cluster subcommands: the hidden `worker` (a coordinator's child or an array task),
 //! `slurm` (sbatch scripts for the same plan) and `k8s` (an Indexed Job). Everything but
 //! argument handling and printing lives in `bettimill_executor` (`worker`, `cluster`).
-//! Exit codes: 0 success, 2 failure, 3 an array task failed on purpose (test hook).
+//! Exit codes: 0 success, 2 failure.
 
 use crate::build_display::{human_seconds, Periodic};
 use crate::commands::{load_manifest, ExitStatus};
 use anyhow::{bail, Context};
 use bettimill_executor::cluster::{self, KubernetesOptions, SlurmOptions};
-use bettimill_executor::worker::{self, WorkerError};
+use bettimill_executor::worker;
 use bettimill_executor::{Dataset, SampleEvent};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -185,14 +185,7 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
         )
     });
     drop(lines);
-    let report = match report {
-        Ok(report) => report,
-        Err(err @ WorkerError::InjectedTaskFailure { .. }) => {
-            eprintln!("error: {err}");
-            return Ok(ExitStatus::Code(3));
-        }
-        Err(err) => return Err(err.into()),
-    };
+    let report = report?;
     if !quiet {
         eprintln!(
             "task {index} of {count}: built {}, already complete {}, failed {}",

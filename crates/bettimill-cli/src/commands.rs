@@ -191,20 +191,17 @@ pub enum ExitStatus {
     Failure,
     /// Exit 130: interrupted by Ctrl-C or SIGTERM (resumable).
     Interrupted,
-    /// Another documented exit code (3: a cluster task failed on purpose, test hook).
-    Code(u8),
 }
 
 impl ExitStatus {
     /// The process exit code.
     pub fn code(self) -> i32 {
-        i32::from(match self {
+        match self {
             ExitStatus::Success => 0,
             ExitStatus::Differs => 1,
             ExitStatus::Failure => 2,
             ExitStatus::Interrupted => 130,
-            ExitStatus::Code(code) => code,
-        })
+        }
     }
 }
 

@@ -4,9 +4,8 @@
 //! exit codes.
 //!
 //! Exit codes (documented in README.md): 0 success; 1 a check found differences (verify);
-//! 2 bad input, usage error or failure; 3 a cluster task failed on purpose (test hook);
-//! 130 interrupted (resumable). Everything else lives in library crates; this crate
-//! is the only one that prints.
+//! 2 bad input, usage error or failure; 130 interrupted (resumable). Everything else lives
+//! in library crates; this crate is the only one that prints.
 
 // This crate is the one place that prints or writes to stdout/stderr (the workspace denies
 // it everywhere else: Cargo.toml [workspace.lints], clippy.toml).

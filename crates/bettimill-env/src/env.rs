@@ -38,7 +38,8 @@ impl EnvVars {
     /// Slurm: the job's CPUs on this node (multiplies [`EnvVars::SLURM_MEM_PER_CPU`]).
     pub const SLURM_CPUS_ON_NODE: &'static str = "SLURM_CPUS_ON_NODE";
 
-    /// Internal test hook: the array task with this index fails before doing any work.
+    /// Internal test hook: the array task with this index fails before doing any work (exit
+    /// code 2, as any failed task).
     #[doc(hidden)]
     pub const BETTIMILL_TEST_FAIL_TASK: &'static str = "BETTIMILL_TEST_FAIL_TASK";
 
