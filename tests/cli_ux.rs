@@ -398,6 +398,25 @@ fn stats_plot_is_a_png_and_text_names_every_section() {
     }
     png_size(&std::fs::read(dir.join("plot.png")).unwrap());
 
+    // An extension the picture cannot have is refused by name, and nothing is written.
+    let out_str = out_dir.to_str().unwrap();
+    for args in [
+        vec!["stats", out_str, "--plot", "plot.jpg"],
+        vec!["preview", out_str, "--out", "x.jpg"],
+        vec!["preview", out_str, "--out", "x"],
+    ] {
+        let out = run_in(dir, &args);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        let file = args[3];
+        assert!(
+            err.contains(&format!("{} {file}", args[2]))
+                && err.contains("supported extension is .png"),
+            "{args:?}: {err}"
+        );
+        assert!(!dir.join(file).exists(), "{args:?} wrote {file}");
+    }
+
     // An unfinished build (no index.json yet) still has statistics, splits from its
     // completion records.
     std::fs::remove_file(out_dir.join("index.json")).unwrap();

@@ -93,6 +93,7 @@ fn subject(sample: &bettimill_preview::SampleView) -> Subject<'_> {
 /// Runs `bettimill preview`.
 pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
     crate::stats::refuse_inside_dataset(request.out, "--out")?;
+    crate::stats::require_extension(request.out, "--out", "png")?;
     let input = request.input;
     let is_npy = crate::image::looks_like_image(input);
     let canvas = if is_npy {
@@ -186,7 +187,7 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
             render_sample(&subject(&found[0]), &caption(&found[0].label))?
         }
     };
-    let png = canvas.to_png();
+    let png = canvas.to_png()?;
     std::fs::write(request.out, &png)
         .with_context(|| format!("cannot write {}", request.out.display()))?;
     if !request.quiet {

@@ -23,6 +23,7 @@ pub fn run(
     }
     if let Some(path) = plot_path {
         refuse_inside_dataset(path, "--plot")?;
+        require_extension(path, "--plot", "png")?;
     }
     let shards = crate::preview::dataset_shards(dir)?;
     let layout = DatasetDir::new(dir);
@@ -62,13 +63,30 @@ pub fn run(
     write_stdout(output.as_bytes())?;
     if let Some(path) = plot_path {
         let canvas = plot(&stats)?;
-        std::fs::write(path, canvas.to_png())
+        std::fs::write(path, canvas.to_png()?)
             .with_context(|| format!("cannot write {}", path.display()))?;
         if !quiet {
             eprintln!("wrote {}", path.display());
         }
     }
     Ok(ExitStatus::Success)
+}
+
+/// Refuses an output file whose extension names a format other than `ext` (`x.jpg` for
+/// a PNG), so a file never holds bytes its name does not promise.
+pub(crate) fn require_extension(path: &Path, flag: &str, ext: &str) -> anyhow::Result<()> {
+    let given = path.extension().map(|e| e.to_string_lossy().to_lowercase());
+    if given.as_deref() != Some(ext) {
+        let what = match &given {
+            Some(e) => format!("cannot write .{e} files"),
+            None => "has no extension".to_string(),
+        };
+        bail!(
+            "{flag} {}: {what}; the supported extension is .{ext}",
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 /// Refuses an output file (`preview --out`, `stats --plot`, `deform --out`) that would land

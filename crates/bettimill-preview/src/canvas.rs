@@ -1,4 +1,5 @@
-//! An RGB drawing surface: rectangles, text in the built-in font, greyscale planes.
+//! An RGB drawing surface: rectangles, text in the bundled font, greyscale planes, and
+//! its PNG encoding (through the `png` crate).
 
 use crate::font;
 use crate::PreviewError;
@@ -119,18 +120,20 @@ impl Canvas {
         self.fill(x + width - 1, y, 1, height, colour);
     }
 
-    /// Draws `text` with its top-left corner at (`x`, `y`), each font pixel `scale` wide.
-    pub fn text(&mut self, x: usize, y: usize, text: &str, scale: usize, colour: Rgb) {
-        for (n, c) in text.chars().enumerate() {
-            let left = x + n * font::ADVANCE * scale;
-            for (row, bits) in font::glyph(c).iter().enumerate() {
-                for col in 0..5 {
-                    if bits & (0x10 >> col) != 0 {
-                        self.fill(left + col * scale, y + row * scale, scale, scale, colour);
-                    }
-                }
+    /// Draws `text` with the top-left corner of its line at (`x`, `y`), at `size` pixels
+    /// (see [`font`]), blended over what is there by the glyphs' coverage.
+    pub fn text(&mut self, x: usize, y: usize, text: &str, size: f32, colour: Rgb) {
+        font::rasterise(text, size, |gx, gy, coverage| {
+            let (px, py) = (x as i64 + gx, y as i64 + gy);
+            if px < 0 || py < 0 {
+                return;
             }
-        }
+            let (px, py) = (px as usize, py as usize);
+            if let Some(under) = self.pixel(px, py) {
+                let t = (coverage.clamp(0.0, 1.0) * 255.0).round() as u8;
+                self.put(px, py, mix(under, colour, t));
+            }
+        });
     }
 
     /// Draws `plane` with its top-left corner at (`x`, `y`), each value a `scale` x `scale`
@@ -155,9 +158,37 @@ impl Canvas {
         }
     }
 
-    /// The canvas as PNG bytes (see [`crate::png`]).
-    pub fn to_png(&self) -> Vec<u8> {
-        crate::png::encode_rgb(self.width as u32, self.height as u32, &self.pixels)
+    /// A canvas holding `pixels` (`width * height` RGB triples, row-major), as drawn by
+    /// another library; `None` when the sizes disagree or are refused.
+    pub fn from_rgb(width: usize, height: usize, pixels: Vec<u8>) -> Option<Canvas> {
+        let ok = width > 0
+            && height > 0
+            && width.saturating_mul(height) <= MAX_PIXELS
+            && pixels.len() == width * height * 3;
+        ok.then_some(Canvas {
+            width,
+            height,
+            pixels,
+        })
+    }
+
+    /// The pixels, row-major, three bytes each.
+    pub fn rgb(&self) -> &[u8] {
+        &self.pixels
+    }
+
+    /// The canvas as PNG bytes: 8-bit RGB, no interlace, no time or text chunks, at a
+    /// fixed compression level, so equal pictures are equal bytes.
+    pub fn to_png(&self) -> Result<Vec<u8>, PreviewError> {
+        let mut out = Vec::new();
+        let mut encoder = png::Encoder::new(&mut out, self.width as u32, self.height as u32);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        encoder.set_compression(png::Compression::Best);
+        let mut writer = encoder.write_header()?;
+        writer.write_image_data(&self.pixels)?;
+        writer.finish()?;
+        Ok(out)
     }
 }
 
@@ -167,21 +198,48 @@ mod tests {
 
     #[test]
     fn text_and_planes_land_where_asked() {
-        let mut canvas = Canvas::new(40, 20, PAGE).unwrap();
-        canvas.text(2, 3, "1", 1, INK);
-        // '1' has its top row at column 2 of the glyph only.
-        assert_eq!(canvas.pixel(4, 3), Some(INK));
-        assert_eq!(canvas.pixel(2, 3), Some(PAGE));
+        let mut canvas = Canvas::new(60, 40, PAGE).unwrap();
+        canvas.text(2, 3, "Ab", font::BODY, INK);
+        // Ink lands inside the text's box only, and somewhere in it.
+        let (w, h) = (
+            font::text_width("Ab", font::BODY),
+            font::line_height(font::BODY),
+        );
+        for y in 0..40 {
+            for x in 0..60 {
+                let inked = canvas.pixel(x, y) != Some(PAGE);
+                assert!(!inked || (2..=2 + w).contains(&x) && (3..3 + h).contains(&y));
+            }
+        }
+        assert!((0..60).any(|x| (0..40).any(|y| canvas.pixel(x, y) == Some(INK))));
         let plane = Plane {
             rows: 1,
             cols: 2,
             values: vec![0, 255],
         };
-        canvas.plane(20, 10, &plane, 3);
-        assert_eq!(canvas.pixel(20, 10), Some(EMPTY));
-        assert_eq!(canvas.pixel(25, 12), Some(FOREGROUND));
-        assert_eq!(canvas.pixel(26, 12), Some(PAGE));
-        assert_eq!(canvas.pixel(40, 0), None);
+        canvas.plane(30, 30, &plane, 3);
+        assert_eq!(canvas.pixel(30, 30), Some(EMPTY));
+        assert_eq!(canvas.pixel(35, 32), Some(FOREGROUND));
+        assert_eq!(canvas.pixel(36, 32), Some(PAGE));
+        assert_eq!(canvas.pixel(60, 0), None);
+    }
+
+    #[test]
+    fn pixels_survive_a_round_trip_through_png() {
+        let mut canvas = Canvas::new(5, 3, PAGE).unwrap();
+        canvas.fill(1, 1, 2, 1, BAR);
+        canvas.put(4, 2, [1, 2, 3]);
+        let bytes = canvas.to_png().unwrap();
+        assert_eq!(bytes, canvas.to_png().unwrap());
+        let decoder = png::Decoder::new(bytes.as_slice());
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (5, 3));
+        assert_eq!(info.color_type, png::ColorType::Rgb);
+        assert_eq!(&buf[..info.buffer_size()], canvas.rgb());
+        assert!(Canvas::from_rgb(2, 2, vec![0; 11]).is_none());
+        assert_eq!(Canvas::from_rgb(5, 3, buf[..45].to_vec()), Some(canvas));
     }
 
     #[test]

@@ -1,86 +1,73 @@
-//! A tiny built-in 5x7 bitmap font for captions: digits, letters (lower case is drawn as
-//! upper case) and the punctuation that labels use. Anything else is drawn as `?`.
+//! Text in pictures: DejaVu Sans Mono (bundled in `fonts/`, under the Bitstream Vera
+//! licence beside it), rasterised with `ab_glyph`.
 //!
-//! Each glyph is seven rows of five bits, the highest of the five bits leftmost. A glyph
-//! advances six pixels (one blank column) and a line eight (`LINE_HEIGHT`), times the scale.
+//! A monospaced face keeps columns of numbers aligned and makes a line's width a product
+//! of its length, which the layouts use to wrap captions. Rasterisation is a pure function
+//! of the text, the size and the font bytes, so equal pictures stay equal bytes.
 
-/// Width of a glyph cell including its blank column, in unscaled pixels.
-pub const ADVANCE: usize = 6;
-/// Height of a line including its blank row, in unscaled pixels.
-pub const LINE_HEIGHT: usize = 9;
+use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
+use std::sync::OnceLock;
 
-/// The rows of `c`'s glyph.
-pub fn glyph(c: char) -> [u8; 7] {
-    match c.to_ascii_uppercase() {
-        '0' => [0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E],
-        '1' => [0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E],
-        '2' => [0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F],
-        '3' => [0x1F, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0E],
-        '4' => [0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02],
-        '5' => [0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E],
-        '6' => [0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E],
-        '7' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08],
-        '8' => [0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E],
-        '9' => [0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C],
-        'A' => [0x0E, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
-        'B' => [0x1E, 0x11, 0x11, 0x1E, 0x11, 0x11, 0x1E],
-        'C' => [0x0E, 0x11, 0x10, 0x10, 0x10, 0x11, 0x0E],
-        'D' => [0x1C, 0x12, 0x11, 0x11, 0x11, 0x12, 0x1C],
-        'E' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x1F],
-        'F' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x10],
-        'G' => [0x0E, 0x11, 0x10, 0x17, 0x11, 0x11, 0x0F],
-        'H' => [0x11, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
-        'I' => [0x0E, 0x04, 0x04, 0x04, 0x04, 0x04, 0x0E],
-        'J' => [0x07, 0x02, 0x02, 0x02, 0x02, 0x12, 0x0C],
-        'K' => [0x11, 0x12, 0x14, 0x18, 0x14, 0x12, 0x11],
-        'L' => [0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x1F],
-        'M' => [0x11, 0x1B, 0x15, 0x15, 0x11, 0x11, 0x11],
-        'N' => [0x11, 0x11, 0x19, 0x15, 0x13, 0x11, 0x11],
-        'O' => [0x0E, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
-        'P' => [0x1E, 0x11, 0x11, 0x1E, 0x10, 0x10, 0x10],
-        'Q' => [0x0E, 0x11, 0x11, 0x11, 0x15, 0x12, 0x0D],
-        'R' => [0x1E, 0x11, 0x11, 0x1E, 0x14, 0x12, 0x11],
-        'S' => [0x0F, 0x10, 0x10, 0x0E, 0x01, 0x01, 0x1E],
-        'T' => [0x1F, 0x04, 0x04, 0x04, 0x04, 0x04, 0x04],
-        'U' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
-        'V' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x0A, 0x04],
-        'W' => [0x11, 0x11, 0x11, 0x15, 0x15, 0x15, 0x0A],
-        'X' => [0x11, 0x11, 0x0A, 0x04, 0x0A, 0x11, 0x11],
-        'Y' => [0x11, 0x11, 0x11, 0x0A, 0x04, 0x04, 0x04],
-        'Z' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x10, 0x1F],
-        ' ' => [0; 7],
-        '-' => [0, 0, 0, 0x1F, 0, 0, 0],
-        '_' => [0, 0, 0, 0, 0, 0, 0x1F],
-        '.' => [0, 0, 0, 0, 0, 0x0C, 0x0C],
-        ',' => [0, 0, 0, 0, 0x0C, 0x04, 0x08],
-        ':' => [0, 0x0C, 0x0C, 0, 0x0C, 0x0C, 0],
-        ';' => [0, 0x0C, 0x0C, 0, 0x0C, 0x04, 0x08],
-        '[' => [0x0E, 0x08, 0x08, 0x08, 0x08, 0x08, 0x0E],
-        ']' => [0x0E, 0x02, 0x02, 0x02, 0x02, 0x02, 0x0E],
-        '(' => [0x02, 0x04, 0x08, 0x08, 0x08, 0x04, 0x02],
-        ')' => [0x08, 0x04, 0x02, 0x02, 0x02, 0x04, 0x08],
-        '=' => [0, 0, 0x1F, 0, 0x1F, 0, 0],
-        '/' => [0, 0x01, 0x02, 0x04, 0x08, 0x10, 0],
-        '+' => [0, 0x04, 0x04, 0x1F, 0x04, 0x04, 0],
-        '*' => [0, 0x04, 0x15, 0x0E, 0x15, 0x04, 0],
-        '#' => [0x0A, 0x0A, 0x1F, 0x0A, 0x1F, 0x0A, 0x0A],
-        '%' => [0x18, 0x19, 0x02, 0x04, 0x08, 0x13, 0x03],
-        '^' => [0x04, 0x0A, 0x11, 0, 0, 0, 0],
-        '<' => [0x02, 0x04, 0x08, 0x10, 0x08, 0x04, 0x02],
-        '>' => [0x08, 0x04, 0x02, 0x01, 0x02, 0x04, 0x08],
-        '\'' => [0x04, 0x04, 0x08, 0, 0, 0, 0],
-        '"' => [0x0A, 0x0A, 0, 0, 0, 0, 0],
-        _ => [0x0E, 0x11, 0x01, 0x02, 0x04, 0, 0x04],
-    }
+/// The bundled font file.
+pub const FONT_BYTES: &[u8] = include_bytes!("../fonts/DejaVuSansMono.ttf");
+
+/// Tile labels and small print, in pixels (the font's em size).
+pub const SMALL: f32 = 12.0;
+/// Legends and contact-sheet captions.
+pub const BODY: f32 = 13.0;
+/// The caption of a single-sample picture.
+pub const TITLE: f32 = 19.0;
+
+fn font() -> &'static FontRef<'static> {
+    static FONT: OnceLock<FontRef<'static>> = OnceLock::new();
+    FONT.get_or_init(|| {
+        FontRef::try_from_slice(FONT_BYTES).expect("the bundled font is a valid TrueType file")
+    })
 }
 
-/// Width in pixels of `text` drawn at `scale` (no trailing blank column).
-pub fn text_width(text: &str, scale: usize) -> usize {
-    let n = text.chars().count();
-    if n == 0 {
-        0
-    } else {
-        (n * ADVANCE - 1) * scale
+/// The distance from one line's top to the next one's at `size`, in pixels.
+pub fn line_height(size: f32) -> usize {
+    let scaled = font().as_scaled(PxScale::from(size));
+    (scaled.height() + scaled.line_gap()).ceil() as usize + 1
+}
+
+/// The advance of one character at `size` (every glyph has the same).
+fn advance(size: f32) -> f32 {
+    let scaled = font().as_scaled(PxScale::from(size));
+    scaled.h_advance(font().glyph_id('0'))
+}
+
+/// Width in pixels of `text` drawn at `size`.
+pub fn text_width(text: &str, size: f32) -> usize {
+    (text.chars().count() as f32 * advance(size)).ceil() as usize
+}
+
+/// How many characters fit in `width` pixels at `size` (at least one).
+pub fn chars_in(width: usize, size: f32) -> usize {
+    ((width as f32 / advance(size)).floor() as usize).max(1)
+}
+
+/// Calls `put(x, y, coverage)` for every pixel the glyphs of `text` cover, with the top
+/// of the line at `y = 0` and the text starting at `x = 0`; `coverage` is in 0..=1.
+/// Characters the font lacks are drawn as its replacement glyph.
+pub fn rasterise(text: &str, size: f32, mut put: impl FnMut(i64, i64, f32)) {
+    let scale = PxScale::from(size);
+    let scaled = font().as_scaled(scale);
+    let step = advance(size);
+    for (n, c) in text.chars().enumerate() {
+        let glyph = font()
+            .glyph_id(c)
+            .with_scale_and_position(scale, point(n as f32 * step, scaled.ascent()));
+        if let Some(outline) = font().outline_glyph(glyph) {
+            let bounds = outline.px_bounds();
+            outline.draw(|gx, gy, coverage| {
+                put(
+                    bounds.min.x as i64 + gx as i64,
+                    bounds.min.y as i64 + gy as i64,
+                    coverage,
+                );
+            });
+        }
     }
 }
 
@@ -88,17 +75,34 @@ pub fn text_width(text: &str, scale: usize) -> usize {
 mod tests {
     use super::*;
 
+    /// The pixels `text` covers, as a set, for comparing glyphs.
+    fn covered(text: &str) -> std::collections::BTreeSet<(i64, i64)> {
+        let mut set = std::collections::BTreeSet::new();
+        rasterise(text, BODY, |x, y, c| {
+            if c > 0.5 {
+                set.insert((x, y));
+            }
+        });
+        set
+    }
+
     #[test]
-    fn every_glyph_fits_in_five_columns_and_digits_differ() {
-        let mut seen = std::collections::BTreeSet::new();
-        for c in "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZ".chars() {
-            let g = glyph(c);
-            assert!(g.iter().all(|row| row & !0x1F == 0), "{c}");
-            assert!(seen.insert(g), "{c} looks like another glyph");
-        }
-        assert_eq!(glyph('a'), glyph('A'));
-        assert_eq!(glyph('\u{e9}'), glyph('?'));
-        assert_eq!(text_width("ab", 2), 22);
-        assert_eq!(text_width("", 3), 0);
+    fn lower_and_upper_case_differ_and_widths_are_monospaced() {
+        assert_ne!(covered("s000006"), covered("S000006"));
+        assert_ne!(covered("a"), covered("A"));
+        assert!(!covered("k").is_empty());
+        assert_eq!(text_width("", BODY), 0);
+        assert_eq!(text_width("iiii", BODY), text_width("WWWW", BODY));
+        assert!(text_width("ab", TITLE) > text_width("ab", SMALL));
+        assert!(line_height(TITLE) > line_height(SMALL));
+        assert_eq!(chars_in(text_width("abcdefghij", BODY), BODY), 10);
+        // Every pixel lies within the line's height and the text's width.
+        let (w, h) = (text_width("Betti [1, 0, 2]", BODY), line_height(BODY));
+        rasterise("Betti [1, 0, 2]", BODY, |x, y, _| {
+            assert!(
+                x >= 0 && (x as usize) <= w && y >= 0 && (y as usize) < h,
+                "{x} {y}"
+            );
+        });
     }
 }

@@ -3,10 +3,9 @@
 //! where a hole shows), contact sheets, and statistics with a histogram chart.
 //!
 //! Everything here is a pure function of bytes and images: the CLI reads the files and
-//! writes the PNGs. Equal inputs give equal PNG bytes (see [`png`]).
+//! writes the files. Equal inputs give equal PNG bytes (see [`Canvas::to_png`]).
 //!
-//! - [`png`]: the PNG encoder.
-//! - [`font`]: the built-in 5x7 bitmap font for captions.
+//! - [`font`]: the bundled font (DejaVu Sans Mono) for captions.
 //! - [`canvas`]: the RGB drawing surface.
 //! - [`focus`]: the crop box and the slice that shows the topology.
 //! - [`render`]: layouts of one sample and of contact sheets.
@@ -16,7 +15,6 @@
 pub mod canvas;
 pub mod focus;
 pub mod font;
-pub mod png;
 pub mod render;
 pub mod samples;
 pub mod stats;
@@ -67,6 +65,12 @@ pub enum PreviewError {
         /// Requested height.
         height: usize,
     },
+    /// The PNG encoder failed.
+    #[error("cannot encode the PNG: {0}")]
+    Png(#[from] png::EncodingError),
+    /// The chart could not be drawn.
+    #[error("cannot draw the chart: {0}")]
+    Chart(String),
     /// Nothing to draw.
     #[error("no samples to draw")]
     Empty,

@@ -25,9 +25,10 @@ use bettimill_grid::{BinaryImage, Mode};
 
 const MARGIN: usize = 16;
 const GAP: usize = 8;
-const CAPTION_SCALE: usize = 2;
-/// Height of a one-line label under a tile (font scale 1).
-const TILE_LABEL: usize = font::LINE_HEIGHT + 2;
+/// Height of a one-line label under a tile, in pixels.
+fn tile_label() -> usize {
+    font::line_height(font::SMALL) + 4
+}
 /// The names of the axes in pictures.
 const AXES: [char; 4] = ['i', 'j', 'k', 'l'];
 
@@ -222,8 +223,8 @@ impl Tile {
 
 fn tile_size(tile: &Tile, scale: usize) -> (usize, usize) {
     (
-        (tile.plane.cols * scale).max(font::text_width(&tile.label, 1)),
-        tile.plane.rows * scale + TILE_LABEL,
+        (tile.plane.cols * scale).max(font::text_width(&tile.label, font::SMALL)),
+        tile.plane.rows * scale + tile_label(),
     )
 }
 
@@ -250,7 +251,7 @@ fn draw_tile(canvas: &mut Canvas, x: usize, y: usize, tile: &Tile, scale: usize)
         );
     }
     let colour = if tile.chosen { INK } else { MUTED };
-    canvas.text(x, y + h + 4, &tile.label, 1, colour);
+    canvas.text(x, y + h + 4, &tile.label, font::SMALL, colour);
 }
 
 /// A cropped image with its axes in drawing order: the sliced axes first.
@@ -452,7 +453,7 @@ pub fn render_sample(subject: &Subject, caption: &[String]) -> Result<Canvas, Pr
     let (rows, scale) = body_rows(subject, &view);
     let row_label_width = rows
         .iter()
-        .map(|(label, _)| font::text_width(label, 1))
+        .map(|(label, _)| font::text_width(label, font::SMALL))
         .max()
         .unwrap_or(0);
     let row_label_width = if row_label_width > 0 {
@@ -469,17 +470,11 @@ pub fn render_sample(subject: &Subject, caption: &[String]) -> Result<Canvas, Pr
     let per_row = rows.iter().map(|(_, t)| t.len()).max().unwrap_or(0);
     let body_w = row_label_width + per_row * (cell_w + GAP);
     let body_h = rows.len() * (cell_h + GAP);
-    let line_h = |legend: bool| {
-        if legend {
-            font::LINE_HEIGHT * 3 / 2
-        } else {
-            font::LINE_HEIGHT * CAPTION_SCALE
-        }
-    };
+    let line_h = |legend: bool| font::line_height(if legend { font::BODY } else { font::TITLE });
     let caption_h = lines.iter().map(|(_, l)| line_h(*l)).sum::<usize>() + GAP;
     let caption_w = lines
         .iter()
-        .map(|(l, legend)| font::text_width(l, if *legend { 1 } else { CAPTION_SCALE }))
+        .map(|(l, legend)| font::text_width(l, if *legend { font::BODY } else { font::TITLE }))
         .max()
         .unwrap_or(0);
     let mut canvas = Canvas::new(
@@ -490,9 +485,9 @@ pub fn render_sample(subject: &Subject, caption: &[String]) -> Result<Canvas, Pr
     let mut y = MARGIN;
     for (line, legend) in &lines {
         let (colour, scale) = if *legend {
-            (MUTED, 1)
+            (MUTED, font::BODY)
         } else {
-            (INK, CAPTION_SCALE)
+            (INK, font::TITLE)
         };
         canvas.text(MARGIN, y, line, scale, colour);
         y += line_h(*legend);
@@ -500,7 +495,13 @@ pub fn render_sample(subject: &Subject, caption: &[String]) -> Result<Canvas, Pr
     let top = MARGIN + caption_h;
     for (r, (label, tiles)) in rows.iter().enumerate() {
         let y = top + r * (cell_h + GAP);
-        canvas.text(MARGIN, y + (cell_h - TILE_LABEL) / 2, label, 1, INK);
+        canvas.text(
+            MARGIN,
+            y + (cell_h - tile_label()) / 2,
+            label,
+            font::SMALL,
+            INK,
+        );
         for (c, tile) in tiles.iter().enumerate() {
             let x = MARGIN + row_label_width + c * (cell_w + GAP);
             draw_tile(&mut canvas, x, y, tile, scale);
@@ -550,7 +551,7 @@ pub fn contact_sheet(samples: &[(Subject, Vec<String>)]) -> Result<Canvas, Previ
             let (rows, cols) = (tiles[0].plane.rows, tiles[0].plane.cols);
             let scale = scale_for(rows, cols, 128);
             let views_w: usize = tiles.iter().map(|t| tile_size(t, scale).0 + GAP).sum();
-            let caption = wrap(caption, (views_w / font::ADVANCE).max(20));
+            let caption = wrap(caption, font::chars_in(views_w, font::BODY).max(20));
             (tiles, scale, caption)
         })
         .collect();
@@ -563,12 +564,12 @@ pub fn contact_sheet(samples: &[(Subject, Vec<String>)]) -> Result<Canvas, Previ
             .unwrap_or(0);
         let text_w = caption
             .iter()
-            .map(|l| font::text_width(l, 1))
+            .map(|l| font::text_width(l, font::BODY))
             .max()
             .unwrap_or(0);
         (
             views_w.max(text_w + GAP),
-            views_h + GAP + caption.len() * font::LINE_HEIGHT,
+            views_h + GAP + caption.len() * font::line_height(font::BODY),
         )
     };
     let (cell_w, cell_h) = cells
@@ -592,17 +593,18 @@ pub fn contact_sheet(samples: &[(Subject, Vec<String>)]) -> Result<Canvas, Previ
                with that slice's own betti numbers; the label's betti numbers below"
                     .to_string(),
             ],
-            ((width - 2 * MARGIN) / font::ADVANCE).max(20),
+            font::chars_in(width - 2 * MARGIN, font::BODY).max(20),
         )
     };
-    let header_h = header.len() * font::LINE_HEIGHT + GAP;
+    let line = font::line_height(font::BODY);
+    let header_h = header.len() * line + GAP;
     let mut canvas = Canvas::new(
         width,
         2 * MARGIN + header_h + n_rows * (cell_h + 2 * GAP),
         PAGE,
     )?;
-    for (k, line) in header.iter().enumerate() {
-        canvas.text(MARGIN, MARGIN + k * font::LINE_HEIGHT, line, 1, MUTED);
+    for (k, text) in header.iter().enumerate() {
+        canvas.text(MARGIN, MARGIN + k * line, text, font::BODY, MUTED);
     }
     for (n, (tiles, scale, caption)) in cells.iter().enumerate() {
         let x0 = MARGIN + (n % per_row) * (cell_w + GAP);
@@ -615,15 +617,9 @@ pub fn contact_sheet(samples: &[(Subject, Vec<String>)]) -> Result<Canvas, Previ
             x += w + GAP;
             views_h = views_h.max(h);
         }
-        for (k, line) in caption.iter().enumerate() {
+        for (k, text) in caption.iter().enumerate() {
             let colour = if k == 0 { INK } else { MUTED };
-            canvas.text(
-                x0,
-                y0 + views_h + GAP + k * font::LINE_HEIGHT,
-                line,
-                1,
-                colour,
-            );
+            canvas.text(x0, y0 + views_h + GAP + k * line, text, font::BODY, colour);
         }
     }
     Ok(canvas)
@@ -869,8 +865,7 @@ mod tests {
         let canvas = render_sample(&s, &["test".to_string()]).unwrap();
         // Cropped to rows 18..26, columns 20..28 (8 x 8): 512 / 8 = 64 pixels per voxel,
         // below a one-line caption and a two-line legend.
-        let top =
-            MARGIN + font::LINE_HEIGHT * CAPTION_SCALE + 2 * (font::LINE_HEIGHT * 3 / 2) + GAP;
+        let top = MARGIN + font::line_height(font::TITLE) + 2 * font::line_height(font::BODY) + GAP;
         let at = |row: usize, col: usize| canvas.pixel(MARGIN + col * 64 + 10, top + row * 64 + 10);
         assert_eq!(at(2, 5), Some(FOREGROUND));
         assert_eq!(at(5, 2), Some(FOREGROUND));
@@ -890,16 +885,21 @@ mod tests {
             let betti = topology(&image).betti;
             for mode in [Mode::Embed, Mode::Carve] {
                 let s = subject(&image, mode, &betti);
-                let a = render_sample(&s, &["x".to_string()]).unwrap().to_png();
+                let a = render_sample(&s, &["x".to_string()])
+                    .unwrap()
+                    .to_png()
+                    .unwrap();
                 let copy = image.clone();
                 let b = render_sample(&subject(&copy, mode, &betti), &["x".to_string()])
                     .unwrap()
-                    .to_png();
+                    .to_png()
+                    .unwrap();
                 assert_eq!(a, b);
                 let sheet = |img: &BinaryImage| {
                     contact_sheet(&[(subject(img, mode, &betti), vec!["k".to_string()])])
                         .unwrap()
                         .to_png()
+                        .unwrap()
                 };
                 assert_eq!(sheet(&image), sheet(&copy));
             }
@@ -911,6 +911,7 @@ mod tests {
             render_sample(&subject(&torus, Mode::Embed, &betti), &[])
                 .unwrap()
                 .to_png()
+                .unwrap()
         };
         assert_eq!(draw(), draw());
         assert!(matches!(contact_sheet(&[]), Err(PreviewError::Empty)));

@@ -368,54 +368,150 @@ fn histogram(values: &[u64], min: u64, max: u64) -> Histogram {
     Histogram { edges, counts }
 }
 
-/// Draws horizontal bars, one per (label, count), under `title`; returns the height used.
-fn bars(canvas: &mut Canvas, x: usize, y: usize, title: &str, rows: &[(String, u64)]) -> usize {
-    const SCALE: usize = 2;
-    const BAR_MAX: usize = 360;
-    let line = font::LINE_HEIGHT * SCALE;
-    canvas.text(x, y, title, SCALE, INK);
-    let label_w = rows
-        .iter()
-        .map(|(l, _)| font::text_width(l, SCALE))
-        .max()
-        .unwrap_or(0);
+/// The chart's width in pixels.
+const CHART_WIDTH: u32 = 960;
+/// Height of one bar's row, in pixels.
+const BAR_ROW: u32 = 24;
+/// Pixels around a panel's bars: its title, its axis and their labels.
+const PANEL_EXTRA: u32 = 84;
+/// The font family name the chart's text is drawn in (the bundled font, registered with
+/// plotters under this name).
+const FAMILY: &str = "bettimill-mono";
+
+fn colour(rgb: [u8; 3]) -> plotters::style::RGBColor {
+    plotters::style::RGBColor(rgb[0], rgb[1], rgb[2])
+}
+
+fn chart_error<E: std::fmt::Display>(err: E) -> PreviewError {
+    PreviewError::Chart(err.to_string())
+}
+
+/// One panel of horizontal bars, one per (label, count), under `title`.
+fn bar_panel<DB: plotters::prelude::DrawingBackend>(
+    area: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    rows: &[(String, u64)],
+) -> Result<(), PreviewError>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
     let max = rows.iter().map(|r| r.1).max().unwrap_or(0).max(1);
-    for (n, (label, count)) in rows.iter().enumerate() {
-        let row_y = y + (n + 1) * line + 4;
-        canvas.text(x, row_y, label, SCALE, MUTED);
-        let bar_x = x + label_w + 12;
-        let length = (*count as usize * BAR_MAX).div_ceil(max as usize);
-        canvas.fill(bar_x, row_y, length, line - 6, BAR);
-        canvas.text(bar_x + length + 6, row_y, &count.to_string(), SCALE, INK);
-    }
-    (rows.len() + 1) * line + 16
-}
-
-fn bars_width(title: &str, rows: &[(String, u64)]) -> usize {
     let label_w = rows
         .iter()
-        .map(|(l, _)| font::text_width(l, 2))
+        .map(|(l, _)| font::text_width(l, font::BODY))
         .max()
-        .unwrap_or(0);
-    let count_w = rows
-        .iter()
-        .map(|(_, c)| font::text_width(&c.to_string(), 2))
-        .max()
-        .unwrap_or(0);
-    (label_w + 12 + 360 + 6 + count_w).max(font::text_width(title, 2))
+        .unwrap_or(0) as u32;
+    let n = rows.len().max(1);
+    // Room right of the longest bar for its count.
+    let top = max + max.div_ceil(6);
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, (FAMILY, 17).into_font().color(&colour(INK)))
+        .margin(8)
+        .x_label_area_size(28)
+        .y_label_area_size(label_w + 14)
+        .build_cartesian_2d(0u64..top, (0..n).into_segmented())
+        .map_err(chart_error)?;
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .light_line_style(colour(PAGE))
+        .bold_line_style(colour([220, 222, 230]))
+        .axis_style(colour(FRAME))
+        .label_style((FAMILY, 13).into_font().color(&colour(MUTED)))
+        .y_labels(n)
+        .y_label_formatter(&|v| match v {
+            SegmentValue::CenterOf(i) => rows.get(*i).map_or_else(String::new, |r| r.0.clone()),
+            _ => String::new(),
+        })
+        .x_desc("samples")
+        .draw()
+        .map_err(chart_error)?;
+    chart
+        .draw_series(rows.iter().enumerate().map(|(i, (_, count))| {
+            let mut bar = Rectangle::new(
+                [
+                    (0, SegmentValue::Exact(i)),
+                    (*count, SegmentValue::Exact(i + 1)),
+                ],
+                colour(BAR).filled(),
+            );
+            bar.set_margin(3, 3, 0, 0);
+            bar
+        }))
+        .map_err(chart_error)?;
+    chart
+        .draw_series(rows.iter().enumerate().map(|(i, (_, count))| {
+            Text::new(
+                format!(" {count}"),
+                (*count, SegmentValue::CenterOf(i)),
+                (FAMILY, 13).into_font().color(&colour(INK)).pos(
+                    plotters::style::text_anchor::Pos::new(
+                        plotters::style::text_anchor::HPos::Left,
+                        plotters::style::text_anchor::VPos::Center,
+                    ),
+                ),
+            )
+        }))
+        .map_err(chart_error)?;
+    Ok(())
 }
 
-/// The `--plot` chart: bars per Betti vector, per class, per split, and the hypervolume
-/// histogram.
+/// The hypervolume histogram: one bar per bin over its range of voxel counts.
+fn histogram_panel<DB: plotters::prelude::DrawingBackend>(
+    area: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    h: &Histogram,
+) -> Result<(), PreviewError>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
+    let (Some(&lo), Some(&hi)) = (h.edges.first(), h.edges.last()) else {
+        return Ok(());
+    };
+    let max = h.counts.iter().copied().max().unwrap_or(0).max(1);
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            "hypervolume histogram (foreground voxels)",
+            (FAMILY, 17).into_font().color(&colour(INK)),
+        )
+        .margin(8)
+        .x_label_area_size(40)
+        .y_label_area_size(56)
+        .build_cartesian_2d(lo..hi.max(lo + 1), 0u64..max + max.div_ceil(8))
+        .map_err(chart_error)?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .light_line_style(colour(PAGE))
+        .bold_line_style(colour([220, 222, 230]))
+        .axis_style(colour(FRAME))
+        .label_style((FAMILY, 13).into_font().color(&colour(MUTED)))
+        .x_labels(8)
+        .x_desc("foreground voxels")
+        .y_desc("samples")
+        .draw()
+        .map_err(chart_error)?;
+    chart
+        .draw_series(h.counts.iter().enumerate().map(|(k, &count)| {
+            let mut bar = Rectangle::new(
+                [(h.edges[k], 0), (h.edges[k + 1], count)],
+                colour(BAR).filled(),
+            );
+            bar.set_margin(0, 0, 1, 1);
+            bar
+        }))
+        .map_err(chart_error)?;
+    Ok(())
+}
+
+/// The `--plot` chart, drawn with plotters in the bundled font: bars per Betti vector, per
+/// class, per split and per knot or link type, then the hypervolume histogram.
 pub fn plot(stats: &Stats) -> Result<Canvas, PreviewError> {
+    use plotters::prelude::*;
+    plotters::style::register_font(FAMILY, FontStyle::Normal, font::FONT_BYTES)
+        .map_err(|_| PreviewError::Chart("the bundled font does not load".to_string()))?;
     let to_rows = |map: &BTreeMap<String, u64>| map.iter().map(|(k, v)| (k.clone(), *v)).collect();
-    let h = &stats.hypervolume_histogram;
-    let histogram_rows: Vec<(String, u64)> = h
-        .counts
-        .iter()
-        .enumerate()
-        .map(|(k, c)| (format!("{}-{}", h.edges[k], h.edges[k + 1] - 1), *c))
-        .collect();
     let sections: Vec<(String, Vec<(String, u64)>)> = vec![
         (
             format!("{} samples per betti vector", stats.samples),
@@ -424,30 +520,38 @@ pub fn plot(stats: &Stats) -> Result<Canvas, PreviewError> {
         ("per class".to_string(), to_rows(&stats.classes)),
         ("per split".to_string(), to_rows(&stats.splits)),
         ("per knot/link type".to_string(), to_rows(&stats.knot_types)),
-        (
-            "hypervolume histogram (foreground voxels)".to_string(),
-            histogram_rows,
-        ),
     ];
-    let line = font::LINE_HEIGHT * 2;
-    let width = sections
+    let heights: Vec<u32> = sections
         .iter()
-        .map(|(t, r)| bars_width(t, r))
-        .max()
-        .unwrap_or(0)
-        + 32;
-    let height: usize = sections
-        .iter()
-        .map(|(_, r)| (r.len() + 1) * line + 16)
-        .sum::<usize>()
-        + 32;
-    let mut canvas = Canvas::new(width, height, PAGE)?;
-    let mut y = 16;
-    for (title, rows) in &sections {
-        y += bars(&mut canvas, 16, y, title, rows);
+        .map(|(_, rows)| rows.len().max(1) as u32 * BAR_ROW + PANEL_EXTRA)
+        .chain([320])
+        .collect();
+    let height: u32 = heights.iter().sum();
+    let pixels = CHART_WIDTH as usize * height as usize;
+    if pixels > crate::canvas::MAX_PIXELS {
+        return Err(PreviewError::TooLarge {
+            width: CHART_WIDTH as usize,
+            height: height as usize,
+        });
     }
-    canvas.frame(0, 0, width, height, FRAME);
-    Ok(canvas)
+    let mut buffer = vec![0u8; pixels * 3];
+    {
+        let root =
+            BitMapBackend::with_buffer(&mut buffer, (CHART_WIDTH, height)).into_drawing_area();
+        root.fill(&colour(PAGE)).map_err(chart_error)?;
+        let mut rest = root.clone();
+        for (k, (title, rows)) in sections.iter().enumerate() {
+            let (panel, below) = rest.split_vertically(heights[k]);
+            bar_panel(&panel, title, rows)?;
+            rest = below;
+        }
+        histogram_panel(&rest, &stats.hypervolume_histogram)?;
+        root.present().map_err(chart_error)?;
+    }
+    Canvas::from_rgb(CHART_WIDTH as usize, height as usize, buffer).ok_or(PreviewError::TooLarge {
+        width: CHART_WIDTH as usize,
+        height: height as usize,
+    })
 }
 
 #[cfg(test)]
@@ -535,8 +639,8 @@ mod tests {
         assert!(*h.edges.last().unwrap() > 41);
         assert_eq!(*h.counts.last().unwrap(), 1);
         assert!(stats.to_text().contains("1/2 (50.0%), 2 rejected"));
-        let png = plot(&stats).unwrap().to_png();
-        assert_eq!(png, plot(&stats).unwrap().to_png());
+        let png = plot(&stats).unwrap().to_png().unwrap();
+        assert_eq!(png, plot(&stats).unwrap().to_png().unwrap());
     }
 
     #[test]
