@@ -2,8 +2,11 @@
 //! that shows its topology best.
 //!
 //! - The **phase of interest** is the foreground in embed mode and, in carve mode, the
-//!   cavities: the background voxels inside the solid cube (the foreground's bounding
-//!   box), so the one-voxel margin around the cube does not count.
+//!   cavities: the background components that do not reach the image's border
+//!   ([`cavities`]), so neither the margin around the solid nor pits of its outer surface
+//!   count, and no view shows the solid's boundary instead of a cavity. A carved solid
+//!   without enclosed cavities (a tunnel through it) shows the background inside the
+//!   solid's bounding box.
 //! - Every view is **cropped** to the bounding box of that phase plus [`MARGIN`] voxels
 //!   (clamped to the image), so a small 4D object fills its tiles.
 //! - The **chosen view** is, among the 2D slices along every pair of axes, one whose phase
@@ -91,25 +94,69 @@ pub fn guess_mode(image: &BinaryImage) -> Mode {
     }
 }
 
+/// The enclosed background: background voxels whose component (through shared faces, the
+/// background's adjacency in the voxel model) does not reach the image's border. These are
+/// the cavities of a carved solid; pits and tunnels of its outer surface, however rough
+/// a deformation leaves it, are not. `None` when there is none (a solid whose only
+/// feature is a tunnel through it).
+pub fn cavities(image: &BinaryImage) -> Option<BinaryImage> {
+    let shape = image.shape();
+    let strides = image.strides();
+    let d = shape.len();
+    // Start from every background voxel and clear those the border reaches.
+    let mut mask = image.complement();
+    let mut stack = Vec::new();
+    for i in 0..mask.len() {
+        let c = image.coords(i);
+        if mask.data()[i] != 0 && (0..d).any(|a| c[a] == 0 || c[a] + 1 == shape[a]) {
+            mask.data_mut()[i] = 0;
+            stack.push(i);
+        }
+    }
+    while let Some(i) = stack.pop() {
+        let c = image.coords(i);
+        for a in 0..d {
+            let mut visit = |j: usize| {
+                if mask.data()[j] != 0 {
+                    mask.data_mut()[j] = 0;
+                    stack.push(j);
+                }
+            };
+            if c[a] > 0 {
+                visit(i - strides[a]);
+            }
+            if c[a] + 1 < shape[a] {
+                visit(i + strides[a]);
+            }
+        }
+    }
+    mask.data().iter().any(|&v| v != 0).then_some(mask)
+}
+
+/// The background inside the solid's bounding box: what a carved sample without enclosed
+/// cavities (a tunnel through its solid) draws.
+fn inside_the_solid(image: &BinaryImage) -> BinaryImage {
+    let shape = image.shape();
+    let mut mask = BinaryImage::zeros(shape).expect("same shape as a valid image");
+    if let Some(cube) = bounding_box(image) {
+        let d = shape.len();
+        for (i, (m, &v)) in mask.data_mut().iter_mut().zip(image.data()).enumerate() {
+            if v == 0 {
+                let c = image.coords(i);
+                *m = (0..d).all(|a| cube[a].contains(&c[a])) as u8;
+            }
+        }
+    }
+    mask
+}
+
 impl Focus {
     /// The phase of interest of `image` drawn in `mode`.
     pub fn new(image: &BinaryImage, mode: Mode) -> Focus {
         let shape = image.shape();
         let interest = match mode {
             Mode::Embed => image.clone(),
-            Mode::Carve => {
-                let mut mask = BinaryImage::zeros(shape).expect("same shape as a valid image");
-                if let Some(cube) = bounding_box(image) {
-                    let d = shape.len();
-                    for (i, (m, &v)) in mask.data_mut().iter_mut().zip(image.data()).enumerate() {
-                        if v == 0 {
-                            let c = image.coords(i);
-                            *m = (0..d).all(|a| cube[a].contains(&c[a])) as u8;
-                        }
-                    }
-                }
-                mask
-            }
+            Mode::Carve => cavities(image).unwrap_or_else(|| inside_the_solid(image)),
         };
         let object =
             bounding_box(&interest).unwrap_or_else(|| shape.iter().map(|&n| 0..n).collect());
@@ -516,6 +563,40 @@ mod tests {
         image
     }
 
+    /// Face-connected components of the voxels set in `image`.
+    fn face_components(image: &BinaryImage) -> u64 {
+        let mut seen = image.complement();
+        let (shape, strides, d) = (image.shape(), image.strides(), image.dim().get());
+        let mut count = 0;
+        for start in 0..image.len() {
+            if seen.data()[start] != 0 {
+                continue;
+            }
+            count += 1;
+            seen.data_mut()[start] = 1;
+            let mut stack = vec![start];
+            while let Some(i) = stack.pop() {
+                let c = image.coords(i);
+                for a in 0..d {
+                    let mut near = Vec::new();
+                    if c[a] > 0 {
+                        near.push(i - strides[a]);
+                    }
+                    if c[a] + 1 < shape[a] {
+                        near.push(i + strides[a]);
+                    }
+                    for j in near {
+                        if seen.data()[j] == 0 {
+                            seen.data_mut()[j] = 1;
+                            stack.push(j);
+                        }
+                    }
+                }
+            }
+        }
+        count
+    }
+
     /// Clears everything outside the box `lo..hi` on every axis.
     fn keep_box(image: &mut BinaryImage, lo: usize, hi: usize) {
         for i in 0..image.len() {
@@ -548,8 +629,10 @@ mod tests {
                     assert_eq!(crop.start, object.start.saturating_sub(MARGIN), "axis {a}");
                     assert_eq!(crop.end, (object.end + MARGIN).min(shape[a]), "axis {a}");
                 }
-                // Carve: a solid cube (one-voxel margin) with the noise removed; every
-                // cavity voxel lies in the crop, and the margin is no cavity.
+                // Carve: a solid cube (one-voxel margin) with the noise removed. The
+                // cavities are the enclosed background: as many face-connected pieces as
+                // the sample's b_{d-1}, all inside the solid and the crop; without any,
+                // the background inside the solid is drawn.
                 let inner =
                     |c: &[usize; 4]| (0..shape.len()).all(|a| c[a] >= 1 && c[a] + 1 < shape[a]);
                 let mut carved = image.complement();
@@ -559,13 +642,22 @@ mod tests {
                     }
                 }
                 let focus = Focus::new(&carved, Mode::Carve);
+                let d = shape.len();
+                let enclosed = cavities(&carved).is_some();
+                if enclosed {
+                    assert_eq!(
+                        face_components(&focus.interest),
+                        topology(&carved).betti[d - 1]
+                    );
+                }
                 for i in 0..carved.len() {
                     let c = carved.coords(i);
-                    if inner(&c) && carved.data()[i] == 0 {
-                        assert_eq!(focus.interest.data()[i], 1);
-                        assert!((0..shape.len()).all(|a| focus.crop[a].contains(&c[a])));
+                    let inside = inner(&c) && carved.data()[i] == 0;
+                    if focus.interest.data()[i] != 0 {
+                        assert!(inside);
+                        assert!((0..d).all(|a| focus.crop[a].contains(&c[a])));
                     } else {
-                        assert_eq!(focus.interest.data()[i], 0);
+                        assert!(enclosed || !inside);
                     }
                 }
                 assert_eq!(guess_mode(&carved), Mode::Carve);

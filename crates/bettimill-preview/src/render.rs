@@ -665,6 +665,7 @@ pub fn short_caption(label: &Label) -> Vec<String> {
 mod tests {
     use super::*;
     use crate::canvas::{EMPTY, FOREGROUND};
+    use crate::focus::bounding_box;
     use bettimill_homology::topology;
 
     /// A solid torus in a cube of `side`: the ring of radius `big` lies in the plane of
@@ -725,6 +726,55 @@ mod tests {
             let view = slab_view(&carved, Mode::Carve, &choice.fixed());
             assert!(topology(&view).betti[1] > 0, "{dim}D carve: {choice:?}");
             assert_eq!(&choice.order[dim - 2..], &[plane.0, plane.1]);
+        }
+    }
+
+    #[test]
+    fn carved_samples_are_cut_through_a_cavity_never_through_a_rough_outer_surface() {
+        // A solid box whose outer layer is eaten away to a field of 2x2 pillars (what a
+        // deformation of the outer surface leaves): every slice through that layer holds
+        // dozens of solid islands in background, more "holes" than the cavity's. The
+        // cavity, a solid torus carved inside, is what the picture must show.
+        for dim in [3, 4] {
+            let side = 20;
+            let torus = solid_torus(dim, side, (dim - 2, dim - 1), 4.0, 1.5);
+            let mut carved = BinaryImage::zeros(&vec![side; dim]).unwrap();
+            for i in 0..carved.len() {
+                let x = carved.coords(i);
+                let in_box = (0..dim).all(|a| x[a] >= 1 && x[a] + 1 < side);
+                let eaten = x[0] <= 2 && (1..dim).any(|a| x[a] % 4 >= 2);
+                carved.data_mut()[i] = (in_box && !eaten && torus.data()[i] == 0) as u8;
+            }
+            let betti = topology(&carved).betti;
+            // The solid with a carved ring: b0 = 1, the ring's dual (b1 in 3D, b2 in 4D)
+            // and its enclosed cavity (b_{d-1}).
+            let expected = if dim == 3 {
+                vec![1, 1, 1]
+            } else {
+                vec![1, 0, 1, 1]
+            };
+            assert_eq!(betti, expected, "{dim}D");
+            let cavity = bounding_box(&torus).unwrap();
+            let focus = Focus::new(&carved, Mode::Carve);
+            assert_eq!(
+                focus.interest.data(),
+                torus.data(),
+                "{dim}D: only the cavity"
+            );
+            assert_eq!(focus.object, cavity, "{dim}D");
+            let choice = choose_slice(&focus, betti[1..].iter().sum()).unwrap();
+            for (axis, range) in choice.fixed() {
+                assert!(
+                    cavity[axis].start <= range.start && range.end <= cavity[axis].end,
+                    "{dim}D: {choice:?} leaves the cavity"
+                );
+            }
+            let view = slab_view(&focus.interest, Mode::Embed, &choice.fixed());
+            assert_eq!(topology(&view).betti, vec![1, 1], "{dim}D: {choice:?}");
+            // The picture draws that cavity: the crop is the cavity and its margin.
+            let s = subject(&carved, Mode::Carve, &betti);
+            let arranged = Arranged::new(&s);
+            assert_eq!(arranged.choice.as_ref(), Some(&choice));
         }
     }
 
