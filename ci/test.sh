@@ -2,7 +2,8 @@
 # The project's test command (README: "Run the tests"). CI's .ci/run calls exactly this.
 # It checks formatting and lints, runs every Rust test, then the tests that need real
 # outside parts: Python clients reading our shards (venv made by ci/python-env.sh) and a
-# real single-node Slurm (ci/slurm-up.sh). In CI (CI=true) those parts are installed and
+# real single-node Slurm (ci/slurm-up.sh), the HTML viewer in headless Chromium
+# (ci/browser.sh). In CI (CI=true) those parts are installed and
 # must work; locally they are installed too, so a green run here means the same as in CI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,7 +14,11 @@ cargo fmt --all --check
 echo "== cargo clippy (warnings are errors)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 
-# The system tests (a real Slurm started by ci/slurm-up.sh, tmpfs mounts as root) run
+echo "== headless Chromium for the HTML viewer's test (ci/browser.sh)"
+ci/browser.sh
+
+# The system tests (a real Slurm started by ci/slurm-up.sh, tmpfs mounts as root, the
+# viewer in headless Chromium) run
 # only with BETTIMILL_SYSTEM_TESTS=1; a plain `cargo test` leaves them out.
 echo "== cargo test, system tests included (with CI=true they fail, not skip, without Slurm or root)"
 BETTIMILL_SYSTEM_TESTS=1 cargo test --workspace --locked

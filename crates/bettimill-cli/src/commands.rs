@@ -132,7 +132,8 @@ enum Command {
         #[arg(long, value_name = "STRATA", num_args = 0..=1, default_missing_value = "0")]
         pilot: Option<usize>,
     },
-    /// Draw a sample, or a contact sheet of several, as a PNG with its label.
+    /// Draw a sample, or a contact sheet of several, as a PNG with its label, or open one
+    /// sample in a browser viewer.
     ///
     /// Every view is cropped to the object (carve: the cavities) and cut where a hole shows:
     /// the slice (or thin slab) whose own Betti numbers show the most holes is drawn
@@ -140,7 +141,13 @@ enum Command {
     /// the chosen axis, 4D images as one row per 3D slice; each slice is labelled with its
     /// own Betti numbers.
     ///
+    /// --html writes one self-contained HTML file (no server, no network): sliders move
+    /// through the 4th and 3rd axes, cavities are highlighted, every slice shows its own
+    /// Betti numbers, and a selector switches to the sample's downscaled copies.
+    ///
     /// Example: bettimill preview demo-out --n 16 --out sheet.png
+    ///
+    /// Example: bettimill preview demo-out --key s000006 --html s000006.html
     Preview {
         /// A dataset directory, one .tar shard, or a .npy image (.npy.gz, .npy.zst, or -
         /// for standard input, as for `betti`).
@@ -152,8 +159,11 @@ enum Command {
         #[arg(long, value_parser = clap::value_parser!(u32).range(1..=400))]
         n: Option<u32>,
         /// The PNG file to write.
-        #[arg(long)]
-        out: PathBuf,
+        #[arg(long, value_name = "FILE.png", required_unless_present = "html")]
+        out: Option<PathBuf>,
+        /// Also (or instead) write the browser viewer of the sample to this HTML file.
+        #[arg(long, value_name = "FILE.html", conflicts_with = "n")]
+        html: Option<PathBuf>,
     },
     /// Count a dataset's samples per Betti vector, class, split and more.
     ///
@@ -252,11 +262,18 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             crate::plan::show(&manifest, json, max_memory, pilot)?;
             Ok(ExitStatus::Success)
         }
-        Command::Preview { input, key, n, out } => crate::preview::run(&crate::preview::Request {
+        Command::Preview {
+            input,
+            key,
+            n,
+            out,
+            html,
+        } => crate::preview::run(&crate::preview::Request {
             input: &input,
             key: key.as_deref(),
             n: n.map(|n| n as usize),
-            out: &out,
+            out: out.as_deref(),
+            html: html.as_deref(),
             quiet: cli.quiet,
         }),
         Command::Stats { dir, json, plot } => {

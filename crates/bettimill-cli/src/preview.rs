@@ -1,12 +1,12 @@
 //! `bettimill preview`: a PNG of one sample (or a contact sheet of several) from a dataset
-//! directory, one shard, or a plain `.npy` image.
+//! directory, one shard, or a plain `.npy` image, and the browser viewer of one sample.
 
 use crate::commands::ExitStatus;
 use anyhow::{bail, Context};
 use bettimill_format::{DatasetDir, ShardStream};
 use bettimill_preview::{
     caption, contact_sheet, guess_mode, label_mode, render_sample, samples_in_stream,
-    short_caption, Subject,
+    short_caption, viewer_html, Canvas, SampleView, Subject, ViewerImage,
 };
 use std::path::{Path, PathBuf};
 
@@ -19,7 +19,9 @@ pub struct Request<'a> {
     /// A contact sheet of the first `n` samples.
     pub n: Option<usize>,
     /// The PNG to write.
-    pub out: &'a Path,
+    pub out: Option<&'a Path>,
+    /// The viewer page to write.
+    pub html: Option<&'a Path>,
     /// Say nothing on success.
     pub quiet: bool,
 }
@@ -90,13 +92,64 @@ fn subject(sample: &bettimill_preview::SampleView) -> Subject<'_> {
     }
 }
 
+/// The browser viewer of a sample read from a dataset: the sample, then its downscaled
+/// copies, each with its label's Betti numbers.
+fn sample_page(sample: &SampleView) -> anyhow::Result<String> {
+    let shape: Vec<String> = sample.image.shape().iter().map(|n| n.to_string()).collect();
+    let mut images = vec![ViewerImage {
+        name: "full".to_string(),
+        label: format!("the sample ({})", shape.join("x")),
+        image: &sample.image,
+        betti: sample.label.betti.clone(),
+        note: "(verified)".to_string(),
+    }];
+    for (side, image) in &sample.copies {
+        let label = sample.label.resolutions.iter().find(|r| r.side == *side);
+        images.push(ViewerImage {
+            name: format!("r{side}"),
+            label: format!("downscaled to side {side}"),
+            image,
+            betti: label.map_or_else(Vec::new, |r| r.betti.clone()),
+            note: match label {
+                Some(r) if r.preserved => {
+                    format!("({} pooling, topology preserved)", r.pooling.name())
+                }
+                Some(r) => format!("({} pooling, topology NOT preserved)", r.pooling.name()),
+                None => "(no label for this copy)".to_string(),
+            },
+        });
+    }
+    let title = format!("{} - bettimill viewer", sample.key);
+    Ok(viewer_html(
+        &title,
+        &caption(&sample.label),
+        label_mode(&sample.label),
+        &images,
+    )?)
+}
+
+/// Writes `bytes` to `path` and says so unless quiet.
+fn write_output(path: &Path, bytes: &[u8], what: &str, quiet: bool) -> anyhow::Result<()> {
+    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
+    if !quiet {
+        eprintln!("wrote {} ({what})", path.display());
+    }
+    Ok(())
+}
+
 /// Runs `bettimill preview`.
 pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
-    crate::stats::refuse_inside_dataset(request.out, "--out")?;
-    crate::stats::require_extension(request.out, "--out", "png")?;
+    if let Some(out) = request.out {
+        crate::stats::refuse_inside_dataset(out, "--out")?;
+        crate::stats::require_extension(out, "--out", "png")?;
+    }
+    if let Some(html) = request.html {
+        crate::stats::refuse_inside_dataset(html, "--html")?;
+        crate::stats::require_extension(html, "--html", "html")?;
+    }
     let input = request.input;
     let is_npy = crate::image::looks_like_image(input);
-    let canvas = if is_npy {
+    let (canvas, page): (Option<Canvas>, Option<String>) = if is_npy {
         if request.key.is_some() || request.n.is_some() {
             bail!("--key and --n pick samples of a dataset or shard; a .npy file is one image");
         }
@@ -108,7 +161,7 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
             .file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         let lines = vec![
-            name,
+            name.clone(),
             format!(
                 "betti {}  euler {}  (Z/2, computed now)",
                 bettimill_preview::render::betti_text(&topology.betti),
@@ -126,7 +179,26 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
             mode: guess_mode(image),
             betti: &topology.betti,
         };
-        render_sample(&subject, &lines)?
+        let canvas = match request.out {
+            Some(_) => Some(render_sample(&subject, &lines)?),
+            None => None,
+        };
+        let page = match request.html {
+            Some(_) => Some(viewer_html(
+                &format!("{name} - bettimill viewer"),
+                &lines,
+                subject.mode,
+                &[ViewerImage {
+                    name: "full".to_string(),
+                    label: format!("the image ({})", shape.join("x")),
+                    image,
+                    betti: topology.betti.clone(),
+                    note: "(computed now)".to_string(),
+                }],
+            )?),
+            None => None,
+        };
+        (canvas, page)
     } else {
         let layout = DatasetDir::new(input);
         let shards: Vec<(String, PathBuf)> = if input.is_dir() {
@@ -177,26 +249,33 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
                 None => bail!("{} holds no samples", input.display()),
             }
         }
-        if request.n.is_some() {
-            let tiles: Vec<_> = found
-                .iter()
-                .map(|s| (subject(s), short_caption(&s.label)))
-                .collect();
-            contact_sheet(&tiles)?
-        } else {
-            render_sample(&subject(&found[0]), &caption(&found[0].label))?
-        }
+        let canvas = match (request.out, request.n) {
+            (None, _) => None,
+            (Some(_), Some(_)) => {
+                let tiles: Vec<_> = found
+                    .iter()
+                    .map(|s| (subject(s), short_caption(&s.label)))
+                    .collect();
+                Some(contact_sheet(&tiles)?)
+            }
+            (Some(_), None) => Some(render_sample(
+                &subject(&found[0]),
+                &caption(&found[0].label),
+            )?),
+        };
+        let page = match request.html {
+            Some(_) => Some(sample_page(&found[0])?),
+            None => None,
+        };
+        (canvas, page)
     };
-    let png = canvas.to_png()?;
-    std::fs::write(request.out, &png)
-        .with_context(|| format!("cannot write {}", request.out.display()))?;
-    if !request.quiet {
-        eprintln!(
-            "wrote {} ({}x{} pixels)",
-            request.out.display(),
-            canvas.width(),
-            canvas.height()
-        );
+    if let (Some(path), Some(canvas)) = (request.out, &canvas) {
+        let what = format!("{}x{} pixels", canvas.width(), canvas.height());
+        write_output(path, &canvas.to_png()?, &what, request.quiet)?;
+    }
+    if let (Some(path), Some(page)) = (request.html, &page) {
+        let what = format!("{} KiB, open it in a browser", page.len().div_ceil(1024));
+        write_output(path, page.as_bytes(), &what, request.quiet)?;
     }
     Ok(ExitStatus::Success)
 }

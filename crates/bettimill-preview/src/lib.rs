@@ -11,6 +11,7 @@
 //! - [`render`]: layouts of one sample and of contact sheets.
 //! - [`samples`]: labels and arrays read back from shard bytes.
 //! - [`stats`]: counts, regeneration rates, the hypervolume histogram and the chart.
+//! - [`viewer`]: the self-contained HTML viewer of one sample and its downscaled copies.
 
 pub mod canvas;
 pub mod focus;
@@ -18,6 +19,7 @@ pub mod font;
 pub mod render;
 pub mod samples;
 pub mod stats;
+pub mod viewer;
 
 pub use canvas::Canvas;
 pub use focus::guess_mode;
@@ -26,6 +28,7 @@ pub use samples::{
     keys_in_tar, labels_in_stream, labels_in_tar, samples_in_stream, samples_in_tar, SampleView,
 };
 pub use stats::{plot, BuildTime, Preservation, Stats};
+pub use viewer::{viewer_html, ViewerImage};
 
 /// Why a preview or statistic could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -71,6 +74,17 @@ pub enum PreviewError {
     /// The chart could not be drawn.
     #[error("cannot draw the chart: {0}")]
     Chart(String),
+    /// An image too large for the viewer page.
+    #[error("{name} has {voxels} voxels; the viewer embeds at most {max}: view a downscaled copy or use --out", max = viewer::MAX_VOXELS)]
+    TooManyVoxels {
+        /// The image.
+        name: String,
+        /// Its voxels.
+        voxels: usize,
+    },
+    /// A slice's Betti numbers could not be computed.
+    #[error(transparent)]
+    Topology(#[from] bettimill_homology::TopologyError),
     /// Nothing to draw.
     #[error("no samples to draw")]
     Empty,

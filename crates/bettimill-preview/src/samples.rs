@@ -1,6 +1,6 @@
 //! Samples read back from shard bytes: the label (`KEY.json`) and the main array
-//! (`KEY.npy`, `KEY.npy.gz` or `KEY.npy.zst`) of each key, in tar order. Downscaled copies
-//! (`KEY.rSIDE.npy`) and `KEY.cls` are ignored.
+//! (`KEY.npy`, `KEY.npy.gz` or `KEY.npy.zst`) of each key, in tar order, with its
+//! downscaled copies (`KEY.rSIDE.npy`) for the viewer. `KEY.cls` is ignored.
 
 use crate::PreviewError;
 use bettimill_format::{Label, MemberName};
@@ -20,6 +20,8 @@ pub struct SampleView {
     pub label: Label,
     /// The decoded `KEY.npy`.
     pub image: BinaryImage,
+    /// The decoded downscaled copies (`KEY.rSIDE.npy`) as (side, image), in tar order.
+    pub copies: Vec<(u32, BinaryImage)>,
 }
 
 /// The keys of a shard in tar order, each once.
@@ -80,7 +82,13 @@ pub fn samples_in_stream<R: Read>(
     stream: &mut TarStream<R>,
     keep: &mut dyn FnMut(&str) -> bool,
 ) -> Result<Vec<SampleView>, PreviewError> {
-    let mut wanted: Vec<(String, Option<Label>, Option<BinaryImage>)> = Vec::new();
+    type Parts = (
+        String,
+        Option<Label>,
+        Option<BinaryImage>,
+        Vec<(u32, BinaryImage)>,
+    );
+    let mut wanted: Vec<Parts> = Vec::new();
     let mut current: Option<(String, bool)> = None;
     while let Some((name, _, data)) = stream.next_entry()? {
         let Some(member) = MemberName::parse(name) else {
@@ -90,7 +98,7 @@ pub fn samples_in_stream<R: Read>(
         if current.as_ref().map(|(k, _)| k.as_str()) != Some(key) {
             let kept = keep(key);
             if kept {
-                wanted.push((key.to_string(), None, None));
+                wanted.push((key.to_string(), None, None, Vec::new()));
             }
             current = Some((key.to_string(), kept));
         }
@@ -100,7 +108,7 @@ pub fn samples_in_stream<R: Read>(
         let slot = wanted.last_mut().expect("a kept key was pushed");
         if member.is_label() {
             slot.1 = Some(parse_label(key, data)?);
-        } else if member.is_image() {
+        } else if member.is_image() || member.resolution().is_some() {
             let raw = decompress(data, member.compression, MAX_ARRAY_BYTES)?;
             let image = npy::read_bytes(&raw, false)
                 .map_err(|source| PreviewError::Npy {
@@ -108,13 +116,21 @@ pub fn samples_in_stream<R: Read>(
                     source,
                 })?
                 .image;
-            slot.2 = Some(image);
+            match member.resolution() {
+                Some(side) => slot.3.push((side, image)),
+                None => slot.2 = Some(image),
+            }
         }
     }
     wanted
         .into_iter()
-        .map(|(key, label, image)| match (label, image) {
-            (Some(label), Some(image)) => Ok(SampleView { key, label, image }),
+        .map(|(key, label, image, copies)| match (label, image) {
+            (Some(label), Some(image)) => Ok(SampleView {
+                key,
+                label,
+                image,
+                copies,
+            }),
             (None, _) => Err(PreviewError::Missing { key, field: "json" }),
             (_, None) => Err(PreviewError::Missing { key, field: "npy" }),
         })
@@ -148,7 +164,12 @@ mod tests {
                 format!("{key}.npy{}", compression.suffix()),
                 compress(&npy, compression).unwrap(),
             ));
-            members.push(Member::new(format!("{key}.r2.npy"), b"ignored".to_vec()));
+            let mut copy = BinaryImage::zeros(&[2, 2]).unwrap();
+            copy.set(&[1, n % 2], true);
+            members.push(Member::new(
+                format!("{key}.r2.npy"),
+                npy::write_bytes(&copy, npy::Dtype::U8),
+            ));
         }
         tar_bytes(&members).unwrap()
     }
@@ -165,6 +186,9 @@ mod tests {
             assert!(samples[1].image.get(&[2, 1]), "{compression}");
             assert_eq!(samples[1].image.count_foreground(), 1);
             assert_eq!(samples[1].label.key, "s2");
+            assert_eq!(samples[1].copies.len(), 1);
+            assert_eq!(samples[1].copies[0].0, 2);
+            assert!(samples[1].copies[0].1.get(&[1, 0]));
         }
     }
 
