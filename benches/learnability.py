@@ -422,6 +422,9 @@ def train(voxels, betti, args, seed):
     x = torch.from_numpy(voxels)
     y = torch.from_numpy(betti).clamp(max=MAX_BETTI)
     order_rng = torch.Generator().manual_seed(seed)
+    # The learning rate falls to zero along a cosine: the last epochs settle the weights,
+    # so the score does not depend on where the last step happened to land.
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, args.epochs * -(-len(x) // args.batch))
     model.train()
     for _ in range(args.epochs):
         order = torch.randperm(len(x), generator=order_rng)
@@ -432,6 +435,7 @@ def train(voxels, betti, args, seed):
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
+            schedule.step()
     model.eval()
     return model
 
@@ -469,7 +473,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mode", choices=["embed", "carve"], default="embed")
     parser.add_argument("--train", type=int, default=480, help="training samples a kind")
-    parser.add_argument("--test", type=int, default=150, help="held-out samples a kind")
+    parser.add_argument("--test", type=int, default=250, help="held-out samples a kind")
     parser.add_argument("--mix", type=int, default=960, help="training samples of a mix")
     parser.add_argument("--epochs", type=int, default=12)
     parser.add_argument("--batch", type=int, default=8)
