@@ -14,7 +14,7 @@
 //! - `run_cli`: the `bettimill` command line itself (`bettimill_cli::run_as`), for the
 //!   package's console script.
 //!
-//! Threads: every computation runs on [`WorkPool`], a rayon pool the module owns, never on
+//! Threads: every computation runs on `WorkPool`, a rayon pool the module owns, never on
 //! rayon's global pool. A process made by `fork` (a DataLoader's workers on Linux) inherits
 //! the parent's memory but none of its threads, so a pool made before the fork would take
 //! the child's work and never run it; the module notices the new process id and makes a
