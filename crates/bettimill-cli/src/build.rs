@@ -5,9 +5,8 @@
 use crate::build_display::{count, Display};
 use crate::commands::{load_manifest, ExitStatus};
 use anyhow::bail;
-use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
-use bettimill_executor::Dataset;
-use std::ffi::OsString;
+use bettimill_executor::coordinator::BuildControl;
+use bettimill_executor::{BuildProgress, BuildRequest, Runner};
 use std::path::Path;
 
 /// The build's limits on its workers: `--worker-timeout` and `--max-memory`.
@@ -50,55 +49,20 @@ pub fn build(
     if workers == 0 {
         bail!("--workers must be at least 1");
     }
-    // Refused before anything is written or any worker starts: a sample that cannot fit
-    // would otherwise kill every worker attempt after minutes.
-    let plan = bettimill_plan::Plan::new(&manifest)?;
-    let running = (workers as u64).min(plan.shard_count()).max(1);
-    let memory_limit = crate::plan::memory_limit(limits.max_memory, running);
-    if let Some((limit, origin)) = &memory_limit {
-        bettimill_plan::memory::check(&plan, 1, *limit, origin)?;
-    }
-    drop(plan);
-    let dataset = Dataset::bind(out, &text, manifest)?;
-    crate::signals::test_pause_at_startup();
-    if !quiet && !dataset.plan.infeasible.is_empty() {
-        // Said at the start, not only by `plan`: a researcher should know what the dataset
-        // will not contain before it is built.
-        eprintln!(
-            "left out of the plan ({} that cannot be built; the dataset card lists them too):",
-            if dataset.plan.infeasible.len() == 1 {
-                "1 combination".to_string()
-            } else {
-                format!("{} combinations", dataset.plan.infeasible.len())
-            }
-        );
-        for item in &dataset.plan.infeasible {
-            eprintln!("  {}: {}", item.label, item.reason);
-        }
-    }
-    let program = crate::own_program()?;
-    let options = BuildOptions {
-        workers,
+    let request = BuildRequest {
+        out: out.to_path_buf(),
+        manifest_text: text,
+        manifest,
+        runner: Runner::Workers {
+            count: workers,
+            program: crate::own_program()?,
+        },
+        max_memory: limits.max_memory,
         max_shard_failures,
-        worker_program: program,
-        worker_args: [
-            OsString::from("worker"),
-            OsString::from("--dir"),
-            out.as_os_str().to_owned(),
-        ]
-        .into_iter()
-        // Each worker checks the same limit the coordinator did.
-        .chain(memory_limit.iter().flat_map(|(limit, _)| {
-            [
-                OsString::from("--max-memory"),
-                OsString::from(limit.to_string()),
-            ]
-        }))
-        .collect(),
         worker_timeout: limits.worker_timeout,
     };
-    let started = std::time::Instant::now();
-    let mut display = Display::new(quiet, std::time::Duration::from_secs_f64(progress_interval));
+    let mut started = std::time::Instant::now();
+    let mut display = None;
     // Signals set a flag while the workers run (the coordinator polls this future first,
     // before it starts any worker); before and after, they end the process with 130.
     let control = async {
@@ -108,8 +72,42 @@ pub fn build(
         }
         BuildControl::Interrupt
     };
-    let report = coordinator::run(&dataset, &options, control, |event| display.event(event))?;
+    let report = bettimill_executor::build(request, control, |progress| match progress {
+        BuildProgress::Bound(dataset) => {
+            if !quiet && !dataset.plan.infeasible.is_empty() {
+                // Said at the start, not only by `plan`: a researcher should know what the
+                // dataset will not contain before it is built.
+                eprintln!(
+                    "left out of the plan ({} that cannot be built; the dataset card lists them too):",
+                    if dataset.plan.infeasible.len() == 1 {
+                        "1 combination".to_string()
+                    } else {
+                        format!("{} combinations", dataset.plan.infeasible.len())
+                    }
+                );
+                for item in &dataset.plan.infeasible {
+                    eprintln!("  {}: {}", item.label, item.reason);
+                }
+            }
+            started = std::time::Instant::now();
+            display = Some(Display::new(
+                quiet,
+                std::time::Duration::from_secs_f64(progress_interval),
+            ));
+        }
+        BuildProgress::Workers(event) => {
+            if let Some(display) = &mut display {
+                display.event(event);
+            }
+        }
+        BuildProgress::Shard(..) => {}
+    })?;
+    // A build that returns was bound first, so the display exists.
+    let mut display = display.unwrap_or_else(|| {
+        Display::new(quiet, std::time::Duration::from_secs_f64(progress_interval))
+    });
     display.finish();
+    let (report, index) = (report.totals, report.index);
     let seconds = started.elapsed().as_secs_f64();
     if report.interrupted {
         eprintln!(
@@ -147,7 +145,7 @@ pub fn build(
             count(display.workers as u64, "worker"),
             count(report.regenerations, "regeneration"),
             count(report.retries, "retried shard attempt"),
-            dataset.layout().index_path().display()
+            index.display()
         );
     }
     Ok(ExitStatus::Success)

@@ -129,7 +129,7 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
         (Some(_), Some(threads)) => threads.max(1),
         (Some(_), None) => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    crate::plan::check_memory(&dataset.plan, args.max_memory, 1, threads as u64)?;
+    bettimill_executor::memory::check(&dataset.plan, args.max_memory, 1, threads as u64)?;
     let Some(count) = args.task_count else {
         // Served by a coordinator: exit as soon as it goes away (its pipe closes).
         worker::serve(&dataset, std::io::stdin(), std::io::stdout(), || {
@@ -243,7 +243,7 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     let mut extra = args.sbatch_options.clone();
     if let Some(limit) = args.max_memory {
         let plan = bettimill_plan::Plan::new(&manifest)?;
-        crate::plan::check_memory(&plan, Some(limit), 1, args.cpus_per_task.max(1))?;
+        bettimill_executor::memory::check(&plan, Some(limit), 1, args.cpus_per_task.max(1))?;
         extra.push(format!("--mem={}M", limit.div_ceil(1 << 20)));
     }
     let dataset = Dataset::bind(&args.out, &text, manifest)?;
@@ -354,7 +354,7 @@ pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
     if let Some(limit) = args.max_memory {
         let plan = bettimill_plan::Plan::new(&manifest)?;
-        crate::plan::check_memory(&plan, Some(limit), 1, 1)?;
+        bettimill_executor::memory::check(&plan, Some(limit), 1, 1)?;
     }
     let dataset = Dataset::bind(&args.out, &text, manifest)?;
     let yaml = cluster::kubernetes_job(
@@ -369,158 +369,4 @@ pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
     )?;
     print!("{yaml}");
     Ok(ExitStatus::Success)
-}
-
-/// The memory limit of the Slurm job this process runs in, divided among `workers`, with
-/// the words saying where it came from; `None` outside a Slurm job (or when the job sets
-/// no memory). An array task on a shared node must stay within its allocation, not the
-/// node's MemAvailable: the allocation is `SLURM_MEM_PER_NODE` (MiB), or
-/// `SLURM_MEM_PER_CPU` x `SLURM_CPUS_ON_NODE`, and the job's cgroup `memory.max` when it
-/// sets a lower one.
-pub(crate) fn job_memory_limit(workers: u64) -> Option<(u64, String)> {
-    job_memory_limit_from(&bettimill_env::var, cgroup_memory_max(), workers)
-}
-
-/// [`job_memory_limit`] from an environment and a cgroup limit (bytes, and the file).
-fn job_memory_limit_from(
-    env: &dyn Fn(&str) -> Option<String>,
-    cgroup: Option<(u64, String)>,
-    workers: u64,
-) -> Option<(u64, String)> {
-    use bettimill_plan::memory::human_bytes;
-    let mebibytes = |name: &str| -> Option<u64> {
-        let text = env(name)?;
-        let text = text.trim();
-        text.strip_suffix('M')
-            .unwrap_or(text)
-            .parse::<u64>()
-            .ok()
-            .filter(|&n| n > 0)
-    };
-    let slurm = if let Some(per_node) = mebibytes("SLURM_MEM_PER_NODE") {
-        let bytes = per_node.saturating_mul(1 << 20);
-        Some((bytes, format!("SLURM_MEM_PER_NODE {}", human_bytes(bytes))))
-    } else if let Some(per_cpu) = mebibytes("SLURM_MEM_PER_CPU") {
-        let cpus = env("SLURM_CPUS_ON_NODE")
-            .and_then(|c| c.trim().parse::<u64>().ok())
-            .filter(|&c| c > 0)
-            .unwrap_or(1);
-        let bytes = per_cpu.saturating_mul(1 << 20).saturating_mul(cpus);
-        Some((
-            bytes,
-            format!(
-                "SLURM_MEM_PER_CPU {} x SLURM_CPUS_ON_NODE {cpus}",
-                human_bytes(per_cpu << 20)
-            ),
-        ))
-    } else {
-        None
-    };
-    let in_job = slurm.is_some() || env("SLURM_JOB_ID").is_some();
-    if !in_job {
-        return None;
-    }
-    let cgroup = cgroup.map(|(bytes, file)| {
-        (
-            bytes,
-            format!("the job's cgroup limit {file} {}", human_bytes(bytes)),
-        )
-    });
-    let (limit, source) = match (slurm, cgroup) {
-        (Some(s), Some(c)) => {
-            if c.0 < s.0 {
-                c
-            } else {
-                s
-            }
-        }
-        (Some(s), None) => s,
-        (None, Some(c)) => c,
-        (None, None) => return None,
-    };
-    let workers = workers.max(1);
-    Some((
-        limit / workers,
-        format!(
-            "the Slurm job's memory: {source}{}; set --max-memory to change it",
-            if workers == 1 {
-                String::new()
-            } else {
-                format!(" / {workers} workers")
-            }
-        ),
-    ))
-}
-
-/// The cgroup v2 `memory.max` of this process, when it sets one (not `max`).
-fn cgroup_memory_max() -> Option<(u64, String)> {
-    let cgroups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
-    let relative = cgroups.lines().find_map(|l| l.strip_prefix("0::"))?;
-    let file = format!(
-        "/sys/fs/cgroup{}/memory.max",
-        relative.trim_end_matches('/')
-    );
-    let text = std::fs::read_to_string(&file).ok()?;
-    let bytes = text.trim().parse::<u64>().ok()?;
-    Some((bytes, file))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::job_memory_limit_from;
-
-    fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
-        move |name| {
-            vars.iter()
-                .find(|(k, _)| *k == name)
-                .map(|(_, v)| v.to_string())
-        }
-    }
-
-    #[test]
-    fn outside_slurm_there_is_no_job_limit_even_with_a_cgroup() {
-        assert_eq!(
-            job_memory_limit_from(&env(&[]), Some((1 << 30, "f".into())), 1),
-            None
-        );
-    }
-
-    #[test]
-    fn slurm_mem_per_node_is_the_limit_and_is_named() {
-        let (limit, source) =
-            job_memory_limit_from(&env(&[("SLURM_MEM_PER_NODE", "4096")]), None, 1).unwrap();
-        assert_eq!(limit, 4096 << 20);
-        assert!(source.contains("SLURM_MEM_PER_NODE 4.0 GiB"), "{source}");
-        let (limit, source) =
-            job_memory_limit_from(&env(&[("SLURM_MEM_PER_NODE", "4096")]), None, 4).unwrap();
-        assert_eq!(limit, 1024 << 20);
-        assert!(source.contains("/ 4 workers"), "{source}");
-    }
-
-    #[test]
-    fn slurm_mem_per_cpu_is_multiplied_by_the_cpus_on_the_node() {
-        let vars = [("SLURM_MEM_PER_CPU", "1000"), ("SLURM_CPUS_ON_NODE", "3")];
-        let (limit, source) = job_memory_limit_from(&env(&vars), None, 1).unwrap();
-        assert_eq!(limit, 3000 << 20);
-        assert!(
-            source.contains("SLURM_MEM_PER_CPU") && source.contains("x SLURM_CPUS_ON_NODE 3"),
-            "{source}"
-        );
-    }
-
-    #[test]
-    fn a_lower_cgroup_limit_wins_inside_a_job() {
-        let vars = [("SLURM_JOB_ID", "7"), ("SLURM_MEM_PER_NODE", "4096")];
-        let cgroup = Some((1 << 30, "/sys/fs/cgroup/job/memory.max".to_string()));
-        let (limit, source) = job_memory_limit_from(&env(&vars), cgroup.clone(), 1).unwrap();
-        assert_eq!(limit, 1 << 30);
-        assert!(source.contains("/sys/fs/cgroup/job/memory.max"), "{source}");
-        let (limit, _) = job_memory_limit_from(&env(&[("SLURM_JOB_ID", "7")]), cgroup, 1).unwrap();
-        assert_eq!(limit, 1 << 30);
-        // A job without a memory setting or cgroup limit has none.
-        assert_eq!(
-            job_memory_limit_from(&env(&[("SLURM_JOB_ID", "7")]), None, 1),
-            None
-        );
-    }
 }

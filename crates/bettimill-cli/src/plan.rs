@@ -141,64 +141,6 @@ pub fn pilot(plan: &Plan, model: &Estimate, strata: Option<usize>) -> anyhow::Re
     })
 }
 
-/// The share of /proc/meminfo's MemAvailable that the default `--max-memory` hands out.
-pub(crate) const DEFAULT_MEMORY_SHARE: f64 = 0.8;
-
-/// The memory one worker may use: `--max-memory` if given, else inside a Slurm job its
-/// allocation (`crate::cluster::job_memory_limit`), else
-/// [`DEFAULT_MEMORY_SHARE`] of MemAvailable divided among `workers`; `None` when neither
-/// is known (no /proc/meminfo: nothing is refused). With the words saying where it came
-/// from, for messages.
-pub(crate) fn memory_limit(max_memory: Option<u64>, workers: u64) -> Option<(u64, String)> {
-    if let Some(limit) = max_memory {
-        return Some((
-            limit,
-            format!("--max-memory {}", memory::human_bytes(limit)),
-        ));
-    }
-    if let Some(job) = crate::cluster::job_memory_limit(workers) {
-        return Some(job);
-    }
-    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let available_kib: u64 = meminfo
-        .lines()
-        .find_map(|l| l.strip_prefix("MemAvailable:"))?
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()?;
-    let workers = workers.max(1);
-    let limit = (available_kib as f64 * 1024.0 * DEFAULT_MEMORY_SHARE / workers as f64) as u64;
-    Some((
-        limit,
-        format!(
-            "the default: {:.0}% of MemAvailable {}{}; set --max-memory to change it",
-            DEFAULT_MEMORY_SHARE * 100.0,
-            memory::human_bytes(available_kib * 1024),
-            if workers == 1 {
-                String::new()
-            } else {
-                format!(" / {workers} workers")
-            }
-        ),
-    ))
-}
-
-/// Refuses `plan` when one worker running `threads` samples at once would need more than
-/// the memory limit (see [`memory_limit`]).
-pub(crate) fn check_memory(
-    plan: &Plan,
-    max_memory: Option<u64>,
-    workers: u64,
-    threads: u64,
-) -> anyhow::Result<()> {
-    if let Some((limit, origin)) = memory_limit(max_memory, workers) {
-        memory::check(plan, threads, limit, &origin)?;
-    }
-    Ok(())
-}
-
 /// Prints the plan of `manifest` (text, or JSON with `json`), with the cost model's time
 /// and size estimates and, with `pilot` (`Some(None)`: every stratum; `Some(Some(n))`: the
 /// first n), the figures of samples built and measured here. A plan whose worker would not
@@ -218,7 +160,7 @@ pub fn show(
     let seconds = model.wall_seconds(cores);
     let pilot = match pilot_strata {
         Some(strata) => {
-            check_memory(&plan, max_memory, 1, 1)?;
+            bettimill_executor::memory::check(&plan, max_memory, 1, 1)?;
             Some(pilot(&plan, &model, strata)?)
         }
         None => None,
@@ -290,7 +232,7 @@ pub fn show(
             crate::stats::write_stdout(format!("{comma}\n    {entry}").as_bytes())?;
         }
         outln!("\n  ]\n}}");
-        check_memory(&plan, max_memory, 1, 1)?;
+        bettimill_executor::memory::check(&plan, max_memory, 1, 1)?;
         return Ok(());
     }
     outln!(
@@ -428,7 +370,7 @@ pub fn show(
         worker_memory.voxels,
         memory::human_bytes(worker_memory.shard_bytes),
     );
-    check_memory(&plan, max_memory, 1, 1)?;
+    bettimill_executor::memory::check(&plan, max_memory, 1, 1)?;
     Ok(())
 }
 

@@ -112,13 +112,3 @@ impl Drop for Watching {
         MODE.store(EXIT, Ordering::SeqCst);
     }
 }
-
-/// Test hook (`BETTIMILL_TEST_PAUSE_AT_STARTUP`): seconds `build` sleeps once its
-/// directory is bound, before the coordinator starts, so a test can signal it in the middle
-/// of start-up.
-pub fn test_pause_at_startup() {
-    let pause = bettimill_env::seconds(bettimill_env::EnvVars::BETTIMILL_TEST_PAUSE_AT_STARTUP);
-    if let Some(pause) = pause {
-        std::thread::sleep(pause);
-    }
-}

@@ -27,14 +27,17 @@
 //! - [`cluster`]: Slurm array jobs and Kubernetes Indexed Jobs whose tasks run
 //!   [`worker::run_task`] on a shared file system, then `bettimill finalize DIR`.
 
+pub mod build;
 pub mod cluster;
 pub mod coordinator;
 mod dataset;
+pub mod memory;
 /// The directory lock (owned by `bettimill-format`, which takes it to create a directory).
 pub use bettimill_format::lock;
 pub mod protocol;
 pub mod worker;
 
+pub use build::{build, BuildFailure, BuildProgress, BuildReport, BuildRequest, Runner};
 pub use dataset::{
     BuildError, BuildInfo, BuildSummary, CompletionRecord, Dataset, SampleEvent, ShardOutcome,
     ShardState,

@@ -23,8 +23,8 @@
 //! Errors: bad input is `ValueError` (a missing file `FileNotFoundError`, a failed write
 //! `OSError`) with the message the CLI prints after `error: `. Nothing here prints.
 
-use bettimill_executor::coordinator::{self, BuildControl, BuildOptions};
-use bettimill_executor::{Dataset, DirLock};
+use bettimill_executor::coordinator::{self, BuildControl};
+use bettimill_executor::{BuildFailure, BuildRequest, Runner};
 use bettimill_grid::npy;
 use bettimill_grid::BinaryImage;
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
@@ -464,9 +464,10 @@ fn _plan_from_text(text: String, origin: PathBuf) -> PyResult<PyPlan> {
 }
 
 /// `bettimill.build(manifest, out, workers=None, worker_program=None)`: builds (or resumes)
-/// the dataset of `manifest` in `out`, as `bettimill build` does. With `workers` None or 1
-/// the shards are built in this process; with more, by that many worker processes of
-/// `worker_program` (the package's `bettimill` console script). Returns the totals.
+/// the dataset of `manifest` in `out`, as `bettimill build` does (the same entry point,
+/// `bettimill_executor::build`, with its memory check). With `workers` None or 1 the shards
+/// are built in this process; with more, by that many worker processes of `worker_program`
+/// (the package's `bettimill` console script). Returns the totals.
 #[pyfunction]
 #[pyo3(signature = (manifest, out, workers = None, worker_program = None))]
 fn build<'py>(
@@ -478,88 +479,78 @@ fn build<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let source = manifest_source(manifest)?;
     let parsed = parse_manifest(&source)?;
-    if workers == Some(0) {
-        return Err(PyValueError::new_err("workers must be at least 1"));
-    }
-    let dataset = py
-        .detach(|| Dataset::bind(&out, &source.text, parsed))
-        .map_err(value_error)?;
-    let dict = PyDict::new(py);
-    match workers {
-        None | Some(1) => {
-            let summary = detach_in_pool(py, || {
-                let _lock = DirLock::acquire(&dataset.dir).map_err(|e| e.to_string())?;
-                dataset
-                    .build_in_process(|_, _| {})
-                    .map_err(|e| e.to_string())
-            })?
-            .map_err(PyOSError::new_err)?;
-            dict.set_item("built", summary.built)?;
-            dict.set_item("skipped", summary.skipped)?;
-            dict.set_item("regenerations", summary.regenerations)?;
-            dict.set_item("workers", 1)?;
-        }
-        Some(workers) => {
-            let program = worker_program.ok_or_else(|| {
+    let runner = match workers {
+        Some(0) => return Err(PyValueError::new_err("workers must be at least 1")),
+        None | Some(1) => Runner::InProcess,
+        Some(count) => Runner::Workers {
+            count,
+            program: worker_program.ok_or_else(|| {
                 PyValueError::new_err("workers > 1 needs the bettimill console script")
-            })?;
-            let options = BuildOptions {
-                workers,
-                max_shard_failures: coordinator::DEFAULT_MAX_SHARD_FAILURES,
-                worker_program: program,
-                worker_args: vec![
-                    OsString::from("worker"),
-                    OsString::from("--dir"),
-                    out.as_os_str().to_owned(),
-                ],
-                worker_timeout: coordinator::DEFAULT_WORKER_TIMEOUT,
-            };
-            // Ctrl-C in Python: the interpreter's handler only sets a flag, so the build
-            // asks for it every 100 ms and stops its workers (resumable, like the CLI's).
-            let control = async {
-                loop {
-                    tokio::time::sleep(std::time::Duration::from_millis(100)).await;
-                    if Python::attach(|py| py.check_signals()).is_err() {
-                        return BuildControl::Interrupt;
-                    }
-                }
-            };
-            let report =
-                detach_in_pool(py, || coordinator::run(&dataset, &options, control, |_| {}))?
-                    .map_err(value_error)?;
-            if report.interrupted {
-                return Err(PyKeyboardInterrupt::new_err(format!(
-                    "interrupted: {} of {} shards complete, nothing partial is visible; build again to resume",
-                    report.complete, report.shards
-                )));
+            })?,
+        },
+    };
+    let request = BuildRequest {
+        out,
+        manifest_text: source.text,
+        manifest: parsed,
+        runner,
+        max_memory: None,
+        max_shard_failures: coordinator::DEFAULT_MAX_SHARD_FAILURES,
+        worker_timeout: coordinator::DEFAULT_WORKER_TIMEOUT,
+    };
+    // Ctrl-C in Python: the interpreter's handler only sets a flag, so a build by worker
+    // processes asks for it every 100 ms and stops its workers (resumable, like the CLI's).
+    let control = async {
+        loop {
+            tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+            if Python::attach(|py| py.check_signals()).is_err() {
+                return BuildControl::Interrupt;
             }
-            if !report.failed.is_empty() {
-                let reasons: Vec<String> = report
-                    .failed
-                    .iter()
-                    .map(|f| {
-                        format!(
-                            "{}: {}",
-                            f.shard,
-                            f.reasons.last().map(String::as_str).unwrap_or("")
-                        )
-                    })
-                    .collect();
-                return Err(PyOSError::new_err(format!(
-                    "{} shard(s) failed and were given up; index.json not written:\n{}",
-                    report.failed.len(),
-                    reasons.join("\n")
-                )));
-            }
-            dict.set_item("built", report.built)?;
-            dict.set_item("skipped", report.skipped)?;
-            dict.set_item("regenerations", report.regenerations)?;
-            dict.set_item("workers", workers)?;
         }
+    };
+    let report = py
+        .detach(|| bettimill_executor::build(request, control, |_| {}))
+        .map_err(|err| match err {
+            // An in-process build that fails (a full disk, a held lock) is an OSError, as
+            // a failed file operation; a refused manifest, plan or directory a ValueError.
+            BuildFailure::Lock(_) | BuildFailure::InProcess(_) => {
+                PyOSError::new_err(err.to_string())
+            }
+            err => value_error(err),
+        })?;
+    let totals = &report.totals;
+    if totals.interrupted {
+        return Err(PyKeyboardInterrupt::new_err(format!(
+            "interrupted: {} of {} shards complete, nothing partial is visible; build again to resume",
+            totals.complete, totals.shards
+        )));
     }
-    dict.set_item("samples", dataset.plan.samples)?;
-    dict.set_item("shards", dataset.plan.shard_count())?;
-    dict.set_item("index", dataset.layout().index_path())?;
+    if !totals.failed.is_empty() {
+        let reasons: Vec<String> = totals
+            .failed
+            .iter()
+            .map(|f| {
+                format!(
+                    "{}: {}",
+                    f.shard,
+                    f.reasons.last().map(String::as_str).unwrap_or("")
+                )
+            })
+            .collect();
+        return Err(PyOSError::new_err(format!(
+            "{} shard(s) failed and were given up; index.json not written:\n{}",
+            totals.failed.len(),
+            reasons.join("\n")
+        )));
+    }
+    let dict = PyDict::new(py);
+    dict.set_item("built", totals.built)?;
+    dict.set_item("skipped", totals.skipped)?;
+    dict.set_item("regenerations", totals.regenerations)?;
+    dict.set_item("workers", workers.unwrap_or(1))?;
+    dict.set_item("samples", report.samples)?;
+    dict.set_item("shards", totals.shards)?;
+    dict.set_item("index", report.index)?;
     Ok(dict)
 }
 
