@@ -6,6 +6,9 @@
 //!   this file checks that every crate inherits those lints and that no library crate
 //!   allows them anywhere in its sources.
 //! - Every Rust file opens with a `//!` doc; the crates are on the code map.
+//! - The environment is read in one file (`bettimill-env`'s `env.rs`), and the build is
+//!   driven from one place (the executor's `build`): the CLI and the Python binding neither
+//!   make build options nor read scheduler variables.
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
 
 use std::path::{Path, PathBuf};
@@ -342,4 +345,122 @@ fn the_declared_rust_version_is_the_workspaces_and_covers_every_dependency() {
         }
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// The lines of `text` that are code, not comments (a mention in a doc is not a use).
+fn code_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .filter(|(_, line)| !line.trim_start().starts_with("//"))
+        .map(|(i, line)| (i + 1, line))
+}
+
+/// Where `sources` (path, text) use any of `needles` in code, as `path:line: needle`.
+fn uses(sources: &[(PathBuf, String)], needles: &[&str]) -> Vec<String> {
+    let mut found = Vec::new();
+    for (path, text) in sources {
+        for (number, line) in code_lines(text) {
+            for needle in needles {
+                if line.contains(needle) {
+                    found.push(format!("{}:{number}: {needle}", path.display()));
+                }
+            }
+        }
+    }
+    found
+}
+
+/// The Rust sources under `src/` of every workspace member, with their text.
+fn member_sources() -> Vec<(PathBuf, String)> {
+    let mut files = Vec::new();
+    for p in packages() {
+        rust_files(&p.dir.join("src"), &mut files);
+    }
+    files.sort();
+    files
+        .into_iter()
+        .map(|f| {
+            let text = std::fs::read_to_string(&f).unwrap();
+            (f, text)
+        })
+        .collect()
+}
+
+/// Whether `line` reads the environment itself: `std::env::var`, `var_os`, `vars` (also
+/// as `env::var` after `use std::env`), not through `bettimill_env::var`.
+fn reads_env(line: &str) -> bool {
+    line.match_indices("env::var")
+        .any(|(at, _)| !line[..at].ends_with("bettimill_"))
+}
+
+/// Every environment variable is read in `bettimill-env`'s `env.rs`, the one list of them
+/// (docs/environment.md is its users' copy): no other source file of a crate reads one.
+#[test]
+fn the_environment_is_read_only_in_env_rs() {
+    let sources = member_sources();
+    assert!(sources.len() > 50, "only {} sources", sources.len());
+    let env_rs = Path::new("crates/bettimill-env/src/env.rs");
+    let others: Vec<_> = sources
+        .into_iter()
+        .filter(|(path, _)| !path.ends_with(env_rs))
+        .collect();
+    let mut found = Vec::new();
+    for (path, text) in &others {
+        for (number, line) in code_lines(text) {
+            if reads_env(line) {
+                found.push(format!("{}:{number}: {}", path.display(), line.trim()));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "environment read outside bettimill-env's env.rs (add the variable to EnvVars and \
+         read it with bettimill_env::var): {found:#?}"
+    );
+}
+
+/// The build is driven by `bettimill_executor::build` alone: the CLI and the Python
+/// binding translate arguments and output, and neither makes the coordinator's options,
+/// starts a build another way, works out a memory limit or reads a scheduler's variables.
+#[test]
+fn neither_the_cli_nor_python_drives_a_build_or_reads_the_scheduler() {
+    let root = repo_root();
+    let mut files = Vec::new();
+    for krate in ["bettimill-cli", "bettimill-python"] {
+        rust_files(&root.join("crates").join(krate).join("src"), &mut files);
+    }
+    assert!(files.len() > 10, "only {} files", files.len());
+    let sources: Vec<_> = files
+        .into_iter()
+        .map(|f| {
+            let text = std::fs::read_to_string(&f).unwrap();
+            (f, text)
+        })
+        .collect();
+    let found = uses(
+        &sources,
+        &[
+            // Build options and the ways around the one entry point.
+            "BuildOptions",
+            "coordinator::run",
+            "build_in_process",
+            "memory_limit",
+            "MemAvailable",
+            "/proc/meminfo",
+            "memory.max",
+            // Scheduler variables, by name or through the environment's list.
+            "bettimill_env",
+            "EnvVars",
+            "\"SLURM_",
+            "\"JOB_COMPLETION_INDEX",
+            "\"PBS_",
+            "\"SGE_",
+            "\"LSB_",
+        ],
+    );
+    assert!(
+        found.is_empty(),
+        "the CLI or the Python binding drives a build itself (use bettimill_executor::build): \
+         {found:#?}"
+    );
 }

@@ -68,6 +68,11 @@ impl EnvVars {
     #[doc(hidden)]
     pub const BETTIMILL_FUZZ_CASES: &'static str = "BETTIMILL_FUZZ_CASES";
 
+    /// Internal, the test suite: `1` runs the system tests (those that install packages,
+    /// start daemons, mount file systems or need root); `ci/test.sh` sets it.
+    #[doc(hidden)]
+    pub const BETTIMILL_SYSTEM_TESTS: &'static str = "BETTIMILL_SYSTEM_TESTS";
+
     /// Internal, the test suite: `true` or `1` in CI, where a test whose outside tool is
     /// missing fails instead of skipping.
     #[doc(hidden)]

@@ -91,7 +91,7 @@ pub fn skip_unless_ci(what: &str, reason: &str) {
 }
 
 /// The variable that turns the system tests on: `BETTIMILL_SYSTEM_TESTS=1`.
-pub const SYSTEM_TESTS: &str = "BETTIMILL_SYSTEM_TESTS";
+pub const SYSTEM_TESTS: &str = bettimill_env::EnvVars::BETTIMILL_SYSTEM_TESTS;
 
 /// Whether the system tests run: those that install packages, start daemons (Slurm),
 /// mount file systems or need root. Only with `BETTIMILL_SYSTEM_TESTS=1`, which
@@ -99,7 +99,7 @@ pub const SYSTEM_TESTS: &str = "BETTIMILL_SYSTEM_TESTS";
 /// only; once on, a system test whose tool is missing fails in CI as any other
 /// ([`skip_unless_ci`]).
 pub fn system_tests() -> bool {
-    std::env::var(SYSTEM_TESTS).is_ok_and(|v| v == "1")
+    bettimill_env::var(SYSTEM_TESTS).is_some_and(|v| v == "1")
 }
 
 /// What a system test (`what`: what it needs) does first: `true` when the system tests
