@@ -7,7 +7,7 @@
 # small datasets in a temporary directory and runs the tests on each:
 #   - with the real CLI (`bettimill build`), one per member compression (none, gzip, zstd)
 #     and dimension (2, 3, 4), after `bettimill verify` accepts it;
-#   - with the bettimill-shard demo_shards example, the same three compressions, which
+#   - with the bettimill-format demo_shards example, the same three compressions, which
 #     also writes wids shard indexes.
 # The Python environment comes from ci/python-env.sh (idempotent). Progress on stderr.
 set -euo pipefail
@@ -26,7 +26,7 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
 echo "python-clients: building the bettimill CLI and the demo_shards example" >&2
-cargo build --quiet --locked -p bettimill-cli -p bettimill-shard --bins --examples
+cargo build --quiet --locked -p bettimill-cli -p bettimill-format --bins --examples
 target="${CARGO_TARGET_DIR:-$REPO/target}/debug"
 
 datasets=()

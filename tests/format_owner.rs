@@ -4,6 +4,8 @@
 //!   outside the format crate, library and binary sources never call `serde_json::from_*`,
 //!   and audit and preview never hold a `serde_json::Value`;
 //! - no other crate spells the layout (`join("records")`, `join("build.json")`, ...);
+//! - the storage crate `bettimill-shard` knows no dataset: no layout names, no records,
+//!   no index, and it does not depend on the format crate (storage below, format above);
 //! - audit, preview and the CLI depend on the format crate, preview no longer on sample;
 //! - a directory started by another bettimill version is refused, naming both versions;
 //! - every file a build writes is covered by `index.json` and checked by `verify`;
@@ -49,7 +51,8 @@ fn sources(krate: &str) -> Vec<(PathBuf, String)> {
         .collect()
 }
 
-const READERS: [&str; 5] = [
+const READERS: [&str; 6] = [
+    "bettimill-shard",
     "bettimill-executor",
     "bettimill-audit",
     "bettimill-preview",
@@ -111,6 +114,66 @@ fn only_the_format_crate_spells_the_layout() {
         offences.is_empty(),
         "use bettimill_format::DatasetDir for paths inside a dataset:\n{}",
         offences.join("\n")
+    );
+}
+
+/// Where `code` (Rust source) names a dataset concept the storage crate must not know:
+/// `(line number, what)` for each, comment lines left out.
+fn dataset_concepts(code: &str) -> Vec<(usize, &'static str)> {
+    const CONCEPTS: [&str; 12] = [
+        "\"shards",
+        "\"records",
+        "\"timings",
+        "index.json",
+        "build.json",
+        "classes.json",
+        "manifest.toml",
+        "ShardRecord",
+        "MemberRecord",
+        "IndexShard",
+        "IndexHeader",
+        "read_index",
+    ];
+    let mut found = Vec::new();
+    for (number, line) in code.lines().enumerate() {
+        if line.trim_start().starts_with("//") {
+            continue;
+        }
+        for concept in CONCEPTS {
+            if line.contains(concept) {
+                found.push((number + 1, concept));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn the_storage_crate_knows_no_dataset() {
+    // The checker sees what it must refuse, and passes what storage may say.
+    let bad = "fn f() {\n    let p = dir.join(\"shards\");\n    read_index(p);\n}\n";
+    assert_eq!(
+        dataset_concepts(bad),
+        vec![(2, "\"shards"), (3, "read_index")]
+    );
+    assert!(dataset_concepts("/// index.json is format's\nfn tar_bytes() {}\n").is_empty());
+    let mut offences = Vec::new();
+    for (path, code) in sources("bettimill-shard") {
+        for (line, concept) in dataset_concepts(&code) {
+            offences.push(format!("{}:{line}: {concept}", path.display()));
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "bettimill-shard is storage only; the dataset's layout, records and index belong \
+         to bettimill-format:\n{}",
+        offences.join("\n")
+    );
+    let manifest =
+        std::fs::read_to_string(workspace().join("crates/bettimill-shard/Cargo.toml")).unwrap();
+    assert!(
+        !manifest.contains("bettimill-format"),
+        "bettimill-shard must not depend on bettimill-format"
     );
 }
 
@@ -249,7 +312,7 @@ fn every_file_a_build_writes_is_listed_in_the_index_and_checked_by_verify() {
     let (_, out) = built_dataset(tmp.path());
     let o = out.to_str().unwrap();
     let index = std::fs::read(out.join("index.json")).unwrap();
-    let index = bettimill_shard::Index::from_json_bytes(&index, Path::new("index.json")).unwrap();
+    let index = bettimill_format::Index::from_json_bytes(&index, Path::new("index.json")).unwrap();
     let listed: Vec<&str> = index.header.files.iter().map(|f| f.name.as_str()).collect();
     // Every top-level file but the index itself and the lock; shards and records are
     // covered by the shard entries.

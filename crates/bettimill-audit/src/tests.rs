@@ -147,7 +147,7 @@ fn tamper_label(dataset: &Dataset, index: u64, edit: &dyn Fn(&mut serde_json::Va
         }
     }
     let relative = bettimill_format::DatasetDir::relative_tar_name(&shard.name);
-    let (bytes, record) = bettimill_shard::build_shard(&relative, &shard.split, &samples).unwrap();
+    let (bytes, record) = bettimill_format::build_shard(&relative, &shard.split, &samples).unwrap();
     bettimill_shard::write_atomic(&dataset.tar_path(&shard), &bytes).unwrap();
     let old = dataset.layout().read_record(&shard.name).unwrap().unwrap();
     let record = bettimill_format::CompletionRecord {

@@ -32,7 +32,7 @@ pub struct Request<'a> {
 pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, String)>> {
     let layout = DatasetDir::new(dir);
     if layout.is_finalized() {
-        let index = bettimill_shard::Index::read(&layout.index_path())?;
+        let index = bettimill_format::Index::read(&layout.index_path())?;
         return Ok(index
             .shards
             .iter()

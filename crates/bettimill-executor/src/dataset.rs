@@ -4,12 +4,11 @@ use bettimill_format::dir::{BUILD_INFO_FILE, MANIFEST_FILE};
 use bettimill_format::TarCheck;
 use bettimill_format::{member_name, DatasetDir, FormatError, TOOL_VERSION};
 pub use bettimill_format::{BuildInfo, CompletionRecord, ShardState};
+use bettimill_format::{IndexFile, IndexHeader, IndexWriter, WidsWriter};
 use bettimill_manifest::{Manifest, ManifestError};
 use bettimill_plan::{Plan, SampleTask, ShardPlan};
 use bettimill_sample::{make_sample_observed, SampleError, Stage, StageProgress};
-use bettimill_shard::{
-    self as shard, AtomicFile, IndexFile, IndexHeader, IndexWriter, Member, ShardError, WidsWriter,
-};
+use bettimill_shard::{self as shard, AtomicFile, Member, ShardError};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -270,7 +269,7 @@ impl Dataset {
             *regenerations.entry(class_label).or_default() += attempt as u64;
         }
         let relative = DatasetDir::relative_tar_name(&shard.name);
-        let (bytes, record) = shard::build_shard(&relative, &shard.split, &members)?;
+        let (bytes, record) = bettimill_format::build_shard(&relative, &shard.split, &members)?;
         write_tar_atomically(&self.tar_path(shard), &bytes)?;
         let completion = CompletionRecord {
             shard: record,

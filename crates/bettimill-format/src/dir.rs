@@ -1,8 +1,9 @@
 //! The dataset directory: where each file lives, the identity file, completion records,
 //! and the one check of a shard against its record.
 
+use crate::ShardRecord;
 use crate::{FormatError, TOOL_VERSION};
-use bettimill_shard::{self as shard, ShardRecord};
+use bettimill_shard as shard;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -211,12 +212,12 @@ impl DatasetDir {
 
     /// The entry `index.json` lists for the directory's file `name` (size and a blake3
     /// streamed through a fixed buffer).
-    pub fn index_file(&self, name: &str) -> Result<shard::IndexFile, FormatError> {
+    pub fn index_file(&self, name: &str) -> Result<crate::IndexFile, FormatError> {
         let path = self.root.join(name);
         let mut file = std::fs::File::open(&path).map_err(io(&path))?;
         let mut hasher = blake3::Hasher::new();
         let bytes = std::io::copy(&mut file, &mut hasher).map_err(io(&path))?;
-        Ok(shard::IndexFile {
+        Ok(crate::IndexFile {
             name: name.to_string(),
             bytes,
             blake3: hasher.finalize().to_hex().to_string(),
@@ -481,13 +482,13 @@ impl DatasetDir {
     }
 
     /// Checks every shard against `index.json` and the completion records it covers (see
-    /// `bettimill_shard::verify`), streaming the index and each shard. `progress` gets
+    /// `crate::verify`), streaming the index and each shard. `progress` gets
     /// (shards checked, shards in the index).
     pub fn verify(
         &self,
         progress: &mut dyn FnMut(u64, u64),
-    ) -> Result<shard::VerifyReport, FormatError> {
-        let mut records = |entry: &shard::IndexShard| -> Result<ShardRecord, String> {
+    ) -> Result<crate::VerifyReport, FormatError> {
+        let mut records = |entry: &crate::IndexShard| -> Result<ShardRecord, String> {
             let name = DatasetDir::shard_stem(&entry.name);
             let path = self.record_path(name);
             match self.read_record_hashed(name) {
@@ -505,7 +506,7 @@ impl DatasetDir {
             }
         };
         let mut report =
-            shard::verify_with_progress(&self.root, REQUIRED_FILES, &mut records, progress)?;
+            crate::verify_with_progress(&self.root, REQUIRED_FILES, &mut records, progress)?;
         // The index's identity must be the directory's: build.json is itself covered by the
         // index's `files`, so an edit of either is found.
         if let Some(header) = report.header.clone() {
@@ -517,14 +518,14 @@ impl DatasetDir {
                         ("plan_hash", &header.plan_hash, &info.plan_hash),
                     ] {
                         if indexed != built {
-                            report.problems.push(shard::Problem::File {
+                            report.problems.push(crate::Problem::File {
                                 path: INDEX_FILE.into(),
                                 reason: format!("{field} is {indexed}, build.json says {built}"),
                             });
                         }
                     }
                 }
-                Err(err) => report.problems.push(shard::Problem::File {
+                Err(err) => report.problems.push(crate::Problem::File {
                     path: BUILD_INFO_FILE.into(),
                     reason: err.to_string(),
                 }),
@@ -539,7 +540,7 @@ impl DatasetDir {
         if !self.is_finalized() {
             return Ok(());
         }
-        shard::read_index(&self.index_path(), &mut |_, _| Ok(()))?;
+        crate::read_index(&self.index_path(), &mut |_, _| Ok(()))?;
         Ok(())
     }
 
@@ -727,14 +728,13 @@ pub type ShardStream = shard::TarStream<std::io::Take<std::io::BufReader<std::fs
 /// The size of the regular file at `path`; an error naming it for anything else (a device
 /// such as `/dev/zero`, which reports no size and never ends, a directory, a FIFO).
 fn regular_file_len(path: &Path) -> Result<u64, FormatError> {
-    let meta = std::fs::metadata(path).map_err(io(path))?;
-    if !meta.is_file() {
-        return Err(FormatError::Corrupt {
+    shard::regular_len(path).map_err(|err| match err {
+        shard::RegularFileError::Io(err) => io(path)(err),
+        err @ shard::RegularFileError::NotRegular => FormatError::Corrupt {
             path: path.to_path_buf(),
-            reason: "is not a regular file (a device, a directory or a link to one); a shard is a plain file".into(),
-        });
-    }
-    Ok(meta.len())
+            reason: format!("is {err}"),
+        },
+    })
 }
 
 /// Opens a tar file for streaming (see [`DatasetDir::open_tar`]). With `record` (the
@@ -802,8 +802,8 @@ fn check_members(path: &Path, record: &ShardRecord) -> Result<(), String> {
         ));
     }
     let names = record.members.iter().map(|m| m.name.as_str());
-    let samples = shard::count_samples(names);
-    let key = |member: Option<&shard::MemberRecord>| {
+    let samples = crate::count_samples(names);
+    let key = |member: Option<&crate::MemberRecord>| {
         member.and_then(|m| shard::ustar::split_key(&m.name).map(|(key, _)| key.to_string()))
     };
     if samples != record.samples
@@ -1040,7 +1040,7 @@ mod tests {
         assert_eq!(layout.shard_state("t-000000"), ShardState::Missing);
         let member = bettimill_shard::Member::new("s0.json", b"{}".to_vec());
         let (bytes, record) =
-            bettimill_shard::build_shard("shards/t-000000.tar", "train", &[vec![member]]).unwrap();
+            crate::build_shard("shards/t-000000.tar", "train", &[vec![member]]).unwrap();
         std::fs::write(layout.tar_path("t-000000"), &bytes).unwrap();
         assert!(matches!(
             layout.shard_state("t-000000"),
@@ -1091,8 +1091,7 @@ mod tests {
             ],
             vec![bettimill_shard::Member::new("s1.json", b"[]".to_vec())],
         ];
-        let (bytes, record) =
-            bettimill_shard::build_shard("shards/t-000000.tar", "train", &samples).unwrap();
+        let (bytes, record) = crate::build_shard("shards/t-000000.tar", "train", &samples).unwrap();
         std::fs::write(layout.tar_path("t-000000"), &bytes).unwrap();
         let write = |record: &ShardRecord| {
             let completion = CompletionRecord {

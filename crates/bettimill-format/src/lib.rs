@@ -27,9 +27,11 @@
 
 pub mod classes;
 pub mod dir;
+pub mod index;
 pub mod label;
 pub mod lock;
 pub mod member;
+pub mod verify;
 
 pub use classes::{ClassTable, StratumClass, TopologyClass, CLASS_TABLE_FORMAT};
 pub use dir::{
@@ -37,8 +39,14 @@ pub use dir::{
     CompletionRecord, DatasetDir, ShardState, ShardStream, ShardTiming, TarCheck, Unbound,
     CLASSES_FILE, REQUIRED_FILES,
 };
+pub use index::{
+    build_shard, count_samples, read_index, read_index_from, wids_index, Index, IndexFile,
+    IndexHeader, IndexShard, IndexWriter, MemberRecord, ShardRecord, WidsWriter, INDEX_FORMAT,
+    INDEX_FORMAT_VERSION, MAX_INDEX_FILES, MAX_INDEX_SPLITS,
+};
 pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};
+pub use verify::{verify, verify_with_progress, Problem, RecordSource, Region, VerifyReport};
 
 use std::path::PathBuf;
 

@@ -347,14 +347,14 @@ impl Plan {
             (None, None) => unreachable!("manifest validation requires shard_size or shard_bytes"),
         };
         let splits = manifest.split_sizes();
-        if splits.len() > bettimill_shard::MAX_INDEX_SPLITS {
+        if splits.len() > bettimill_format::MAX_INDEX_SPLITS {
             return Err(manifest
                 .error(
                     "splits",
                     format!(
                         "{} splits; a dataset has at most {} (its index would be refused)",
                         splits.len(),
-                        bettimill_shard::MAX_INDEX_SPLITS
+                        bettimill_format::MAX_INDEX_SPLITS
                     ),
                 )
                 .into());
@@ -795,7 +795,7 @@ family = "ball"
 
     #[test]
     fn more_splits_than_an_index_holds_are_refused() {
-        let n = bettimill_shard::MAX_INDEX_SPLITS + 1;
+        let n = bettimill_format::MAX_INDEX_SPLITS + 1;
         let splits: String = (0..n).map(|i| format!("s{i} = 1\n")).collect();
         let text = GOOD.replace("samples = 10", &format!("samples = {n}"));
         check_refused(

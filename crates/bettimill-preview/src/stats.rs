@@ -584,7 +584,7 @@ mod tests {
             ("val".to_string(), label("handle", vec![1, 1], 41, 0)),
         ];
         let records = vec![CompletionRecord {
-            shard: bettimill_shard::ShardRecord {
+            shard: bettimill_format::ShardRecord {
                 name: "shards/t-000000.tar".into(),
                 split: "train".into(),
                 samples: 2,

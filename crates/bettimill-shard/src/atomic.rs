@@ -3,7 +3,7 @@
 //! [`write_atomic`] writes to a temporary file in the same directory
 //! (`.NAME.tmp-PID`), flushes it to disk, renames it over the target and flushes the
 //! directory, so that after a crash the target holds either its old bytes or the new ones,
-//! never a prefix. A crash can leave the temporary file behind; [`crate::verify()`] reports
+//! never a prefix. A crash can leave the temporary file behind; `bettimill verify` reports
 //! it as an extra file and it is safe to delete.
 
 use crate::ShardError;

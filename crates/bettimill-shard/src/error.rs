@@ -1,9 +1,9 @@
 //! The one error type of the storage layer.
 //!
 //! Every variant carries the facts a user needs to act on it: the path of the file, the
-//! member name, the byte offset in the tar, the limit that was exceeded. Problems found by
-//! [`crate::verify()`] in a dataset are not errors (the run goes on and reports them all);
-//! they are [`crate::Problem`]s.
+//! member name, the byte offset in the tar, the limit that was exceeded. Problems that
+//! `bettimill verify` finds in a dataset are not errors (the run goes on and reports them
+//! all); they are `bettimill_format::Problem`s.
 
 use std::path::{Path, PathBuf};
 
@@ -38,7 +38,7 @@ pub enum ShardError {
         /// The largest size allowed.
         limit: u64,
     },
-    /// The samples given to [`crate::build_shard`] do not form a valid WebDataset shard.
+    /// The samples given to `bettimill_format::build_shard` do not form a valid WebDataset shard.
     #[error("shard {shard:?}, sample {sample}: {reason}")]
     BadSample {
         /// The shard being built.
@@ -130,7 +130,7 @@ pub enum ShardError {
 
 impl ShardError {
     /// Wraps an I/O error with the action and path it concerns.
-    pub(crate) fn io(action: &'static str, path: &Path, source: std::io::Error) -> ShardError {
+    pub fn io(action: &'static str, path: &Path, source: std::io::Error) -> ShardError {
         ShardError::Io {
             action,
             path: path.to_path_buf(),
@@ -138,7 +138,8 @@ impl ShardError {
         }
     }
 
-    pub(crate) fn bad_name(name: &str, reason: impl Into<String>) -> ShardError {
+    /// A member name refused for `reason`.
+    pub fn bad_name(name: &str, reason: impl Into<String>) -> ShardError {
         ShardError::BadName {
             name: name.to_string(),
             reason: reason.into(),

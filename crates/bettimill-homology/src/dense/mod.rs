@@ -107,7 +107,7 @@ const EULER_OF_BYTE: [i8; 256] = {
         let mut code = 0;
         while code < 8 {
             if byte >> code & 1 == 1 {
-                table[byte] += if (code as u32).count_ones() % 2 == 0 {
+                table[byte] += if (code as u32).count_ones().is_multiple_of(2) {
                     1
                 } else {
                     -1
@@ -126,7 +126,7 @@ const EULER_OF_BYTE: [i8; 256] = {
 fn euler_of(cells: u16, d: usize) -> i64 {
     let even_d =
         EULER_OF_BYTE[cells as usize & 0xff] as i64 - EULER_OF_BYTE[cells as usize >> 8] as i64;
-    if d % 2 == 0 {
+    if d.is_multiple_of(2) {
         even_d
     } else {
         -even_d

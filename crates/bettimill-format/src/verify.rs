@@ -23,9 +23,10 @@
 //! extra; only when the counts differ are the names found there kept, to say which. So
 //! memory does not grow with samples, shards or the size of a damaged file.
 
+use crate::dir::{INDEX_FILE, SHARDS_DIR};
 use crate::index::{count_samples, read_index, IndexShard, ShardRecord};
-use crate::ustar::{self, BLOCK};
-use crate::ShardError;
+use bettimill_shard::ustar::{self, BLOCK};
+use bettimill_shard::{file_matches, regular_len, ShardError};
 use serde::Serialize;
 use std::collections::BTreeSet;
 use std::fmt;
@@ -296,31 +297,6 @@ pub fn verify(dir: &Path, records: &mut RecordSource) -> Result<VerifyReport, Sh
     verify_with_progress(dir, &[], records, &mut |_, _| {})
 }
 
-/// Whether the file at `path` has `bytes` bytes and blake3 `blake3`, hashed through a fixed
-/// buffer. The error says what differs (or why the file cannot be read).
-pub fn file_matches(path: &Path, bytes: u64, blake3: &str) -> Result<(), String> {
-    let size = regular_len(path).map_err(|err| format!("{}: {err}", path.display()))?;
-    if size != bytes {
-        return Err(format!(
-            "{} has {size} bytes, its record says {bytes}",
-            path.display()
-        ));
-    }
-    let file = std::fs::File::open(path).map_err(|err| format!("{}: {err}", path.display()))?;
-    let mut hasher = blake3::Hasher::new();
-    hasher
-        .update_reader(std::io::Read::take(file, bytes + 1))
-        .map_err(|err| format!("{}: {err}", path.display()))?;
-    let found = hasher.finalize().to_hex();
-    if found.as_str() != blake3 {
-        return Err(format!(
-            "{} has blake3 {found}, its record says {blake3}",
-            path.display()
-        ));
-    }
-    Ok(())
-}
-
 /// [`verify`], calling `progress` with (shards checked, shards in the index): once with
 /// zero checked when the index's header is read, then after each shard; every name in
 /// `required` must be among the index's `files` (the dataset format's own files).
@@ -335,7 +311,7 @@ pub fn verify_with_progress(
     // index lists every name once), so no list of names is kept.
     let mut listed_files = 0u64;
     let mut started = false;
-    let header = read_index(&dir.join("index.json"), &mut |header, entry| {
+    let header = read_index(&dir.join(INDEX_FILE), &mut |header, entry| {
         if !started {
             progress(0, header.shard_count);
             started = true;
@@ -371,7 +347,7 @@ pub fn verify_with_progress(
     let mut on_disk = 0u64;
     walk_files(
         dir,
-        Path::new("shards"),
+        Path::new(SHARDS_DIR),
         &mut |_| on_disk += 1,
         &mut report.problems,
     );
@@ -381,13 +357,13 @@ pub fn verify_with_progress(
         let mut found = BTreeSet::new();
         walk_files(
             dir,
-            Path::new("shards"),
+            Path::new(SHARDS_DIR),
             &mut |name| {
                 found.insert(name);
             },
             &mut Vec::new(),
         );
-        read_index(&dir.join("index.json"), &mut |_, entry| {
+        read_index(&dir.join(INDEX_FILE), &mut |_, entry| {
             found.remove(&entry.name);
             Ok(())
         })?;
@@ -463,7 +439,7 @@ fn check_entry(
         Err(error) => {
             problems.push(Problem::Unreadable {
                 path: path.display().to_string(),
-                error,
+                error: error.to_string(),
             });
             return;
         }
@@ -483,19 +459,6 @@ fn check_entry(
             error: e.to_string(),
         }),
     }
-}
-
-/// The size of a regular file; a readable reason for anything else (a link to
-/// `/dev/zero` reports no size and never ends).
-fn regular_len(path: &Path) -> Result<u64, String> {
-    let meta = std::fs::metadata(path).map_err(|err| err.to_string())?;
-    if !meta.is_file() {
-        return Err(
-            "not a regular file (a device, a directory or a link to one); a shard is a plain file"
-                .into(),
-        );
-    }
-    Ok(meta.len())
 }
 
 /// Problems a record has on its own, without looking at the file.

@@ -1,10 +1,14 @@
-//! Format and fault-injection tests of the shard layer: property round trips, GNU tar
-//! compatibility (failing in CI, skipped with a message elsewhere, without GNU tar), and `verify` against flipped bytes, truncation, missing and extra files.
+//! Format and fault-injection tests of shards: property round trips, GNU tar compatibility
+//! (failing in CI, skipped with a message elsewhere, without GNU tar), and `verify` against
+//! flipped bytes, truncation, missing and extra files.
 
+use bettimill_format::{
+    build_shard, Index, IndexShard, Problem, Region, ShardRecord, VerifyReport,
+};
 use bettimill_shard::ustar::{header_block, tar_len};
 use bettimill_shard::{
-    blake3_hex, build_shard, compress, read_tar, read_tar_with_limit, tar_bytes, write_atomic,
-    Compression, Index, IndexShard, Member, Problem, Region, ShardError, ShardRecord, VerifyReport,
+    blake3_hex, compress, read_tar, read_tar_with_limit, tar_bytes, write_atomic, Compression,
+    Member, ShardError,
 };
 use proptest::prelude::*;
 use std::path::Path;
@@ -76,14 +80,14 @@ fn sidecar(dir: &Path) -> impl FnMut(&IndexShard) -> Result<ShardRecord, String>
 }
 
 fn verify(dir: &Path) -> Result<VerifyReport, ShardError> {
-    bettimill_shard::verify(dir, &mut sidecar(dir))
+    bettimill_format::verify(dir, &mut sidecar(dir))
 }
 
 fn verify_with_progress(
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<VerifyReport, ShardError> {
-    bettimill_shard::verify_with_progress(dir, &[], &mut sidecar(dir), progress)
+    bettimill_format::verify_with_progress(dir, &[], &mut sidecar(dir), progress)
 }
 
 #[test]

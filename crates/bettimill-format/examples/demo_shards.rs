@@ -2,7 +2,7 @@
 //! (`tests/python`) and `verify` can be exercised before the build pipeline exists.
 //!
 //! ```text
-//! cargo run -p bettimill-shard --example demo_shards -- OUT_DIR \
+//! cargo run -p bettimill-format --example demo_shards -- OUT_DIR \
 //!     [--compression none|gzip|zstd] [--samples N] [--per-shard M] [--dim D] [--seed S]
 //! ```
 //!
@@ -18,9 +18,8 @@
 
 use bettimill_grid::npy::{self, Dtype};
 use bettimill_grid::BinaryImage;
-use bettimill_shard::{
-    build_shard, compress, wids_index, write_atomic, Compression, Index, Member,
-};
+use bettimill_format::{build_shard, wids_index, Index};
+use bettimill_shard::{compress, write_atomic, Compression, Member};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
