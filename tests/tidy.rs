@@ -11,6 +11,7 @@
 //!   make build options nor read scheduler variables.
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 mod common;
@@ -462,5 +463,381 @@ fn neither_the_cli_nor_python_drives_a_build_or_reads_the_scheduler() {
         found.is_empty(),
         "the CLI or the Python binding drives a build itself (use bettimill_executor::build): \
          {found:#?}"
+    );
+}
+
+// ------------------------------------------------------------- house rules on the text
+//
+// Each rule is a checker on text, unit-tested below on a synthetic bad input (so a rule
+// that stops finding what it should fails), and a test that runs it on the tree. A rule
+// that the tree does not meet everywhere yet names its known offenders, each with the
+// count it has now: a count may only fall, and an offender that is gone must leave the
+// list (the test says so), so the list only shrinks.
+
+/// The non-test part of a Rust source: everything before the first `#[cfg(test)]`, and
+/// nothing of a `tests.rs` unit-test module.
+fn non_test_code(path: &Path, text: &str) -> String {
+    if path.file_name().is_some_and(|n| n == "tests.rs") {
+        return String::new();
+    }
+    match text.find("#[cfg(test)]") {
+        Some(at) => text[..at].to_string(),
+        None => text.to_string(),
+    }
+}
+
+/// The non-test sources under `crates/*/src`, as (path relative to the repository, code),
+/// for every crate but those in `except`.
+fn crate_sources(except: &[&str]) -> Vec<(String, String)> {
+    let root = repo_root();
+    let mut out = Vec::new();
+    for p in packages() {
+        if except.contains(&p.name.as_str()) {
+            continue;
+        }
+        let mut files = Vec::new();
+        rust_files(&p.dir.join("src"), &mut files);
+        for file in files {
+            let text = std::fs::read_to_string(&file).unwrap();
+            out.push((relative(&root, &file), non_test_code(&file, &text)));
+        }
+    }
+    out.sort();
+    out
+}
+
+/// `path` relative to `root`, with `/` separators.
+fn relative(root: &Path, path: &Path) -> String {
+    let canonical = |p: &Path| p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+    let (root, path) = (canonical(root), canonical(path));
+    let rel = path.strip_prefix(&root).unwrap_or(&path);
+    rel.components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// Checks per-file counts against the known offenders: a file not listed must have none,
+/// a listed one at most its count, and a listed count that is now lower (or a file now
+/// clean) must be lowered in the list. Returns what is wrong.
+fn ratchet(found: &BTreeMap<String, usize>, known: &[(&str, usize)]) -> Vec<String> {
+    let mut wrong = Vec::new();
+    for (path, &count) in found {
+        match known.iter().find(|(k, _)| k == path) {
+            None => wrong.push(format!("{path}: {count}")),
+            Some(&(_, allowed)) if count > allowed => {
+                wrong.push(format!("{path}: {count}, more than the {allowed} known"))
+            }
+            _ => {}
+        }
+    }
+    for &(path, allowed) in known {
+        let count = found.get(path).copied().unwrap_or(0);
+        if count < allowed {
+            wrong.push(format!(
+                "{path}: {count} now, the list of known offenders says {allowed}: lower it"
+            ));
+        }
+    }
+    wrong
+}
+
+/// Literals that spell the dataset directory's layout, which only `bettimill-format`
+/// may do: `(line, literal)` in `code`, comment lines left out.
+fn layout_literals(code: &str) -> Vec<(usize, String)> {
+    const LITERALS: [&str; 10] = [
+        "\"shards/",
+        "\"records/",
+        "\"timings/",
+        "\"index.json\"",
+        "\"build.json\"",
+        "\"classes.json\"",
+        "\"manifest.toml\"",
+        "join(\"shards\")",
+        "join(\"records\")",
+        "join(\"timings\")",
+    ];
+    let mut found = Vec::new();
+    for (number, line) in code_lines(code) {
+        for literal in LITERALS {
+            if line.contains(literal) {
+                found.push((number, literal.to_string()));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn layout_checker_finds_spelled_paths() {
+    let bad = "// \"shards/\" in a comment is fine\nlet p = dir.join(\"shards\");\n\
+               let i = \"index.json\";\nlet t = format!(\"records/{name}.json\");\n";
+    let found: Vec<usize> = layout_literals(bad).iter().map(|(n, _)| *n).collect();
+    assert_eq!(found, vec![2, 3, 4]);
+    assert!(layout_literals("bar(total, \"shards\", \"verifying\")").is_empty());
+}
+
+#[test]
+fn the_dataset_layout_is_spelled_only_in_the_format_crate() {
+    let mut offences = Vec::new();
+    for (path, code) in crate_sources(&["bettimill-format"]) {
+        for (line, literal) in layout_literals(&code) {
+            offences.push(format!("{path}:{line}: {literal}"));
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "use bettimill_format::DatasetDir (or its constants) for the layout:\n{}",
+        offences.join("\n")
+    );
+}
+
+/// How many `Result<_, String>` types `code` spells (comment lines left out): the last
+/// top-level argument of each `Result<...>` is `String`, across line breaks.
+fn string_results(code: &str) -> usize {
+    let code: String = code_lines(code)
+        .map(|(_, line)| line)
+        .collect::<Vec<_>>()
+        .join("\n");
+    let mut count = 0;
+    let mut rest = code.as_str();
+    while let Some(at) = rest.find("Result<") {
+        let after = &rest[at + "Result<".len()..];
+        let mut depth = 0usize;
+        let mut last_arg = 0usize;
+        let mut end = None;
+        for (i, c) in after.char_indices() {
+            match c {
+                '<' | '(' | '[' => depth += 1,
+                '>' if depth == 0 => {
+                    end = Some(i);
+                    break;
+                }
+                '>' | ')' | ']' => depth = depth.saturating_sub(1),
+                ',' if depth == 0 => last_arg = i + 1,
+                _ => {}
+            }
+        }
+        if let Some(end) = end {
+            // The last argument, a trailing comma left out.
+            let args = after[..end].trim_end().trim_end_matches(',');
+            let last = args.rsplit_once(',').map(|(_, last)| last);
+            if last.is_some_and(|last| last.trim() == "String") && last_arg > 0 {
+                count += 1;
+            }
+        }
+        rest = after;
+    }
+    count
+}
+
+#[test]
+fn string_result_checker_counts_across_lines() {
+    let bad =
+        "fn a() -> Result<(), String> {}\nfn b(\n) -> Result<\n    Vec<u8>,\n    String,\n> {}\n\
+               fn c() -> Result<Vec<String>, Error> {}\nfn d() -> io::Result<String> {}\n\
+               // fn e() -> Result<(), String>\ntype F = Box<dyn Fn() -> Result<u8, String>>;\n";
+    assert_eq!(string_results(bad), 3);
+}
+
+/// Library functions that still return `Result<_, String>`: typed errors (thiserror)
+/// replace them; this list only shrinks.
+const KNOWN_STRING_RESULTS: &[(&str, usize)] = &[
+    ("crates/bettimill-audit/src/lib.rs", 1),
+    ("crates/bettimill-format/src/dir.rs", 5),
+    ("crates/bettimill-format/src/index/stream.rs", 8),
+    ("crates/bettimill-format/src/verify.rs", 1),
+    ("crates/bettimill-manifest/src/classes.rs", 3),
+    ("crates/bettimill-plan/src/memory.rs", 1),
+    ("crates/bettimill-shard/src/file.rs", 1),
+];
+
+#[test]
+fn library_crates_return_typed_errors_not_strings() {
+    let mut found = BTreeMap::new();
+    for (path, code) in crate_sources(&["bettimill-cli", "bettimill-testkit"]) {
+        let count = string_results(&code);
+        if count > 0 {
+            found.insert(path, count);
+        }
+    }
+    let wrong = ratchet(&found, KNOWN_STRING_RESULTS);
+    assert!(
+        wrong.is_empty(),
+        "Result<_, String> in library code: give it a thiserror enum (the CLI alone may \
+         use anyhow):\n{}",
+        wrong.join("\n")
+    );
+}
+
+/// The most lines a source file under `crates/*/src` may have: past it, a file holds
+/// more than one concept and is split.
+const MAX_SOURCE_LINES: usize = 1000;
+
+/// Source files over [`MAX_SOURCE_LINES`], with their lines now: they may only shrink.
+const KNOWN_LONG_FILES: &[(&str, usize)] = &[
+    ("crates/bettimill-format/src/dir.rs", 1201),
+    ("crates/bettimill-homology/src/simple.rs", 1072),
+    ("crates/bettimill-plan/src/lib.rs", 1087),
+];
+
+#[test]
+fn ratchet_refuses_new_and_grown_offenders_and_asks_to_lower() {
+    let found: BTreeMap<String, usize> = [
+        ("a.rs".to_string(), 5),
+        ("b.rs".to_string(), 3),
+        ("c.rs".to_string(), 1),
+    ]
+    .into();
+    let wrong = ratchet(&found, &[("a.rs", 4), ("b.rs", 3), ("d.rs", 2)]);
+    assert_eq!(wrong.len(), 3, "{wrong:?}");
+    assert!(wrong[0].starts_with("a.rs: 5, more than"), "{wrong:?}");
+    assert!(wrong[1].starts_with("c.rs: 1"), "{wrong:?}");
+    assert!(wrong[2].starts_with("d.rs: 0 now"), "{wrong:?}");
+    assert!(ratchet(&found, &[("a.rs", 5), ("b.rs", 3), ("c.rs", 1)]).is_empty());
+}
+
+#[test]
+fn no_source_file_is_over_a_thousand_lines() {
+    let root = repo_root();
+    let mut found = BTreeMap::new();
+    for p in packages() {
+        let mut files = Vec::new();
+        rust_files(&p.dir.join("src"), &mut files);
+        for file in files {
+            let lines = std::fs::read_to_string(&file).unwrap().lines().count();
+            if lines > MAX_SOURCE_LINES {
+                found.insert(relative(&root, &file), lines);
+            }
+        }
+    }
+    // A file under the limit need not be listed, so only growth and new files fail.
+    let known: Vec<(&str, usize)> = KNOWN_LONG_FILES
+        .iter()
+        .filter(|(path, _)| found.contains_key(*path))
+        .copied()
+        .collect();
+    let wrong = ratchet(&found, &known);
+    assert!(
+        wrong.is_empty(),
+        "split files over {MAX_SOURCE_LINES} lines by concept:\n{}",
+        wrong.join("\n")
+    );
+}
+
+/// Lines of `text` longer than `max` characters: `(line number, length)`.
+fn long_lines(text: &str, max: usize) -> Vec<(usize, usize)> {
+    text.lines()
+        .enumerate()
+        .map(|(i, line)| (i + 1, line.chars().count()))
+        .filter(|&(_, len)| len > max)
+        .collect()
+}
+
+#[test]
+fn long_line_checker_counts_characters() {
+    let text = format!("short\n{}\n{}\n", "x".repeat(101), "é".repeat(100));
+    assert_eq!(long_lines(&text, 100), vec![(2, 101)]);
+}
+
+/// ARCHITECTURE.md's lines over 100 characters now: the count only falls.
+const KNOWN_LONG_ARCHITECTURE_LINES: usize = 11;
+
+#[test]
+fn architecture_lines_fit_in_a_hundred_characters() {
+    let text = std::fs::read_to_string(repo_root().join("ARCHITECTURE.md")).unwrap();
+    let long = long_lines(&text, 100);
+    let found: BTreeMap<String, usize> = if long.is_empty() {
+        BTreeMap::new()
+    } else {
+        [("ARCHITECTURE.md".to_string(), long.len())].into()
+    };
+    let known = [("ARCHITECTURE.md", KNOWN_LONG_ARCHITECTURE_LINES)];
+    let known = &known[..usize::from(KNOWN_LONG_ARCHITECTURE_LINES > 0)];
+    let wrong = ratchet(&found, known);
+    assert!(
+        wrong.is_empty(),
+        "ARCHITECTURE.md lines over 100 characters (line, length): {long:?}\n{}",
+        wrong.join("\n")
+    );
+}
+
+/// Where `text` points to the tracker by number (the word, an optional `#`, a number; any
+/// case, plural too): users do not have it. Line numbers, from 1.
+fn issue_references(text: &str) -> Vec<usize> {
+    let mut found = Vec::new();
+    for (number, line) in text.lines().enumerate() {
+        let lower = line.to_ascii_lowercase();
+        let mut rest = lower.as_str();
+        while let Some(at) = rest.find("issue") {
+            let word_start = at == 0 || !rest.as_bytes()[at - 1].is_ascii_alphanumeric();
+            let after = rest[at + "issue".len()..].trim_start_matches('s');
+            let after = after.trim_start_matches(' ').trim_start_matches('#');
+            if word_start && after.starts_with(|c: char| c.is_ascii_digit()) {
+                found.push(number + 1);
+                break;
+            }
+            rest = &rest[at + "issue".len()..];
+        }
+    }
+    found
+}
+
+#[test]
+fn issue_reference_checker_finds_tracker_numbers() {
+    let text = concat!(
+        "fine: an issue with 3 parts\n",
+        "see iss",
+        "ue 18\n",
+        "(Iss",
+        "ues #4, 5)\n",
+        "tissue 9 is a word\n",
+    );
+    assert_eq!(issue_references(text), vec![2, 3]);
+}
+
+/// Files that still name tracker issues: this list only shrinks.
+const KNOWN_ISSUE_REFERENCES: &[(&str, usize)] = &[("crates/bettimill-sample/src/lib.rs", 2)];
+
+#[test]
+fn code_and_docs_name_no_tracker_issues() {
+    let root = repo_root();
+    let mut files = Vec::new();
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for entry in entries {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            if path.is_dir() {
+                if !name.starts_with('.') && name != "target" && name != "node_modules" {
+                    walk(&path, out);
+                }
+            } else if ["rs", "md", "toml", "sh", "py", "pyi", "yml", "yaml"]
+                .iter()
+                .any(|ext| name.ends_with(&format!(".{ext}")))
+            {
+                out.push(path);
+            }
+        }
+    }
+    walk(&root, &mut files);
+    assert!(files.len() > 100, "only {} files", files.len());
+    let mut found = BTreeMap::new();
+    for file in files {
+        let Ok(text) = std::fs::read_to_string(&file) else {
+            continue;
+        };
+        let lines = issue_references(&text);
+        if !lines.is_empty() {
+            found.insert(relative(&root, &file), lines.len());
+        }
+    }
+    let wrong = ratchet(&found, KNOWN_ISSUE_REFERENCES);
+    assert!(
+        wrong.is_empty(),
+        "say why in the text instead of pointing to a tracker users do not have:\n{}",
+        wrong.join("\n")
     );
 }

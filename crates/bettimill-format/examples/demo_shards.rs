@@ -16,9 +16,9 @@
 // An example for people: printing is its purpose (only library code must not print).
 #![allow(clippy::print_stdout, clippy::print_stderr)]
 
+use bettimill_format::{build_shard, wids_index, Index};
 use bettimill_grid::npy::{self, Dtype};
 use bettimill_grid::BinaryImage;
-use bettimill_format::{build_shard, wids_index, Index};
 use bettimill_shard::{compress, write_atomic, Compression, Member};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -102,7 +102,7 @@ fn sample(split: &str, index: u64, options: &Options) -> Result<Vec<Member>, Str
     let shape = vec![side; options.dim];
     let voxels = side.pow(options.dim as u32);
     let data: Vec<u8> = (0..voxels)
-        .map(|_| (splitmix(&mut state) % 3 == 0) as u8)
+        .map(|_| splitmix(&mut state).is_multiple_of(3) as u8)
         .collect();
     let image = BinaryImage::from_vec(&shape, data).map_err(|e| e.to_string())?;
     let hypervolume = image.count_foreground();

@@ -29,6 +29,8 @@ pub const RECORDS_DIR: &str = "records";
 /// `DIR/timings/`: when and how long each shard took to build ([`ShardTiming`]). Not part
 /// of the dataset's data: no hash covers it and two builds of one manifest differ there.
 pub const TIMINGS_DIR: &str = "timings";
+/// Where build times come from, as statistics tell their reader: [`TIMINGS_DIR`].
+pub const TIMINGS_SOURCE: &str = "timings/ (recorded by the builds)";
 /// `DIR/.lock`: the directory lock ([`crate::lock`]), always empty.
 pub const LOCK_FILE: &str = ".lock";
 /// The files a new directory gets before `build.json`, in the order they are written: a

@@ -1,6 +1,6 @@
 //! Checking a dataset directory against its `index.json`.
 //!
-//! Because [`crate::tar_bytes`] is deterministic, the index determines every byte of every
+//! Because [`bettimill_shard::tar_bytes`] is deterministic, the index determines every byte of every
 //! shard except member data: each header can be regenerated from the member's name and
 //! size, padding and the end-of-archive marker are zeros, and member data has a BLAKE3 in
 //! the index. [`verify`] uses that to localise damage instead of only saying "hash

@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 pub const HISTOGRAM_BINS: usize = 16;
 
 /// The value of [`BuildTime::source`].
-pub const BUILD_TIME_SOURCE: &str = "timings/ (recorded by the builds)";
+pub const BUILD_TIME_SOURCE: &str = bettimill_format::dir::TIMINGS_SOURCE;
 
 /// How long the build took, from the timings the builds recorded (`DIR/timings/NAME.json`:
 /// when each shard was started and how long it took), never from file modification times

@@ -43,9 +43,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::Path;
 
-/// Value of [`Index::format`].
+/// Value of [`IndexHeader::format`].
 pub const INDEX_FORMAT: &str = "bettimill-index";
-/// Value of [`Index::format_version`] written by this version.
+/// Value of [`IndexHeader::format_version`] written by this version.
 pub const INDEX_FORMAT_VERSION: u32 = 3;
 /// Most entries `files` may hold (a dataset has a few files besides its shards and records:
 /// one wids index per split).

@@ -1,7 +1,7 @@
 use super::*;
 use bettimill_shard::blake3_hex;
-use stream::ShardOrder;
 use bettimill_shard::ustar::{self, Member};
+use stream::ShardOrder;
 
 fn to_pretty_json<T: Serialize>(value: &T) -> Vec<u8> {
     let mut out = serde_json::to_vec_pretty(value)
