@@ -649,6 +649,79 @@ fn the_loser_of_two_builds_into_a_fresh_directory_is_told_about_the_lock() {
     }
 }
 
+/// `finalize` used to remove temporaries without the directory lock: of two finalizes at
+/// once on a complete directory, one failed in most runs (`cannot rename into
+/// DIR/shardindex-test.json: No such file or directory`), and a finalize during a build's
+/// last step made the build fail. Now finalize waits for the lock, says so, and then finds
+/// the work done.
+#[test]
+fn finalize_does_not_remove_the_temporaries_of_a_running_build_or_finalize() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 24, 2);
+    let clean = common::clean_build(&m, tmp.path(), 1);
+    let out = tmp.path().join("twice");
+    assert_exit(&build(&m, &out, 1), 0);
+    let finalize = |out: &Path| {
+        bettimill()
+            .arg("finalize")
+            .arg(out)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    for round in 0..8 {
+        // Without index.json and the files written with it, both have everything to write.
+        for entry in std::fs::read_dir(&out).unwrap().flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name == "index.json" || name.starts_with("shardindex-") {
+                std::fs::remove_file(entry.path()).unwrap();
+            }
+        }
+        let (first, second) = (finalize(&out), finalize(&out));
+        for child in [first, second] {
+            let result = child.wait_with_output().unwrap();
+            assert_eq!(
+                result.status.code(),
+                Some(0),
+                "round {round}: {}",
+                text(&result.stderr)
+            );
+        }
+        assert_same(&clean, &out);
+    }
+    // A finalize started again and again while a build runs waits for it each time; the
+    // build finishes with exit 0.
+    let out = tmp.path().join("during");
+    // The hook holds each shard half a second before its rename, so the build is still
+    // running (and holds its lock) when the first finalize starts, on any machine.
+    let coordinator = spawn_build(
+        &m,
+        &out,
+        2,
+        &[("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "0.5")],
+    );
+    wait_until("a shard being written", Duration::from_secs(60), || {
+        !shard_files(&out).is_empty()
+    });
+    let mut waited = false;
+    while alive(coordinator.id()) {
+        let result = finalize(&out).wait_with_output().unwrap();
+        let message = text(&result.stderr);
+        waited |= message.contains("is building or finalizing");
+        assert!(
+            result.status.code() == Some(0)
+                || (result.status.code() == Some(2) && message.contains("not complete")),
+            "{:?}: {message}",
+            result.status
+        );
+    }
+    let result = coordinator.wait_with_output().unwrap();
+    assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+    assert!(waited, "no finalize waited for the build");
+    assert_same(&clean, &out);
+}
+
 #[test]
 fn a_disk_full_while_the_directory_is_created_resumes_once_space_is_back() {
     if !system_test("a tmpfs mount") {

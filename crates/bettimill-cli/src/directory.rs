@@ -11,6 +11,17 @@ use std::path::Path;
 /// `bettimill finalize DIR`.
 pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
     let dataset = Dataset::open(dir)?;
+    // The lock keeps finalize from removing the temporaries of a running build (or of
+    // another finalize) and from racing it to the same renames. A Slurm finalize job and
+    // a user's finalize, or a finalize during a build's last step, must not fail: the
+    // second waits for the first, then finds its work done.
+    let _lock = bettimill_executor::DirLock::wait(dir, |lock| {
+        eprintln!(
+            "another bettimill process is building or finalizing {} (it holds {}); waiting for it to finish",
+            dir.display(),
+            lock.display()
+        );
+    })?;
     let status = cluster::status(&dataset);
     let incomplete: Vec<&str> = status
         .missing
@@ -38,7 +49,8 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
         );
         return Ok(ExitStatus::Failure);
     }
-    // Every shard is complete, so no writer has work left: leftovers of killed ones can go.
+    // Every shard is complete and the lock is held, so no writer has work left: leftovers
+    // of killed ones can go.
     dataset.remove_temporaries()?;
     // `status` has just hashed every shard and found each complete: finalize checks their
     // records and sizes only, so a standalone finalize reads every byte once, not twice.

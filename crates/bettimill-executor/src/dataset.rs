@@ -343,8 +343,9 @@ impl Dataset {
     }
 
     /// Removes the temporary files that killed writers leave behind (`.NAME.tmp-PID` in the
-    /// directory, `shards/`, `records/` and `timings/`). Call it only when no other process is writing
-    /// this dataset: under the directory lock, or once every shard is complete.
+    /// directory, `shards/`, `records/` and `timings/`). Call it only under the directory lock (a build,
+    /// or a finalize that found every shard complete): a process without it may remove the
+    /// temporary of a running build's last step.
     pub fn remove_temporaries(&self) -> Result<Vec<PathBuf>, BuildError> {
         let mut removed = Vec::new();
         for dir in [

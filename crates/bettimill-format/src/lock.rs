@@ -49,6 +49,36 @@ pub struct DirLock {
 impl DirLock {
     /// Takes the lock on `dir` (which must exist) without waiting.
     pub fn acquire(dir: &Path) -> Result<DirLock, LockError> {
+        let (file, path) = Self::open(dir)?;
+        match file.try_lock() {
+            Ok(()) => Ok(DirLock { _file: file, path }),
+            Err(TryLockError::WouldBlock) => Err(LockError::Busy {
+                dir: dir.to_path_buf(),
+                path,
+            }),
+            Err(TryLockError::Error(source)) => Err(LockError::Io { path, source }),
+        }
+    }
+
+    /// Takes the lock on `dir` (which must exist), waiting for the process that holds it
+    /// to release it; `waiting` is called once, before the wait, when the lock is busy.
+    /// For commands that must not fail because another one runs (two `finalize`, or a
+    /// `finalize` during a build's last step): the second runs after the first, and finds
+    /// its work done.
+    pub fn wait(dir: &Path, waiting: impl FnOnce(&Path)) -> Result<DirLock, LockError> {
+        let (file, path) = Self::open(dir)?;
+        match file.try_lock() {
+            Ok(()) => return Ok(DirLock { _file: file, path }),
+            Err(TryLockError::WouldBlock) => waiting(&path),
+            Err(TryLockError::Error(source)) => return Err(LockError::Io { path, source }),
+        }
+        match file.lock() {
+            Ok(()) => Ok(DirLock { _file: file, path }),
+            Err(source) => Err(LockError::Io { path, source }),
+        }
+    }
+
+    fn open(dir: &Path) -> Result<(File, PathBuf), LockError> {
         let path = dir.join(crate::dir::LOCK_FILE);
         if std::fs::symlink_metadata(&path).is_ok_and(|meta| meta.file_type().is_symlink()) {
             return Err(LockError::Io {
@@ -67,14 +97,7 @@ impl DirLock {
                 path: path.clone(),
                 source,
             })?;
-        match file.try_lock() {
-            Ok(()) => Ok(DirLock { _file: file, path }),
-            Err(TryLockError::WouldBlock) => Err(LockError::Busy {
-                dir: dir.to_path_buf(),
-                path,
-            }),
-            Err(TryLockError::Error(source)) => Err(LockError::Io { path, source }),
-        }
+        Ok((file, path))
     }
 
     /// The lock file.
@@ -97,5 +120,25 @@ mod tests {
         drop(first);
         let again = DirLock::acquire(dir.path()).unwrap();
         assert_eq!(std::fs::read(again.path()).unwrap(), b"");
+    }
+
+    #[test]
+    fn a_waiting_lock_is_taken_once_the_holder_releases_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let first = DirLock::acquire(dir.path()).unwrap();
+        let (told, heard) = std::sync::mpsc::channel();
+        let path = dir.path().to_path_buf();
+        let waiter = std::thread::spawn(move || {
+            DirLock::wait(&path, |lock| told.send(lock.to_path_buf()).unwrap()).map(|_| ())
+        });
+        // The waiter says it waits only while the lock is held, so this returns.
+        assert_eq!(
+            heard.recv().unwrap(),
+            dir.path().join(crate::dir::LOCK_FILE)
+        );
+        drop(first);
+        waiter.join().unwrap().unwrap();
+        // Free lock: no waiting, no message.
+        DirLock::wait(dir.path(), |_| panic!("the lock is free")).unwrap();
     }
 }
