@@ -855,6 +855,64 @@ fn signals_in_the_first_milliseconds_exit_130_and_resume() {
     assert!(handled > 0);
 }
 
+/// The signal handlers used to be installed on a thread that first built a tokio runtime:
+/// for up to ~23 ms after spawn on a busy machine, SIGINT or SIGTERM killed a build by the
+/// signal, with no message and no exit 130. Now they are registered on `main`'s own thread
+/// before any other thread exists. Watched in /proc: the moment a second thread appears,
+/// SIGINT and SIGTERM must already be caught, and a SIGTERM then gives exit 130 and the
+/// documented message.
+#[test]
+fn signal_handlers_are_in_place_before_the_first_thread_starts() {
+    fn status(pid: u32) -> Option<(u32, u64)> {
+        let text = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+        let field = |name: &str| {
+            text.lines()
+                .find_map(|l| l.strip_prefix(name))
+                .map(|v| v.trim().to_string())
+        };
+        let threads = field("Threads:")?.parse().ok()?;
+        let caught = u64::from_str_radix(&field("SigCgt:")?, 16).ok()?;
+        Some((threads, caught))
+    }
+    const INT_AND_TERM: u64 = (1 << (2 - 1)) | (1 << (15 - 1));
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 6, 2);
+    for round in 0..20 {
+        let out = tmp.path().join(format!("early{round}"));
+        let coordinator = spawn_build(&m, &out, 2, &[]);
+        let pid = coordinator.id();
+        let seen = loop {
+            match status(pid) {
+                Some((threads, caught)) if threads >= 2 => break Some(caught),
+                Some(_) => {}
+                None => break None,
+            }
+        };
+        let Some(caught) = seen else {
+            panic!("round {round}: the build ended before it started a thread");
+        };
+        assert_eq!(
+            caught & INT_AND_TERM,
+            INT_AND_TERM,
+            "round {round}: a second thread runs before SIGINT and SIGTERM are caught (SigCgt {caught:x})"
+        );
+        assert!(kill("-TERM", pid));
+        let result = coordinator.wait_with_output().unwrap();
+        let message = text(&result.stderr);
+        // A build that finished before the signal arrived exits 0.
+        if result.status.code() != Some(0) {
+            assert_eq!(result.status.code(), Some(130), "round {round}: {message}");
+            // Before the workers start (nearly always), or while they run.
+            assert!(
+                message.contains(
+                    "interrupted while no worker was running; nothing partial is visible; resume with: "
+                ) || message.contains("resume with: bettimill build"),
+                "round {round}: {message}"
+            );
+        }
+    }
+}
+
 // ---------------------------------------------------------------- inflated shards
 
 /// The readers' peak resident set allowed on a damaged shard: far below the 6 GiB the

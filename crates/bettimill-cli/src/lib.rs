@@ -53,15 +53,9 @@ static PROGRAM: OnceLock<PathBuf> = OnceLock::new();
 /// and returns the process exit code.
 pub fn run(args: impl IntoIterator<Item = OsString>) -> i32 {
     let args: Vec<OsString> = args.into_iter().collect();
-    // Before anything else (arguments, manifest, plan): a signal at any moment of a build
-    // gives exit code 130 and a resumable directory (see `signals`).
-    let first_word = args
-        .iter()
-        .skip(1)
-        .find(|arg| !arg.to_string_lossy().starts_with('-'));
-    if first_word.is_some_and(|word| word == "build") {
-        signals::install();
-    }
+    // Before anything else (arguments, manifest, plan); the binary's `main` has done it
+    // already, the Python console script has not.
+    install_signal_handlers(&args);
     let cli = match commands::Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(err) => {
@@ -82,6 +76,21 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> i32 {
     // Python console script) must see everything printed before the code is returned.
     let _ = std::io::stdout().flush();
     status.code()
+}
+
+/// For `build` (the first word of `args` that is not an option): installs the handling of
+/// SIGINT and SIGTERM, so that a signal at any moment of a build gives exit code 130 and a
+/// resumable directory (see `signals`). Other commands keep the default action. The
+/// binary calls it first thing in `main`; [`run`] calls it too (a second call does
+/// nothing).
+pub fn install_signal_handlers(args: &[OsString]) {
+    let first_word = args
+        .iter()
+        .skip(1)
+        .find(|arg| !arg.as_encoded_bytes().starts_with(b"-"));
+    if first_word.is_some_and(|word| word == "build") {
+        signals::install();
+    }
 }
 
 /// [`run`] for a CLI that is not its own executable: `program` is the file that runs this

@@ -4,6 +4,9 @@
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    let code = bettimill_cli::run(std::env::args_os());
+    // First thing: from here on a SIGINT or SIGTERM to a build exits 130 with a message.
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    bettimill_cli::install_signal_handlers(&args);
+    let code = bettimill_cli::run(args);
     ExitCode::from(u8::try_from(code).unwrap_or(2))
 }

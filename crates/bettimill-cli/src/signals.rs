@@ -11,8 +11,9 @@
 //!   signal only sets a flag: the coordinator stops its workers, removes their temporaries
 //!   and the build returns 130 with its `resume with:` line.
 //!
-//! The signals are received on a thread of their own (tokio's signal driver: the handler
-//! itself only wakes that thread), so what follows a signal is ordinary code.
+//! The handlers are registered in `main`'s own thread before anything else runs; the signals
+//! are received on a thread of their own (the handler itself only writes to a pipe that
+//! wakes that thread), so what follows a signal is ordinary code.
 
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::OnceLock;
@@ -24,12 +25,39 @@ static MODE: AtomicU8 = AtomicU8::new(EXIT);
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 static MESSAGE: OnceLock<String> = OnceLock::new();
 
+/// The message before the command line is known (the resume command is set once the
+/// arguments are parsed).
 const DEFAULT_MESSAGE: &str =
-    "interrupted before any worker started; nothing partial is visible; rerun the same command to resume";
+    "interrupted while no worker was running; nothing partial is visible; resume with: the same command";
 
-/// Installs the handling of SIGINT and SIGTERM (once, at the start of `main`, for `build`)
-/// and returns once the handlers are in place.
+/// Installs the handling of SIGINT and SIGTERM and returns once the handlers are in place;
+/// later calls do nothing. Called first thing in `main` (and in [`crate::run`], for the
+/// Python console script), for `build` only.
 pub fn install() {
+    static INSTALLED: std::sync::Once = std::sync::Once::new();
+    INSTALLED.call_once(install_once);
+}
+
+/// The handlers are registered on the calling thread before any other thread or runtime
+/// exists (a signal that arrives before the receiving thread runs waits in the handler's
+/// pipe), so the window in which a signal kills the process is the time before `main`.
+#[cfg(unix)]
+fn install_once() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+        return;
+    };
+    let _ = std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            for _ in signals.forever() {
+                received();
+            }
+        });
+}
+
+#[cfg(not(unix))]
+fn install_once() {
     let (ready, installed) = std::sync::mpsc::channel();
     let spawned = std::thread::Builder::new()
         .name("signals".into())
@@ -42,31 +70,9 @@ pub fn install() {
                 return;
             };
             runtime.block_on(async move {
-                #[cfg(unix)]
-                {
-                    use tokio::signal::unix::{signal, SignalKind};
-                    let (Ok(mut interrupt), Ok(mut terminate)) = (
-                        signal(SignalKind::interrupt()),
-                        signal(SignalKind::terminate()),
-                    ) else {
-                        let _ = ready.send(());
-                        return;
-                    };
-                    let _ = ready.send(());
-                    loop {
-                        tokio::select! {
-                            _ = interrupt.recv() => {}
-                            _ = terminate.recv() => {}
-                        }
-                        received();
-                    }
-                }
-                #[cfg(not(unix))]
-                {
-                    let _ = ready.send(());
-                    while tokio::signal::ctrl_c().await.is_ok() {
-                        received();
-                    }
+                let _ = ready.send(());
+                while tokio::signal::ctrl_c().await.is_ok() {
+                    received();
                 }
             });
         });
