@@ -350,12 +350,28 @@ pub const MAX_MANIFEST_BYTES: u64 = 1 << 20;
 
 /// Reads a manifest file's text, refusing files over [`MAX_MANIFEST_BYTES`] (`/dev/zero`
 /// included) after reading at most one byte more than the limit, and text that is not UTF-8.
+/// A named pipe, a socket or a directory is refused by its type before it is opened: opening
+/// a pipe that no process writes waits for ever.
 pub fn read_text(path: &Path) -> Result<String, ManifestError> {
     use std::io::Read;
     let io = |source| ManifestError::Io {
         path: path.to_path_buf(),
         source,
     };
+    let kind = std::fs::metadata(path).map_err(io)?.file_type();
+    let refused = if kind.is_dir() {
+        Some("a directory")
+    } else {
+        special_file(&kind)
+    };
+    if let Some(what) = refused {
+        return Err(ManifestError::Invalid {
+            path: path.to_path_buf(),
+            line: 0,
+            field: "(file)".to_string(),
+            reason: format!("is {what}, not a regular file; give the manifest's TOML file"),
+        });
+    }
     let file = std::fs::File::open(path).map_err(io)?;
     let mut bytes = Vec::new();
     file.take(MAX_MANIFEST_BYTES + 1)
@@ -377,6 +393,25 @@ pub fn read_text(path: &Path) -> Result<String, ManifestError> {
         field: "(file)".to_string(),
         reason: format!("is not UTF-8 text ({err})"),
     })
+}
+
+/// What a file that reading could block on is (a named pipe or a socket); character
+/// devices such as `/dev/zero` are read up to the size limit instead.
+#[cfg(unix)]
+fn special_file(kind: &std::fs::FileType) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_fifo() {
+        Some("a named pipe (FIFO)")
+    } else if kind.is_socket() {
+        Some("a socket")
+    } else {
+        None
+    }
+}
+
+#[cfg(not(unix))]
+fn special_file(_: &std::fs::FileType) -> Option<&'static str> {
+    None
 }
 
 impl Manifest {

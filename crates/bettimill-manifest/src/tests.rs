@@ -245,3 +245,34 @@ fn a_manifest_file_larger_than_the_limit_is_refused_without_reading_it_whole() {
         .contains("not UTF-8"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A FIFO given as the manifest used to block `plan` and `build` for ever (opening a pipe
+/// waits for a writer); it is refused by its type before it is opened, as is a directory.
+#[test]
+#[cfg(unix)]
+fn a_fifo_manifest_is_refused_before_it_is_opened() {
+    let dir = std::env::temp_dir().join(format!("bettimill-fifo-manifest-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("m.toml");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        bettimill_testkit::skip_unless_ci("mkfifo", "mkfifo is not installed");
+        return;
+    }
+    // Opening would block this thread for ever; the test's own timeout is the failure.
+    let (done, result) = std::sync::mpsc::channel();
+    let path = fifo.clone();
+    std::thread::spawn(move || done.send(Manifest::from_path(&path).map(|_| ())).unwrap());
+    let err = result
+        .recv_timeout(std::time::Duration::from_secs(60))
+        .expect("reading a FIFO manifest returns")
+        .unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("m.toml") && text.contains("named pipe (FIFO)"),
+        "{text}"
+    );
+    let err = Manifest::from_path(&dir).unwrap_err().to_string();
+    assert!(err.contains("is a directory, not a regular file"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
