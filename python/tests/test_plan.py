@@ -145,3 +145,14 @@ def test_console_script_is_the_cli(cli, tmp_path):
     assert result.returncode == 0
     assert run_cli(cli, "verify", out).returncode == 0
     assert shutil.which("bettimill") is not None
+
+
+def test_empty_and_oversized_manifest_text_is_refused_like_a_file():
+    # Plan('') used to say `cannot read the manifest : no such file`; text over 1 MiB was
+    # accepted where a file over 1 MiB is refused.
+    with pytest.raises(ValueError, match="the manifest is an empty string"):
+        bettimill.Plan("")
+    text = (REPO / "manifests" / "demo-3d.toml").read_text()
+    padded = text + "# padding\n" * (1 << 17)
+    with pytest.raises(ValueError, match="larger than 1048576 bytes"):
+        bettimill.Plan(padded)

@@ -279,9 +279,37 @@ impl ManifestError {
         ManifestError::Invalid {
             path: source.path.to_path_buf(),
             line: source.line_of(field),
-            field: field.to_string(),
-            reason: reason.into(),
+            field: printable(field),
+            reason: printable(&reason.into()),
         }
+    }
+}
+
+/// `text` with control characters (NUL, newlines, escapes) written as escapes, so an error
+/// about a hostile key stays one line of visible text.
+fn printable(text: &str) -> String {
+    if !text.chars().any(char::is_control) {
+        return text.to_string();
+    }
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}
+
+/// A number from the manifest as a message shows it: as written for ordinary magnitudes,
+/// in exponent form for tiny and huge ones (a subnormal's plain decimal form has hundreds
+/// of digits).
+pub(crate) fn short_float(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && (x.abs() < 1e-6 || x.abs() >= 1e16) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
     }
 }
 
@@ -312,6 +340,34 @@ impl Source<'_> {
                     .unwrap_or(false)
                     || line == format!("[{leaf}]")
                     || line == format!("[[{leaf}]]")
+            })
+            .or_else(|| {
+                // A quoted key with any characters, escapes too (`"v\u0000al" = 2`): the
+                // key as TOML reads it.
+                self.text.lines().position(|line| {
+                    line.split_once('=').is_some_and(|(key, _)| {
+                        toml::from_str::<toml::Table>(&format!("{} = 0", key.trim()))
+                            .is_ok_and(|table| table.len() == 1 && table.contains_key(field))
+                    })
+                })
+            })
+            .or_else(|| {
+                // A key of an inline table (`splits = { train = 8, "v al" = 2 }`).
+                self.text.lines().position(|line| {
+                    [format!("\"{field}\""), format!("'{field}'")]
+                        .iter()
+                        .chain(std::iter::once(&field.to_string()))
+                        .any(|key| {
+                            line.match_indices(key.as_str()).any(|(at, _)| {
+                                let before = line[..at].trim_end();
+                                let after = line[at + key.len()..].trim_start();
+                                after.starts_with('=')
+                                    && (before.is_empty()
+                                        || before.ends_with('{')
+                                        || before.ends_with(','))
+                            })
+                        })
+                })
             })
             .map(|i| i + 1)
             .unwrap_or(0)
@@ -463,8 +519,8 @@ impl Manifest {
             ManifestError::Invalid {
                 path: path.to_path_buf(),
                 line,
-                field: truncate(&field, 80),
-                reason: truncate(&reason, MAX_REASON_CHARS),
+                field: truncate(&printable(&field), 80),
+                reason: truncate(&printable(&reason), MAX_REASON_CHARS),
             }
         })?;
         manifest.validate(&source)?;
@@ -622,16 +678,22 @@ impl Manifest {
                     && hi <= limit)
                 {
                     Some(format!(
-                        "bin [{lo}, {hi}) must satisfy 0 <= lo < hi <= {limit}"
+                        "bin [{}, {}) must satisfy 0 <= lo < hi <= {limit}",
+                        short_float(lo),
+                        short_float(hi)
                     ))
                 } else if vlo > vhi || vhi == 0 {
                     Some(format!(
-                        "bin [{lo}, {hi}) holds no whole voxel count at side {} (it spans [{vlo}, {vhi}])",
+                        "bin [{}, {}) holds no whole voxel count at side {} (it spans [{vlo}, {vhi}])",
+                        short_float(lo),
+                        short_float(hi),
                         self.side
                     ))
                 } else if vlo > inner {
                     Some(format!(
-                        "bin [{lo}, {hi}) needs at least {vlo} foreground voxels, but only {inner} fit inside the border at side {}",
+                        "bin [{}, {}) needs at least {vlo} foreground voxels, but only {inner} fit inside the border at side {}",
+                        short_float(lo),
+                        short_float(hi),
                         self.side
                     ))
                 } else {

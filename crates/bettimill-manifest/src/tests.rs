@@ -276,3 +276,35 @@ fn a_fifo_manifest_is_refused_before_it_is_opened() {
     assert!(err.contains("is a directory, not a regular file"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A NUL byte in a key used to be printed raw, a subnormal bin bound as ~700 digits, and
+/// an error about a split name had no line number.
+#[test]
+fn messages_escape_control_characters_shorten_floats_and_locate_split_names() {
+    let text = GOOD.replace(
+        "seed = 1",
+        "seed = 1\n[splits]\ntrain = 8\n\"v\\u0000al\" = 2",
+    );
+    match parse(&text) {
+        Err(ManifestError::Invalid { line, field, .. }) => {
+            assert_eq!((line, field.as_str()), (11, "v\\u{0}al"));
+        }
+        other => panic!("{other:?}"),
+    }
+    let err = parse(&text).unwrap_err().to_string();
+    assert!(!err.contains('\0'), "{err:?}");
+    let text = GOOD.replace("seed = 1", "seed = 1\nsplits = { train = 8, \"v al\" = 2 }");
+    check_refused(&text, "v al", 9);
+    let text = format!("{GOOD}\n[hypervolume]\nbins = [[5e-324, 0.5], [0.6, 0.5]]\n");
+    let err = parse(&text).unwrap_err().to_string();
+    assert!(err.contains("bin [0.6, 0.5)"), "{err}");
+    let text = format!("{GOOD}\n[hypervolume]\nbins = [[0.0, 5e-324]]\n");
+    let err = parse(&text).unwrap_err().to_string();
+    assert!(err.contains("bin [0, 5e-324)") && err.len() < 300, "{err}");
+    let unknown = GOOD.replace("seed = 1", "seed = 1\n\"co\\u0000lour\" = 3");
+    let err = parse(&unknown).unwrap_err().to_string();
+    assert!(
+        !err.contains('\0') && err.contains("co\\u{0}lour"),
+        "{err:?}"
+    );
+}

@@ -226,7 +226,19 @@ fn manifest_source(source: Option<&Bound<'_, PyAny>>) -> PyResult<Source> {
         });
     };
     if let Ok(text) = source.extract::<String>() {
+        if text.trim().is_empty() {
+            return Err(PyValueError::new_err(
+                "the manifest is an empty string: give a path, TOML text, or None for the demo manifest",
+            ));
+        }
         if text.contains('\n') || text.contains('=') {
+            // Text is held to the limit a manifest file is.
+            if text.len() as u64 > bettimill_manifest::MAX_MANIFEST_BYTES {
+                return Err(PyValueError::new_err(format!(
+                    "<manifest text>: field `(file)`: is larger than {} bytes; a manifest is a short TOML file",
+                    bettimill_manifest::MAX_MANIFEST_BYTES
+                )));
+            }
             return Ok(Source {
                 text,
                 origin: PathBuf::from("<manifest text>"),
