@@ -658,6 +658,16 @@ impl Manifest {
                     "list 1 to 16 copies per sample, e.g. components = [1, 2, 3]",
                 ));
             }
+            if let Some(twice) = first_repeat(components) {
+                return Err(ManifestError::invalid(
+                    source,
+                    "components",
+                    format!(
+                        "lists {twice} twice; each count is a stratum of its own, so a repeated \
+                         count would be a second identical class sharing the samples"
+                    ),
+                ));
+            }
         }
         if let Some(h) = &self.hypervolume {
             let total = (self.side as u64).pow(self.dimension.get() as u32);
@@ -703,6 +713,37 @@ impl Manifest {
                     return Err(ManifestError::invalid(source, "bins", reason));
                 }
             }
+            let spans = self.hypervolume_voxel_bins();
+            for (i, span) in spans.iter().enumerate() {
+                if let Some(j) = spans[..i].iter().position(|earlier| earlier == span) {
+                    let ([alo, ahi], [blo, bhi]) = (h.bins[j], h.bins[i]);
+                    return Err(ManifestError::invalid(
+                        source,
+                        "bins",
+                        format!(
+                            "bins [{}, {}) and [{}, {}) are the same voxel counts [{}, {}] at \
+                             side {}; each bin is a stratum of its own, so a repeated bin would \
+                             be a second identical class sharing the samples",
+                            short_float(alo),
+                            short_float(ahi),
+                            short_float(blo),
+                            short_float(bhi),
+                            span.0,
+                            span.1,
+                            self.side
+                        ),
+                    ));
+                }
+            }
+        }
+        // Each resolution is a member of every sample: a repeated one makes two members of
+        // one name, which no shard can hold.
+        if let Some(twice) = first_repeat(&self.resolutions) {
+            return Err(ManifestError::invalid(
+                source,
+                "resolutions",
+                format!("lists {twice} twice; each resolution is one downscaled copy per sample"),
+            ));
         }
         for &r in &self.resolutions {
             if r < 4 || r >= self.side || self.side % r != 0 {
@@ -771,6 +812,12 @@ impl Manifest {
         copy.classes.clear();
         serde_json::to_string(&copy).expect("a manifest always serialises")
     }
+}
+
+/// The first value that `values` holds twice.
+fn first_repeat<T: Ord + Copy>(values: &[T]) -> Option<T> {
+    let mut seen = std::collections::BTreeSet::new();
+    values.iter().copied().find(|&v| !seen.insert(v))
 }
 
 /// The longest reason a parse error prints: serde's messages quote what they saw, and a

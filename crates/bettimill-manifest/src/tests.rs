@@ -277,6 +277,45 @@ fn a_fifo_manifest_is_refused_before_it_is_opened() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `components = [1, 1]` and a repeated hypervolume bin used to plan two identical strata:
+/// classes.json and the card listed the class twice and each real class got half its share.
+#[test]
+fn duplicate_component_counts_and_hypervolume_bins_are_refused() {
+    check_refused(
+        &GOOD.replace("seed = 1", "seed = 1\ncomponents = [1, 2, 1]"),
+        "components",
+        9,
+    );
+    let err = parse(&GOOD.replace("seed = 1", "seed = 1\ncomponents = [1, 1]")).unwrap_err();
+    assert!(err.to_string().contains("lists 1 twice"), "{err}");
+    let text = format!("{GOOD}\n[hypervolume]\nbins = [[0.1, 0.2], [0.3, 0.4], [0.1, 0.2]]\n");
+    check_refused(&text, "bins", 14);
+    // Two bins written differently that hold the same voxel counts are the same stratum.
+    let text =
+        format!("{GOOD}\n[hypervolume]\nunit = \"voxels\"\nbins = [[100, 200], [99.5, 199.5]]\n");
+    let err = parse(&text).unwrap_err().to_string();
+    assert!(err.contains("the same voxel counts [100, 199]"), "{err}");
+    // Distinct bins and counts still plan.
+    let text = format!("{GOOD}\n[hypervolume]\nbins = [[0.1, 0.2], [0.2, 0.3]]\n");
+    parse(&text.replace("seed = 1", "seed = 1\ncomponents = [1, 2]")).unwrap();
+}
+
+/// `resolutions = [12, 12]` planned, and then every shard failed (`field "r12.npy" comes
+/// after "r12.npy"`); `[12] * 100000` planned too and its worker grew to 1.4 GB.
+#[test]
+fn a_repeated_resolution_is_refused_at_plan_time() {
+    let text = GOOD.replace("seed = 1", "seed = 1\nresolutions = [12, 6, 12]");
+    check_refused(&text, "resolutions", 9);
+    assert!(parse(&text)
+        .unwrap_err()
+        .to_string()
+        .contains("lists 12 twice"));
+    let many = vec!["12"; 100_000].join(", ");
+    let text = GOOD.replace("seed = 1", &format!("seed = 1\nresolutions = [{many}]"));
+    check_refused(&text, "resolutions", 9);
+    parse(&GOOD.replace("seed = 1", "seed = 1\nresolutions = [12, 6]")).unwrap();
+}
+
 /// A NUL byte in a key used to be printed raw, a subnormal bin bound as ~700 digits, and
 /// an error about a split name had no line number.
 #[test]
