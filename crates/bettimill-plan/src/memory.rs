@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! worker bytes = threads x (PEAK_BYTES_PER_VOXEL[d] x voxels + FIXED_BYTES)   one sample per thread
-//!              + SHARD_COPIES x shard_size x sample_bytes                      the shard being written
+//!              + SHARD_COPIES x largest shard x sample_bytes                   the shard being written
 //!                (uncompressed members; with gzip or zstd members: 1 x sample_bytes)
 //! ```
 //!
@@ -15,7 +15,8 @@
 //! serialised arrays), measured with `/usr/bin/time -v` (maximum resident set) on
 //! one-sample builds of 3D and 4D samples of several sides (docs/reliability.md, "Memory
 //! per sample": 2-18 bytes per voxel without deformation, 10-21 with deformation or
-//! hypervolume targeting), rounded up with room to spare. `sample_bytes` is the plan's upper
+//! hypervolume targeting), rounded up with room to spare. The largest shard is `shard_size`
+//! samples, or the largest split when every split is smaller. `sample_bytes` is the plan's upper
 //! bound of one sample's uncompressed bytes in a shard; a worker holds a shard's members and
 //! then its tar, so two copies of an uncompressed shard. With compressed members the shard's
 //! size depends on the data, not the plan: the estimate counts the one sample being
@@ -55,7 +56,7 @@ pub struct MemoryError {
     pub side: u32,
     /// Voxels of one sample.
     pub voxels: u64,
-    /// Samples per shard.
+    /// Samples of the largest shard.
     pub shard_size: u64,
     /// The estimate, in words (`5.3 GiB`).
     pub need: String,
@@ -82,7 +83,7 @@ pub struct WorkerMemory {
     pub voxels: u64,
     /// One sample in flight: `PEAK_BYTES_PER_VOXEL[d] x voxels + FIXED_BYTES`.
     pub sample_bytes: u64,
-    /// The shard being written: `SHARD_COPIES x shard_size x sample_bytes` uncompressed,
+    /// The shard being written: `SHARD_COPIES x largest shard x sample_bytes` uncompressed,
     /// `sample_bytes` with compressed members.
     pub shard_bytes: u64,
 }
@@ -99,7 +100,7 @@ impl WorkerMemory {
                 .saturating_add(FIXED_BYTES),
             shard_bytes: if plan.compression == bettimill_shard::Compression::None {
                 SHARD_COPIES
-                    .saturating_mul(plan.shard_size)
+                    .saturating_mul(plan.largest_shard())
                     .saturating_mul(plan.sample_bytes)
             } else {
                 plan.sample_bytes
@@ -133,7 +134,7 @@ pub fn check(
         dim: plan.dimension.get(),
         side: plan.side,
         voxels: estimate.voxels,
-        shard_size: plan.shard_size,
+        shard_size: plan.largest_shard(),
         need: human_bytes(need),
         per_voxel: PEAK_BYTES_PER_VOXEL[plan.dimension.get() - 2],
         fixed: human_bytes(FIXED_BYTES),
@@ -248,6 +249,21 @@ mod tests {
         }
         assert!(err.need_bytes > err.limit_bytes);
         check(&plan(3, 24, 4), 1, 8 << 30, "x").unwrap();
+    }
+
+    /// 10 samples of 3D side 128 with `shard_size = 100000` were refused as needing
+    /// 392.7 GiB a worker (the estimate took 100000 samples a shard), while the same data
+    /// with `shard_size = 10` needed 120 MiB: the shard part counts the largest real shard.
+    #[test]
+    fn the_estimate_counts_the_largest_real_shard_not_shard_size() {
+        let huge = plan(3, 128, 100_000);
+        let ten = plan(3, 128, 10);
+        assert_eq!(huge.largest_shard(), 10);
+        assert_eq!(WorkerMemory::of(&huge), WorkerMemory::of(&ten));
+        check(&huge, 1, 1 << 30, "x").unwrap();
+        assert_eq!(plan(3, 128, 4).largest_shard(), 4);
+        let err = check(&plan(4, 254, 100_000), 1, 8 << 30, "x").unwrap_err();
+        assert!(err.to_string().contains("10 samples a shard"), "{err}");
     }
 
     #[test]
