@@ -200,6 +200,47 @@ fn betti_refuses_npy_files_with_lying_headers() {
 }
 
 /// A correctly checksummed USTAR header with any name, type and size field.
+/// A valid 4.9 GB `.npy` of shape (70000, 70000) used to be read for a minute and then
+/// abort `betti` (`memory allocation of 9175433216 bytes failed` in the npy placer, exit
+/// 134). The shape is now checked against the memory available (here an address-space
+/// limit of 8 GB, as `ulimit -v 8000000`) before anything is allocated: exit 2, one line.
+#[test]
+fn betti_on_an_array_larger_than_memory_is_an_error_not_an_abort() {
+    let tmp = Dir::new();
+    let path = tmp.path().join("big.npy");
+    let header = npy(
+        "{'descr': '|u1', 'fortran_order': False, 'shape': (70000, 70000), }",
+        0,
+    );
+    let file = std::fs::File::create(&path).unwrap();
+    std::io::Write::write_all(&mut &file, &header).unwrap();
+    // Sparse: the data reads as zeros and takes no disk.
+    file.set_len(header.len() as u64 + 70000 * 70000).unwrap();
+    drop(file);
+    let out = Command::new("prlimit")
+        .arg("--as=8000000000")
+        .arg("--")
+        .arg(common::BETTIMILL)
+        .arg("betti")
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{:?}: {}",
+        out.status,
+        text(&out.stderr)
+    );
+    let error = one_line_error(&out);
+    assert!(
+        error.contains("big.npy")
+            && error.contains("the image (2D, 4900280004 voxels) needs about")
+            && error.contains("more than the"),
+        "{error}"
+    );
+}
+
 fn raw_header(name: &[u8], typeflag: u8, size: u64) -> [u8; 512] {
     let mut header = [0u8; 512];
     header[..name.len()].copy_from_slice(name);

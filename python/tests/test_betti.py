@@ -93,3 +93,30 @@ def test_not_an_array_is_converted_and_objects_refused():
     assert bettimill.betti([[0, 1, 0], [1, 0, 1], [0, 1, 0]]) == [1, 1]
     with pytest.raises(ValueError, match="unsupported dtype"):
         bettimill.betti(np.array([["a", "b"], ["c", "d"]]))
+
+
+def test_arrays_larger_than_memory_are_a_memory_error_not_an_abort():
+    # A broadcast array costs numpy nothing; its copy here (10^12 voxels) used to abort the
+    # interpreter with `memory allocation of 1000000000000 bytes failed`.
+    huge = np.broadcast_to(np.uint8(1), (10**6, 10**6))
+    with pytest.raises(MemoryError, match="needs about"):
+        bettimill.betti(huge)
+
+
+def test_arrays_beyond_an_address_space_limit_are_a_memory_error():
+    # Under `ulimit -v 8000000` a (1024,)*3 or (300,)*4 array of ones used to abort.
+    import subprocess
+    import sys
+
+    script = (
+        "import resource, numpy as np, bettimill\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (8_000_000_000, 8_000_000_000))\n"
+        "for shape in [(1024,) * 3, (300,) * 4]:\n"
+        "    try:\n"
+        "        bettimill.betti(np.ones(shape, dtype=np.uint8))\n"
+        "    except MemoryError as err:\n"
+        "        print('MemoryError', err)\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.count("MemoryError") == 2, result.stdout + result.stderr

@@ -147,6 +147,29 @@ def test_console_script_is_the_cli(cli, tmp_path):
     assert shutil.which("bettimill") is not None
 
 
+def test_a_sample_beyond_memory_is_a_memory_error_not_an_abort():
+    # The CLI refuses a 4D side-254 plan with its memory estimate; Plan.sample used to make
+    # the sample anyway and abort the interpreter under an address-space limit.
+    import subprocess
+    import sys
+
+    text = (
+        'schema_version = 1\nname = "huge"\ndimension = 4\nside = 254\nmode = "embed"\n'
+        'samples = 1\nshard_size = 1\nseed = 1\n[[classes]]\nfamily = "ball"\n'
+    )
+    script = (
+        "import resource, sys, bettimill\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (8_000_000_000, 8_000_000_000))\n"
+        "try:\n"
+        "    bettimill.Plan(sys.argv[1]).sample(0)\n"
+        "except MemoryError as err:\n"
+        "    print('MemoryError', err)\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script, text], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "MemoryError sample 0 (4D, 4162314256 voxels) needs about" in result.stdout, result.stdout
+
+
 def test_empty_and_oversized_manifest_text_is_refused_like_a_file():
     # Plan('') used to say `cannot read the manifest : no such file`; text over 1 MiB was
     # accepted where a file over 1 MiB is refused.

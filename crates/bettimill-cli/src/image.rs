@@ -67,7 +67,25 @@ fn read_stream(
     let compression = bettimill_shard::sniff(&magic);
     let whole = Cursor::new(magic).chain(reader);
     let decoded = bettimill_shard::decoder(whole, compression)?;
-    let read = bettimill_grid::npy::read_from_padded(decoded, strict, MAX_IMAGE_BYTES, width);
+    // The shape is checked against the memory available before any voxel is allocated
+    // (a valid 4.9 GB array used to be read for a minute and then abort the process).
+    let admit = |shape: &[usize]| {
+        if !(2..=4).contains(&shape.len()) {
+            // Refused by its rank once read.
+            return Ok(());
+        }
+        let voxels = shape.iter().fold(1u64, |n, &side| {
+            n.saturating_mul((side as u64).saturating_add(2 * width as u64))
+        });
+        bettimill_plan::memory::admit_image("the image", shape.len(), voxels)
+    };
+    let read = bettimill_grid::npy::read_from_padded_admitted(
+        decoded,
+        strict,
+        MAX_IMAGE_BYTES,
+        width,
+        &admit,
+    );
     Ok(match compression {
         Compression::None => read?,
         c => read.with_context(|| format!("{c}-compressed data"))?,

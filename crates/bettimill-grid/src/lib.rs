@@ -126,6 +126,12 @@ pub enum GridError {
         /// Voxels supplied.
         found: usize,
     },
+    /// An allocation for the image failed.
+    #[error("cannot allocate {bytes} bytes for the image: not enough memory")]
+    OutOfMemory {
+        /// The bytes asked for.
+        bytes: usize,
+    },
     /// A voxel value other than 0 or 1.
     #[error("voxel {index} has value {value}; a binary image holds only 0 and 1")]
     NotBinary {
@@ -407,6 +413,21 @@ impl BinaryImage {
         }
         data[cleared_to..].fill(0);
         BinaryImage::with_layout(dim, &new_shape, data)
+    }
+
+    /// [`BinaryImage::into_padded`] for an image whose size comes from input: a failed
+    /// allocation of the padded image is an error, not an abort.
+    pub fn try_into_padded(mut self, width: usize) -> Result<BinaryImage, GridError> {
+        let new_shape: Vec<usize> = self
+            .shape()
+            .iter()
+            .map(|&n| n.saturating_add(width.saturating_mul(2)))
+            .collect();
+        let (_, new_len) = checked_len(&new_shape)?;
+        self.data
+            .try_reserve_exact(new_len.saturating_sub(self.data.len()))
+            .map_err(|_| GridError::OutOfMemory { bytes: new_len })?;
+        Ok(self.into_padded(width))
     }
 
     /// The inverse of [`BinaryImage::padded`]: drops `width` layers on every side.

@@ -102,6 +102,10 @@ pub enum NpyError {
     /// The shape is not an image bettimill handles.
     #[error("unsupported shape: {0}")]
     Shape(#[from] GridError),
+    /// The memory for the image could not be had: refused by the caller's check before
+    /// any data was read, or an allocation failed.
+    #[error("{0}")]
+    Memory(String),
     /// `strict` reading met a value other than 0 or 1.
     #[error("voxel {index} has value {value}; with --strict only 0 and 1 are allowed")]
     NotBinary {
@@ -154,7 +158,40 @@ pub fn read_from_padded<R: Read>(
     limit: u64,
     width: usize,
 ) -> Result<NpyImage, NpyError> {
-    read_padded_within(reader, strict, limit, width, Placer::AHEAD)
+    read_padded_within(reader, strict, limit, width, Placer::AHEAD, &|_| Ok(()))
+}
+
+/// [`read_from_padded`] that asks `admit` about the shape (the header's, not padded) once
+/// the header is read and before any voxel is allocated; its refusal (a message saying
+/// how much memory the image needs and how much there is) becomes [`NpyError::Memory`].
+pub fn read_from_padded_admitted<R: Read>(
+    reader: R,
+    strict: bool,
+    limit: u64,
+    width: usize,
+    admit: &dyn Fn(&[usize]) -> Result<(), String>,
+) -> Result<NpyImage, NpyError> {
+    read_padded_within(reader, strict, limit, width, Placer::AHEAD, admit)
+}
+
+/// Makes room for `extra` more voxels in `voxels`, an image of at most `total` voxels:
+/// doubling as the data arrives (so a header that lies about the shape costs no more than
+/// the data sent), never past `total`, and a failed allocation is an error, not an abort.
+fn reserve(voxels: &mut Vec<u8>, extra: usize, total: usize) -> Result<(), NpyError> {
+    let needed = voxels.len().saturating_add(extra);
+    if needed <= voxels.capacity() {
+        return Ok(());
+    }
+    let target = voxels.capacity().saturating_mul(2).min(total).max(needed);
+    voxels
+        .try_reserve_exact(target - voxels.len())
+        .map_err(|_| out_of_memory(target))
+}
+
+fn out_of_memory(bytes: usize) -> NpyError {
+    NpyError::Memory(format!(
+        "cannot allocate {bytes} bytes for the image: not enough memory"
+    ))
 }
 
 /// [`read_from_padded`] with at most `ahead` bytes of background placed ahead of the data.
@@ -164,6 +201,7 @@ fn read_padded_within<R: Read>(
     limit: u64,
     width: usize,
     ahead: usize,
+    admit: &dyn Fn(&[usize]) -> Result<(), String>,
 ) -> Result<NpyImage, NpyError> {
     let io = |source| NpyError::Io {
         path: "the stream".to_string(),
@@ -204,6 +242,7 @@ fn read_padded_within<R: Read>(
     if expected > limit {
         return Err(NpyError::TooLarge { expected, limit });
     }
+    admit(&shape).map_err(NpyError::Memory)?;
     // The data goes straight into the voxels as it arrives, a chunk at a time: no buffer
     // of the file's bytes beside the image (half the peak for a one-byte dtype), and the
     // voxels grow only with what was received. Errors come in the order `read_bytes`
@@ -213,6 +252,11 @@ fn read_padded_within<R: Read>(
     let mut placer = match width {
         0 => None,
         _ => Placer::new(&shape, width, ahead),
+    };
+    // The most voxels the image can hold (padded when placed), to grow to and no further.
+    let total = match &placer {
+        Some(placer) => placer.len,
+        None => usize::try_from(expected / size as u64).unwrap_or(usize::MAX),
     };
     // The elements converted so far, and the chunk's, converted, when they are placed.
     let mut elements = 0usize;
@@ -240,7 +284,10 @@ fn read_padded_within<R: Read>(
                 converted.clear();
                 &mut converted
             }
-            None => &mut voxels,
+            None => {
+                reserve(&mut voxels, whole / size, total)?;
+                &mut voxels
+            }
         };
         if size == 1 {
             out.extend(chunk[..whole].iter().map(|&b| (b != 0) as u8));
@@ -252,7 +299,7 @@ fn read_padded_within<R: Read>(
             );
         }
         if let Some(placer) = &mut placer {
-            placer.place(&mut voxels, &converted);
+            placer.place(&mut voxels, &converted)?;
         }
         if strict && not_binary.is_none() {
             not_binary = chunk[..whole]
@@ -286,6 +333,8 @@ fn read_padded_within<R: Read>(
     }
     let image = match placer {
         Some(placer) => {
+            let rest = placer.len - voxels.len();
+            reserve(&mut voxels, rest, placer.len)?;
             voxels.resize(placer.len, 0);
             voxels.shrink_to_fit();
             BinaryImage::from_vec(&placer.shape, voxels)?
@@ -296,7 +345,9 @@ fn read_padded_within<R: Read>(
             let image = BinaryImage::from_vec(&shape, voxels)?;
             match width {
                 0 => image,
-                _ => image.into_padded(width),
+                _ => image
+                    .try_into_padded(width)
+                    .map_err(|err| NpyError::Memory(err.to_string()))?,
             }
         }
     };
@@ -362,13 +413,19 @@ impl Placer {
     }
 
     /// Appends `values`, the next voxels in C order, to `voxels` at their places.
-    fn place(&mut self, voxels: &mut Vec<u8>, mut values: &[u8]) {
+    fn place(&mut self, voxels: &mut Vec<u8>, mut values: &[u8]) -> Result<(), NpyError> {
         let line = self.sides[self.row.len()];
         while !values.is_empty() {
+            let take = (line - self.received).min(values.len());
+            let end = if self.received == 0 {
+                self.start
+            } else {
+                voxels.len()
+            };
+            reserve(voxels, end + take - voxels.len(), self.len)?;
             if self.received == 0 {
                 voxels.resize(self.start, 0);
             }
-            let take = (line - self.received).min(values.len());
             voxels.extend_from_slice(&values[..take]);
             values = &values[take..];
             self.received += take;
@@ -380,6 +437,7 @@ impl Placer {
                 self.start = self.row_start();
             }
         }
+        Ok(())
     }
 }
 
@@ -457,7 +515,10 @@ pub fn image_from_values<T: Into<i128>>(
         .iter()
         .try_fold(1usize, |acc, &n| acc.checked_mul(n))
         .ok_or_else(|| NpyError::Format(format!("shape {shape:?} overflows")))?;
-    let mut voxels = Vec::with_capacity(n_voxels);
+    let mut voxels = Vec::new();
+    voxels
+        .try_reserve_exact(n_voxels)
+        .map_err(|_| out_of_memory(n_voxels))?;
     for (index, value) in values.into_iter().enumerate() {
         let value: i128 = value.into();
         if strict && value != 0 && value != 1 {
@@ -797,7 +858,8 @@ mod tests {
                 let padded = read_from_padded(Trickle(&bytes), true, 1 << 20, width).unwrap();
                 assert_eq!(padded.image, img.padded(width), "{shape:?} by {width}");
                 // Nothing may be placed ahead: read, then padded.
-                let after = read_padded_within(&bytes[..], true, 1 << 20, width, 0).unwrap();
+                let after =
+                    read_padded_within(&bytes[..], true, 1 << 20, width, 0, &|_| Ok(())).unwrap();
                 assert_eq!(
                     after.image,
                     img.padded(width),

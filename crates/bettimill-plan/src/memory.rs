@@ -1,8 +1,9 @@
 //! How much memory a worker needs for a plan, and the refusal of a plan whose samples
 //! cannot fit.
 //!
-//! The estimate is a pure function of the plan (nothing here reads the machine: the caller
-//! passes the limit, see `--max-memory` in the CLI):
+//! The estimate is a pure function of the plan (the caller passes the limit, see
+//! `--max-memory` in the CLI; only [`available`], for the checks of single images, reads
+//! the machine):
 //!
 //! ```text
 //! worker bytes = threads x (PEAK_BYTES_PER_VOXEL[d] x voxels + FIXED_BYTES)   one sample per thread
@@ -146,6 +147,81 @@ pub fn check(
     }))
 }
 
+/// Peak bytes of computing one image of `voxels` voxels in `dim` dimensions (the Betti
+/// numbers of a user's array, or one sample): [`PEAK_BYTES_PER_VOXEL`] per voxel plus
+/// [`FIXED_BYTES`], saturating.
+pub fn image_bytes(dim: usize, voxels: u64) -> u64 {
+    PEAK_BYTES_PER_VOXEL[dim.clamp(2, 4) - 2]
+        .saturating_mul(voxels)
+        .saturating_add(FIXED_BYTES)
+}
+
+/// The memory this process can still get: the smaller of /proc/meminfo's MemAvailable and
+/// the room left under its address-space limit (`ulimit -v`: its limit less its VmSize);
+/// `None` when neither is known (no /proc). The one place in this module that reads the
+/// machine, for the callers that must refuse an input before allocating for it.
+pub fn available() -> Option<u64> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok();
+    let mem_available = meminfo
+        .as_deref()
+        .and_then(|text| kib_field(text, "MemAvailable:"));
+    let address_room = std::fs::read_to_string("/proc/self/limits")
+        .ok()
+        .and_then(|limits| {
+            let line = limits
+                .lines()
+                .find(|l| l.starts_with("Max address space"))?;
+            // "Max address space  <soft>  <hard>  bytes": the soft limit binds.
+            line["Max address space".len()..]
+                .split_whitespace()
+                .next()?
+                .parse::<u64>()
+                .ok()
+        })
+        .map(|limit| {
+            let used = std::fs::read_to_string("/proc/self/status")
+                .ok()
+                .and_then(|status| kib_field(&status, "VmSize:"))
+                .unwrap_or(0);
+            limit.saturating_sub(used)
+        });
+    match (mem_available, address_room) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// A `NAME:   N kB` line of a /proc file, in bytes.
+fn kib_field(text: &str, name: &str) -> Option<u64> {
+    let kib: u64 = text
+        .lines()
+        .find_map(|l| l.strip_prefix(name))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+/// Refuses an image of `voxels` voxels in `dim` dimensions when computing it needs more
+/// than the memory available ([`available`]), with both numbers in words; `what` names the
+/// image (`"the array"`, `"sample 0"`).
+pub fn admit_image(what: &str, dim: usize, voxels: u64) -> Result<(), String> {
+    let need = image_bytes(dim, voxels);
+    match available() {
+        Some(room) if need > room => Err(format!(
+            "{what} ({dim}D, {voxels} voxels) needs about {} of memory ({} bytes per voxel + {}), \
+             more than the {} available (MemAvailable, or the room under the address-space limit)",
+            human_bytes(need),
+            PEAK_BYTES_PER_VOXEL[dim.clamp(2, 4) - 2],
+            human_bytes(FIXED_BYTES),
+            human_bytes(room)
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Bytes in binary units: `512 B`, `5.6 MiB`, `3.2 TiB`.
 pub fn human_bytes(bytes: u64) -> String {
     const UNITS: [&str; 7] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
@@ -264,6 +340,21 @@ mod tests {
         assert_eq!(plan(3, 128, 4).largest_shard(), 4);
         let err = check(&plan(4, 254, 100_000), 1, 8 << 30, "x").unwrap_err();
         assert!(err.to_string().contains("10 samples a shard"), "{err}");
+    }
+
+    #[test]
+    fn an_image_beyond_any_memory_is_refused_with_the_numbers() {
+        // 10^12 voxels (a broadcast 10^6 x 10^6 array) need 22 TiB: more than any machine
+        // this runs on has.
+        let err = admit_image("the array", 2, 1_000_000_000_000).unwrap_err();
+        assert!(
+            err.contains("the array (2D, 1000000000000 voxels) needs about 21.8 TiB"),
+            "{err}"
+        );
+        admit_image("the array", 3, 1000).unwrap();
+        if std::path::Path::new("/proc/meminfo").exists() {
+            assert!(available().is_some_and(|bytes| bytes > 0));
+        }
     }
 
     #[test]

@@ -21,7 +21,8 @@
 //! fresh pool there. rayon's global pool cannot be made again, so nothing here uses it.
 //!
 //! Errors: bad input is `ValueError` (a missing file `FileNotFoundError`, a failed write
-//! `OSError`) with the message the CLI prints after `error: `. Nothing here prints.
+//! `OSError`, an array or sample larger than the memory available `MemoryError`) with the
+//! message the CLI prints after `error: `. Nothing here prints.
 
 use bettimill_executor::coordinator::{self, BuildControl};
 use bettimill_executor::{BuildFailure, BuildRequest, Runner};
@@ -34,7 +35,7 @@ use numpy::{
     PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{
-    PyFileNotFoundError, PyIndexError, PyKeyboardInterrupt, PyOSError, PyValueError,
+    PyFileNotFoundError, PyIndexError, PyKeyboardInterrupt, PyMemoryError, PyOSError, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyRange};
@@ -156,6 +157,15 @@ fn read_array(py: Python<'_>, array: &Bound<'_, PyAny>, strict: bool) -> PyResul
     let dtype = npy::parse_dtype(&descr).map_err(value_error)?;
     // The shape is checked before the dtype's byte order matters, as a file's would be.
     npy::check_shape(untyped.shape()).map_err(value_error)?;
+    // And against the memory available before anything is allocated: a broadcast array
+    // of 10^12 ones takes no memory in numpy, its copy here would (it used to abort the
+    // interpreter).
+    let padded = untyped
+        .shape()
+        .iter()
+        .fold(1u64, |n, &side| n.saturating_mul(side as u64 + 2));
+    bettimill_plan::memory::admit_image("the array", untyped.ndim(), padded)
+        .map_err(PyMemoryError::new_err)?;
     if dtype.big_endian && dtype.size > 1 {
         return Err(PyValueError::new_err(format!(
             "dtype {descr:?} is big-endian: convert it with array.astype(array.dtype.newbyteorder('='))"
@@ -443,6 +453,16 @@ impl PyPlan {
                 )));
             }
         }
+        // Refused before it is made when the machine cannot hold it (the CLI refuses such
+        // a plan with the same estimate; a 4D side-254 sample used to abort the
+        // interpreter).
+        let voxels = (self.plan.side as u64).saturating_pow(self.plan.dimension.get() as u32);
+        bettimill_plan::memory::admit_image(
+            &format!("sample {index}"),
+            self.plan.dimension.get(),
+            voxels,
+        )
+        .map_err(PyMemoryError::new_err)?;
         let plan = Arc::clone(&self.plan);
         let (image, json) = detach_in_pool(py, move || {
             let task = plan.task(index).expect("the index was checked");
