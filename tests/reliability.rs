@@ -1492,3 +1492,37 @@ fn a_worker_holds_compressed_members_not_the_images_of_a_shard() {
     assert!(small > 0 && large > 0, "no measurement");
     assert!(large < small + 8 * 1024, "4: {small} KiB, 64: {large} KiB");
 }
+
+/// A dataset whose manifest.toml was edited after the build (another seed): `verify` names
+/// manifest.toml against build.json, and `audit` says the manifest was changed (it used to
+/// give build's advice, "use another --out directory").
+#[test]
+fn an_edited_manifest_is_named_by_verify_and_audit_gives_its_own_advice() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 4, 2);
+    let out = tmp.path().join("edited");
+    assert_exit(&build(&m, &out, 1), 0);
+    let path = out.join("manifest.toml");
+    let original = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(&path, original.replace("seed = 5", "seed = 6")).unwrap();
+    let verified = run(&["verify", out.to_str().unwrap()]);
+    assert_exit(&verified, 1);
+    assert!(
+        text_of(&verified).contains("manifest.toml")
+            && text_of(&verified).contains("build.json's manifest_hash"),
+        "{}",
+        text_of(&verified)
+    );
+    let audited = run(&["audit", out.to_str().unwrap(), "--relabel"]);
+    assert_exit(&audited, 2);
+    let message = text(&audited.stderr);
+    assert!(
+        message.contains("the manifest was changed after the build")
+            && !message.contains("another --out"),
+        "{message}"
+    );
+}
+
+fn text_of(out: &Output) -> String {
+    format!("{}{}", text(&out.stdout), text(&out.stderr))
+}

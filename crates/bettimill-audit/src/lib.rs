@@ -89,6 +89,33 @@ pub enum Finding {
         /// What the voxels (or the plan) say (JSON).
         computed: String,
     },
+    /// A sample the plan puts in the shard is not in it.
+    SampleMissing {
+        /// The shard name.
+        shard: String,
+        /// The sample key the plan gives.
+        key: String,
+    },
+    /// A sample (or member) in the shard that the plan does not put there.
+    Unexpected {
+        /// The shard name.
+        shard: String,
+        /// The member name.
+        member: String,
+    },
+    /// A file that is a pure function of the plan (and of the completion records) differs
+    /// from what the build writes.
+    FileDiffers {
+        /// The file, relative to the dataset directory.
+        file: String,
+        /// Where it first differs: a JSON path (`classes[3].topology_class`), a line
+        /// (`line 12`) or a field of build.json.
+        field: String,
+        /// What the file says.
+        stored: String,
+        /// What the build writes.
+        computed: String,
+    },
     /// A member could not be decoded.
     Undecodable {
         /// The shard name.
@@ -134,6 +161,23 @@ impl std::fmt::Display for Finding {
             } => write!(
                 f,
                 "{shard}: {key}: label field `{field}` says {stored}, the voxels give {computed}"
+            ),
+            Finding::SampleMissing { shard, key } => write!(
+                f,
+                "{shard}: sample {key} of the plan is missing from the shard"
+            ),
+            Finding::Unexpected { shard, member } => write!(
+                f,
+                "{shard}: {member}: the plan puts no such sample or member in this shard"
+            ),
+            Finding::FileDiffers {
+                file,
+                field,
+                stored,
+                computed,
+            } => write!(
+                f,
+                "{file}: {field} says {stored}, the build writes {computed}"
             ),
             Finding::Undecodable {
                 shard,
@@ -213,6 +257,181 @@ pub fn select(dataset: &Dataset, selection: &Selection) -> Result<Vec<ShardPlan>
                     .ok_or_else(|| AuditError::UnknownShard(name.clone()))
             })
             .collect(),
+    }
+}
+
+/// Every file of a finalized dataset that is a pure function of the plan and the
+/// completion records (`classes.json`, the card `README.md`, the `shardindex-*.json` files
+/// and `index.json`, whose shard entries and sample counts must also be the plan's),
+/// regenerated and compared byte for byte, without reading a shard. A file that differs is
+/// named with where it first differs (a JSON path such as `classes[2].topology_class`, or a
+/// line of the card): an edit whose hashes were rewritten as an attacker would is found
+/// here. Nothing for a directory that is not finalized.
+pub fn check_files(dataset: &Dataset) -> Vec<Finding> {
+    if !dataset.layout().is_finalized() {
+        return Vec::new();
+    }
+    let relative = |path: &Path| {
+        path.strip_prefix(&dataset.dir)
+            .unwrap_or(path)
+            .display()
+            .to_string()
+    };
+    let unusable = |err: BuildError| {
+        let (file, reason) = match err {
+            BuildError::Corrupt { path, reason } => (relative(&path), reason),
+            other => ("index.json".to_string(), other.to_string()),
+        };
+        vec![Finding::FileDiffers {
+            file,
+            field: "(record)".into(),
+            stored: reason,
+            computed: "a record of the plan's shard".into(),
+        }]
+    };
+    let differing = match dataset.finalized_differences() {
+        Ok(differing) if differing.is_empty() => return Vec::new(),
+        Ok(differing) => differing,
+        Err(err) => return unusable(err),
+    };
+    let written = match dataset.finalized_bytes() {
+        Ok(written) => written,
+        Err(err) => return unusable(err),
+    };
+    let mut findings = Vec::new();
+    for path in differing {
+        let Some((_, computed)) = written.iter().find(|(p, _)| *p == path) else {
+            continue;
+        };
+        // Read no further than the file the build would write, and a little more.
+        let limit = computed.len() as u64 + 4096;
+        let mut stored = Vec::new();
+        let read = std::fs::File::open(&path).and_then(|file| {
+            std::io::Read::read_to_end(&mut std::io::Read::take(file, limit), &mut stored)
+        });
+        let (field, was, is) = match read {
+            Err(err) => ("(file)".to_string(), err.to_string(), "a file".to_string()),
+            Ok(_) => first_difference_in(&path, &stored, computed),
+        };
+        findings.push(Finding::FileDiffers {
+            file: relative(&path),
+            field,
+            stored: was,
+            computed: is,
+        });
+    }
+    findings
+}
+
+/// Where two versions of a finalized file first differ: a JSON path and both values for
+/// JSON files, else a line and both lines.
+fn first_difference_in(path: &Path, stored: &[u8], computed: &[u8]) -> (String, String, String) {
+    let shorten = |text: String| -> String {
+        if text.chars().count() > 200 {
+            format!("{}...", text.chars().take(200).collect::<String>())
+        } else {
+            text
+        }
+    };
+    if path.extension().is_some_and(|e| e == "json") {
+        let parsed: Result<serde_json::Value, _> = serde_json::from_slice(stored);
+        let ours: serde_json::Value = match serde_json::from_slice(computed) {
+            Ok(value) => value,
+            Err(err) => return ("(file)".into(), String::new(), err.to_string()),
+        };
+        return match parsed {
+            Err(err) => ("(file)".into(), format!("no JSON ({err})"), "JSON".into()),
+            Ok(theirs) => match json_difference(&theirs, &ours, String::new()) {
+                Some((field, a, b)) => (field, shorten(a), shorten(b)),
+                // Same values, other bytes (spacing, key order, number spelling).
+                None => (
+                    "(bytes)".into(),
+                    "the same values written differently".into(),
+                    "the build's exact bytes".into(),
+                ),
+            },
+        };
+    }
+    let (a, b) = (
+        String::from_utf8_lossy(stored),
+        String::from_utf8_lossy(computed),
+    );
+    let mut lines = a.lines().zip(b.lines()).enumerate();
+    match lines.find(|(_, (x, y))| x != y) {
+        Some((i, (x, y))) => (
+            format!("line {}", i + 1),
+            shorten(format!("{x:?}")),
+            shorten(format!("{y:?}")),
+        ),
+        None => (
+            "(length)".into(),
+            format!("{} bytes", stored.len()),
+            format!("{} bytes", computed.len()),
+        ),
+    }
+}
+
+/// The first place where two JSON values differ: its path (`classes[3].betti`) and both
+/// values as JSON.
+fn json_difference(
+    a: &serde_json::Value,
+    b: &serde_json::Value,
+    path: String,
+) -> Option<(String, String, String)> {
+    use serde_json::Value;
+    let here = || {
+        Some((
+            if path.is_empty() {
+                "(file)".to_string()
+            } else {
+                path.clone()
+            },
+            a.to_string(),
+            b.to_string(),
+        ))
+    };
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) => {
+            for (key, value) in y {
+                let inner = if path.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{path}.{key}")
+                };
+                match x.get(key) {
+                    Some(other) => {
+                        if let Some(found) = json_difference(other, value, inner) {
+                            return Some(found);
+                        }
+                    }
+                    None => return Some((inner, "(missing)".into(), value.to_string())),
+                }
+            }
+            x.keys().find(|k| !y.contains_key(*k)).map(|k| {
+                let inner = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                (inner, x[k].to_string(), "(no such field)".into())
+            })
+        }
+        (Value::Array(x), Value::Array(y)) => {
+            for (i, (p, q)) in x.iter().zip(y).enumerate() {
+                if let Some(found) = json_difference(p, q, format!("{path}[{i}]")) {
+                    return Some(found);
+                }
+            }
+            (x.len() != y.len()).then(|| {
+                (
+                    format!("{path} (length)"),
+                    x.len().to_string(),
+                    y.len().to_string(),
+                )
+            })
+        }
+        _ if a == b => None,
+        _ => here(),
     }
 }
 
@@ -395,14 +614,32 @@ fn relabel_shard(
         Err(err) => return Ok((0, vec![undecodable("(tar)", err.to_string())])),
     };
     // Members grouped by key in tar order; a sample is checked once its last member is
-    // read, so one sample's members are held at a time.
+    // read, so one sample's members are held at a time. The samples must be the plan's,
+    // in the plan's order: one missing or added is a finding.
+    let tasks = dataset.plan.shard_tasks(shard);
+    let mut next_task = 0usize;
     let mut samples = 0u64;
     let mut current: Option<(String, Fields)> = None;
     let mut finish = |sample: Option<(String, Fields)>, findings: &mut Vec<Finding>| {
         if let Some((key, fields)) = sample {
             progress();
             samples += 1;
-            findings.extend(relabel_sample(dataset, &shard.name, &key, &fields));
+            let Some(found) = tasks[next_task..].iter().position(|t| t.key == key) else {
+                findings.push(Finding::Unexpected {
+                    shard: shard.name.clone(),
+                    member: key,
+                });
+                return;
+            };
+            for skipped in &tasks[next_task..next_task + found] {
+                findings.push(Finding::SampleMissing {
+                    shard: shard.name.clone(),
+                    key: skipped.key.clone(),
+                });
+            }
+            let task = &tasks[next_task + found];
+            next_task += found + 1;
+            findings.extend(relabel_sample(dataset, &shard.name, task, &fields));
         }
     };
     loop {
@@ -428,17 +665,43 @@ fn relabel_shard(
         last.1.push((field, data.to_vec()));
     }
     finish(current.take(), &mut findings);
+    for task in &tasks[next_task..] {
+        findings.push(Finding::SampleMissing {
+            shard: shard.name.clone(),
+            key: task.key.clone(),
+        });
+    }
     Ok((samples, findings))
 }
 
-/// Decodes one array member (`KEY.npy`, `KEY.r10.npy.gz`, ...) into an image.
-fn decode_array(data: &[u8], parsed: &MemberName) -> Result<bettimill_grid::BinaryImage, String> {
+/// Decodes one array member (`KEY.npy`, `KEY.r10.npy.gz`, ...) into an image, and says
+/// whether its `.npy` bytes are exactly the ones the build writes for that image (uint8,
+/// C order, the writer's header): another dtype or header holding the same values is a
+/// finding, not an equivalent.
+fn decode_array(
+    data: &[u8],
+    parsed: &MemberName,
+) -> Result<(bettimill_grid::BinaryImage, Option<String>), String> {
     let limit = 1 << 34;
     let raw =
         bettimill_shard::decompress(data, parsed.compression, limit).map_err(|e| e.to_string())?;
     // Stored arrays are 0/1 by construction; a value other than 0 or 1 is damage.
     bettimill_grid::npy::read_bytes(&raw, true)
-        .map(|npy| npy.image)
+        .map(|npy| {
+            let written =
+                bettimill_grid::npy::write_bytes(&npy.image, bettimill_grid::npy::Dtype::U8);
+            // The header's dictionary (after magic, version and length), as text.
+            let header = |bytes: &[u8]| -> String {
+                let rest = bytes.get(10..).unwrap_or_default();
+                let line = rest.split(|&b| b == b'\n').next().unwrap_or_default();
+                String::from_utf8_lossy(&line[..line.len().min(200)])
+                    .trim()
+                    .to_string()
+            };
+            let differs = (written != raw)
+                .then(|| format!("{} (the build writes {})", header(&raw), header(&written)));
+            (npy.image, differs)
+        })
         .map_err(|err| match err {
             bettimill_grid::npy::NpyError::NotBinary { index, value } => {
                 format!("voxel {index} has value {value}; a dataset array holds only 0 and 1")
@@ -494,17 +757,54 @@ impl SampleFindings<'_> {
     }
 }
 
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
 fn to_json(value: &impl Serialize) -> String {
     serde_json::to_string(value).unwrap_or_else(|err| format!("(unserialisable: {err})"))
 }
 
 /// Every finding of one sample: each label field recomputed from its arrays (and the plan's
 /// stratum) and compared.
-fn relabel_sample(dataset: &Dataset, shard: &str, key: &str, fields: &Fields) -> Vec<Finding> {
+fn relabel_sample(
+    dataset: &Dataset,
+    shard: &str,
+    task: &bettimill_plan::SampleTask,
+    fields: &Fields,
+) -> Vec<Finding> {
+    let key = task.key.as_str();
     let mut out = SampleFindings {
         shard,
         findings: Vec::new(),
     };
+    let plan = &dataset.plan;
+    // The members are exactly the plan's fields: cls, json, the image and one copy per
+    // resolution (any compression suffix).
+    let mut expected: Vec<String> = [
+        bettimill_format::member::CLASS_FIELD,
+        bettimill_format::member::LABEL_FIELD,
+        bettimill_format::member::IMAGE_FIELD,
+    ]
+    .iter()
+    .map(|f| f.to_string())
+    .chain(plan.resolutions.iter().map(|r| format!("r{r}.npy")))
+    .collect();
+    for (field, _) in fields {
+        let bare = bettimill_shard::Compression::split_suffix(field).0;
+        match expected.iter().position(|e| e == bare) {
+            Some(i) => {
+                expected.remove(i);
+            }
+            None => out.findings.push(Finding::Unexpected {
+                shard: shard.to_string(),
+                member: format!("{key}.{field}"),
+            }),
+        }
+    }
+    for missing in expected {
+        out.undecodable(&format!("{key}.{missing}"), "the member is missing".into());
+    }
     let Some((_, json)) = fields
         .iter()
         .find(|f| f.0 == bettimill_format::member::LABEL_FIELD)
@@ -519,8 +819,26 @@ fn relabel_sample(dataset: &Dataset, shard: &str, key: &str, fields: &Fields) ->
             return out.findings;
         }
     };
+    // Fields the plan fixes for this sample: its key, stratum and seed, the manifest and
+    // the version (a label moved from another sample, or a manifest.toml changed after the
+    // build and its hashes rewritten, differs here).
+    out.compare(key, "key", &label.key, key);
+    out.compare(key, "field", &label.field, "Z/2");
+    out.compare(key, "class_index", label.stratum, task.stratum);
+    out.compare(key, "seed", &label.seed, hex(&task.seed));
+    out.compare(
+        key,
+        "manifest_hash",
+        &label.manifest_hash,
+        &plan.manifest_hash,
+    );
+    out.compare(
+        key,
+        "tool_version",
+        &label.tool_version,
+        bettimill_format::TOOL_VERSION,
+    );
     // Fields the plan's stratum fixes.
-    let plan = &dataset.plan;
     match plan.strata.get(label.stratum) {
         None => out.compare(
             key,
@@ -565,7 +883,12 @@ fn relabel_sample(dataset: &Dataset, shard: &str, key: &str, fields: &Fields) ->
     for (member, data) in &arrays {
         let parsed = MemberName::parse(member).expect("filtered above");
         let image = match decode_array(data, &parsed) {
-            Ok(image) => image,
+            Ok((image, header)) => {
+                if let Some(header) = header {
+                    out.undecodable(member, format!(".npy header {header}"));
+                }
+                image
+            }
             Err(reason) => {
                 out.undecodable(member, reason);
                 continue;

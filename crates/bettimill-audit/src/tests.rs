@@ -127,17 +127,25 @@ fn fractions_choose_reproducibly() {
 /// shard's record and index.json as an attacker would, so that `verify` passes and only
 /// relabelling can tell.
 fn tamper_label(dataset: &Dataset, index: u64, edit: &dyn Fn(&mut serde_json::Value)) {
+    rewrite_shard(dataset, index, &|members| {
+        let json = members
+            .iter_mut()
+            .find(|m| m.name.ends_with(".json"))
+            .unwrap();
+        let mut label: serde_json::Value = serde_json::from_slice(&json.data).unwrap();
+        edit(&mut label);
+        json.data = serde_json::to_vec(&label).unwrap();
+        json.data.push(b'\n');
+    });
+}
+
+/// Rewrites the members of shard `index` with `edit`, then its record and index.json as an
+/// attacker would.
+fn rewrite_shard(dataset: &Dataset, index: u64, edit: &dyn Fn(&mut Vec<bettimill_shard::Member>)) {
     let shard = dataset.plan.shard(index);
     let bytes = std::fs::read(dataset.tar_path(&shard)).unwrap();
     let mut members = bettimill_shard::read_tar(&bytes).unwrap();
-    let json = members
-        .iter_mut()
-        .find(|m| m.name.ends_with(".json"))
-        .unwrap();
-    let mut label: serde_json::Value = serde_json::from_slice(&json.data).unwrap();
-    edit(&mut label);
-    json.data = serde_json::to_vec(&label).unwrap();
-    json.data.push(b'\n');
+    edit(&mut members);
     let mut samples: Vec<Vec<bettimill_shard::Member>> = Vec::new();
     for member in members {
         let key = MemberName::parse(&member.name).unwrap().key.to_string();
@@ -215,6 +223,14 @@ fn relabel_names_every_tampered_field_derived_from_the_voxels() {
             "resolutions[0].side",
             Box::new(|v| v["resolutions"][0]["side"] = 5.into()),
         ),
+        // Fields the plan fixes for the sample.
+        ("key", Box::new(|v| v["key"] = "train/s999999".into())),
+        ("field", Box::new(|v| v["field"] = "Z/3".into())),
+        ("seed", Box::new(|v| v["seed"] = "00".repeat(32).into())),
+        (
+            "manifest_hash",
+            Box::new(|v| v["manifest_hash"] = "ab".repeat(32).into()),
+        ),
     ];
     // Clean first: every field agrees on an untouched dataset.
     let report = relabel(&dir, &all).unwrap();
@@ -258,5 +274,199 @@ fn relabel_names_every_tampered_field_derived_from_the_voxels() {
     }
     let report = relabel(&dir, &all).unwrap();
     assert!(report.findings.is_empty(), "{:?}", report.findings);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Rewrites `file` of the dataset with `edit` and then updates its size and blake3 in
+/// index.json in place, as an attacker would, so the hash check of `verify` passes.
+fn forge(dir: &Path, file: &str, edit: &dyn Fn(&str) -> String) {
+    let path = dir.join(file);
+    let old = std::fs::read(&path).unwrap();
+    let new = edit(std::str::from_utf8(&old).unwrap()).into_bytes();
+    assert_ne!(old, new, "{file}: the edit changed nothing");
+    std::fs::write(&path, &new).unwrap();
+    rehash(dir, &old, &new);
+}
+
+/// Replaces the size and blake3 of `old` by those of `new` in index.json (in place: the
+/// rest of its bytes stay the build's).
+fn rehash(dir: &Path, old: &[u8], new: &[u8]) {
+    let index_path = dir.join("index.json");
+    let mut index = std::fs::read_to_string(&index_path).unwrap();
+    let (old_hash, new_hash) = (
+        bettimill_shard::blake3_hex(old),
+        bettimill_shard::blake3_hex(new),
+    );
+    let at = index.find(&old_hash).expect("index.json lists the file");
+    let bytes_at = index[..at].rfind("\"bytes\": ").unwrap() + "\"bytes\": ".len();
+    let bytes_end = bytes_at + index[bytes_at..].find(',').unwrap();
+    index.replace_range(at..at + old_hash.len(), &new_hash);
+    index.replace_range(bytes_at..bytes_end, &new.len().to_string());
+    std::fs::write(&index_path, index).unwrap();
+}
+
+/// The fields of findings naming `file`.
+fn fields_of(findings: &[Finding], file: &str) -> Vec<String> {
+    findings
+        .iter()
+        .filter_map(|f| match f {
+            Finding::FileDiffers {
+                file: name, field, ..
+            } if name == file => Some(field.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A changed `topology_class` or `betti` in classes.json, a changed class table in the
+/// card, a changed count in a wids index and a changed index.json (spacing only) used to
+/// pass `verify` and `audit` once the hashes were rewritten: every file that is a pure
+/// function of the plan is now regenerated and compared byte for byte, and the file and
+/// field are named.
+#[test]
+fn forged_label_tables_are_named_by_file_and_field() {
+    let dir = scratch("forged");
+    let dataset = built(&dir);
+    assert!(check_files(&dataset).is_empty());
+    let pristine: Vec<(String, Vec<u8>)> = ["classes.json", "README.md", "index.json"]
+        .iter()
+        .map(|f| (f.to_string(), std::fs::read(dir.join(f)).unwrap()))
+        .collect();
+    let wids = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .find(|n| n.starts_with("shardindex-"))
+        .unwrap();
+    let wids_bytes = std::fs::read(dir.join(&wids)).unwrap();
+    type Edit = Box<dyn Fn(&str) -> String>;
+    let cases: Vec<(String, Edit, &str)> = vec![
+        (
+            "classes.json".into(),
+            Box::new(|t: &str| t.replacen("\"topology_class\": 0", "\"topology_class\": 1", 1)),
+            "topology_class",
+        ),
+        (
+            "classes.json".into(),
+            Box::new(|t: &str| {
+                t.replacen("\"betti\": [\n        1,", "\"betti\": [\n        2,", 1)
+            }),
+            "betti",
+        ),
+        (
+            "README.md".into(),
+            Box::new(|t: &str| t.replacen("| 0 | ", "| 1 | ", 1)),
+            "line ",
+        ),
+        (
+            wids.clone(),
+            Box::new(|t: &str| t.replacen("\"nsamples\": 4", "\"nsamples\": 5", 1)),
+            "nsamples",
+        ),
+    ];
+    for (file, edit, field) in &cases {
+        forge(&dir, file, edit.as_ref());
+        let verified = dataset.layout().verify(&mut |_, _| {}).unwrap();
+        assert!(
+            verified.problems.is_empty(),
+            "{file}: {:?}",
+            verified.problems
+        );
+        let findings = check_files(&dataset);
+        assert!(
+            fields_of(&findings, file).iter().any(|f| f.contains(field)),
+            "forging {file} ({field}) was not named: {findings:?}"
+        );
+        for (name, bytes) in &pristine {
+            std::fs::write(dir.join(name), bytes).unwrap();
+        }
+        std::fs::write(dir.join(&wids), &wids_bytes).unwrap();
+        assert!(check_files(&dataset).is_empty(), "{file}: not restored");
+    }
+    // index.json itself, spacing only: its values are right, its bytes are not the build's.
+    let index = std::fs::read_to_string(dir.join("index.json")).unwrap();
+    std::fs::write(dir.join("index.json"), index.replacen("{\n", "{\n ", 1)).unwrap();
+    let verified = dataset.layout().verify(&mut |_, _| {}).unwrap();
+    assert!(verified.problems.is_empty(), "{:?}", verified.problems);
+    assert_eq!(
+        fields_of(&check_files(&dataset), "index.json"),
+        vec!["(bytes)"]
+    );
+    std::fs::write(dir.join("index.json"), index).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A sample taken out of a shard, a member added to one and an array stored with another
+/// dtype holding the same values passed relabelling; each is now a finding.
+#[test]
+fn relabel_finds_missing_samples_extra_members_and_foreign_npy_headers() {
+    let dir = scratch("members");
+    let dataset = built(&dir);
+    let all: Vec<ShardPlan> = dataset.plan.shards().collect();
+    let key_of = |name: &str| MemberName::parse(name).unwrap().key.to_string();
+    // The second sample of shard 0 put under a key the plan does not have (its count
+    // stays, so finalize accepts the record: the plan's sample is missing all the same).
+    let tasks = dataset.plan.shard_tasks(&all[0]);
+    let second = tasks[1].key.clone();
+    rewrite_shard(&dataset, 0, &|members| {
+        for member in members.iter_mut() {
+            if key_of(&member.name) == second {
+                member.name = member.name.replacen(&second, &format!("{second}x"), 1);
+            }
+        }
+    });
+    // A member `KEY.zz` added to the first sample of shard 1, and its image stored as bool.
+    rewrite_shard(&dataset, 1, &|members| {
+        let first = key_of(&members[0].name);
+        let at = members
+            .iter()
+            .position(|m| key_of(&m.name) != first)
+            .unwrap();
+        let mut extra = members[0].clone();
+        extra.name = format!("{first}.zz");
+        members.insert(at, extra);
+        let image = members
+            .iter_mut()
+            .find(|m| m.name == format!("{first}.npy"))
+            .unwrap();
+        let npy = bettimill_grid::npy::read_bytes(&image.data, true).unwrap();
+        image.data = bettimill_grid::npy::write_bytes(
+            &npy.image,
+            bettimill_grid::npy::Dtype {
+                kind: 'b',
+                size: 1,
+                big_endian: false,
+            },
+        );
+    });
+    let verified = dataset.layout().verify(&mut |_, _| {}).unwrap();
+    assert!(verified.problems.is_empty(), "{:?}", verified.problems);
+    let report = relabel(&dir, &all[..2]).unwrap();
+    let text: Vec<String> = report.findings.iter().map(|f| f.to_string()).collect();
+    assert!(
+        report
+            .findings
+            .iter()
+            .any(|f| matches!(f, Finding::SampleMissing { key, .. } if *key == second)),
+        "{text:?}"
+    );
+    assert!(
+        report
+            .findings
+            .iter()
+            .any(|f| matches!(f, Finding::Unexpected { member, .. } if member.ends_with(".zz"))),
+        "{text:?}"
+    );
+    assert!(
+        report.findings.iter().any(
+            |f| matches!(f, Finding::Unexpected { member, .. } if *member == format!("{second}x"))
+        ),
+        "{text:?}"
+    );
+    assert!(
+        text.iter()
+            .any(|t| t.contains(".npy: cannot decode: .npy header") && t.contains("|b1")),
+        "{text:?}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -33,7 +33,23 @@ pub struct AuditArgs {
 pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     // An index of an older format is named as such before the plan is compared.
     bettimill_format::DatasetDir::new(&args.dir).check_index()?;
-    let dataset = Dataset::open(&args.dir)?;
+    let dataset = Dataset::open(&args.dir).map_err(|err| match err {
+        // Build's advice (another --out directory) does not fit an audit: the dataset's
+        // own manifest was changed after it was built.
+        bettimill_executor::BuildError::Format(
+            bettimill_format::FormatError::DifferentManifest {
+                dir,
+                expected,
+                found,
+            },
+        ) => anyhow::anyhow!(
+            "{}: its canonical hash is {expected}, but build.json says the dataset was built from {found}: the manifest was changed after the build, so nothing in {} can be audited against it; restore the manifest.toml it was built from (`bettimill verify {}` names the files that differ)",
+            dir.join(bettimill_format::dir::MANIFEST_FILE).display(),
+            dir.display(),
+            dir.display()
+        ),
+        other => other.into(),
+    })?;
     let selection = match (&args.rebuild, &args.shards) {
         (Some(fraction), _) => Some(Selection::Fraction {
             fraction: *fraction,
@@ -49,6 +65,8 @@ pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
         Some(selection) => bettimill_audit::select(&dataset, selection)?,
         None => dataset.plan.shards().collect(),
     };
+    // The files that are pure functions of the plan and the records, byte for byte.
+    let files = bettimill_audit::check_files(&dataset);
     drop(dataset);
     // One bar over both passes: every chosen sample once per pass.
     let samples: u64 = chosen.iter().map(|shard| shard.samples).sum();
@@ -69,6 +87,7 @@ pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
         report.findings.extend(relabelled.findings);
     }
     bar.finish_and_clear();
+    report.findings.splice(0..0, files);
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -333,6 +333,46 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
     }
 }
 
+/// What `verify` adds to the hashes: the files that are pure functions of the plan and the
+/// records (index.json's own bytes, classes.json, the card, the wids indexes) regenerated
+/// and compared byte for byte, and manifest.toml against build.json's manifest hash. Cheap:
+/// no shard is read. A directory that cannot be opened as a dataset adds nothing here
+/// (the hash check has said why).
+fn plan_file_problems(dir: &Path) -> Vec<bettimill_shard::Problem> {
+    use bettimill_executor::BuildError;
+    use bettimill_format::FormatError;
+    let file = |path: &str, reason: String| bettimill_shard::Problem::File {
+        path: path.into(),
+        reason,
+    };
+    match bettimill_executor::Dataset::open(dir) {
+        Ok(dataset) => bettimill_audit::check_files(&dataset)
+            .into_iter()
+            .map(|finding| match finding {
+                bettimill_audit::Finding::FileDiffers {
+                    file: name,
+                    field,
+                    stored,
+                    computed,
+                } => file(
+                    &name,
+                    format!("{field} says {stored}, the build writes {computed}"),
+                ),
+                other => file("index.json", other.to_string()),
+            })
+            .collect(),
+        Err(BuildError::Format(FormatError::DifferentManifest {
+            expected, found, ..
+        })) => vec![file(
+            bettimill_format::dir::MANIFEST_FILE,
+            format!(
+                "its canonical hash is {expected}, build.json's manifest_hash is {found}: the manifest was changed after the build"
+            ),
+        )],
+        Err(_) => Vec::new(),
+    }
+}
+
 fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
     // The bar appears once the index is read and the number of shards known.
     let mut bar = None;
@@ -343,7 +383,8 @@ fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    let report = report?;
+    let mut report = report?;
+    report.problems.extend(plan_file_problems(dir));
     if json {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else if report.problems.is_empty() {

@@ -398,13 +398,7 @@ impl Dataset {
         &self,
         checked: &dyn Fn(&ShardPlan) -> bool,
     ) -> Result<IndexHeader, BuildError> {
-        let header = IndexHeader::new(
-            TOOL_VERSION,
-            self.plan.manifest_hash.clone(),
-            self.plan.hash(),
-            self.plan.shard_count(),
-            self.plan.samples,
-        );
+        let header = self.index_header();
         let mut write =
             |path: &Path| -> Result<AtomicFile, BuildError> { Ok(AtomicFile::create(path)?) };
         let files = if self.layout.is_finalized() {
@@ -427,6 +421,38 @@ impl Dataset {
             file.commit()?;
         }
         Ok(header)
+    }
+
+    /// The files finalize writes (the wids indexes, `classes.json`, the card, `index.json`)
+    /// that differ from what it would write now from the plan and the records, compared
+    /// byte for byte as they stream (memory does not grow with shards). Shards are not
+    /// read. For `verify` and `audit` of a finalized directory: these files are pure
+    /// functions of the plan and the records, so an edit that rewrote the hashes is found
+    /// here.
+    pub fn finalized_differences(&self) -> Result<Vec<PathBuf>, BuildError> {
+        let mut compare = |path: &Path| Ok(SameBytes::open(path));
+        let compared = self.finalize_into(&self.index_header(), None, &mut compare)?;
+        Ok(compared
+            .into_iter()
+            .filter_map(|(path, same)| (!same.matches()).then_some(path))
+            .collect())
+    }
+
+    /// The bytes finalize would write into each of its files now, in memory (to say where
+    /// a file that [`Dataset::finalized_differences`] found differs).
+    pub fn finalized_bytes(&self) -> Result<Vec<(PathBuf, Vec<u8>)>, BuildError> {
+        let mut memory = |_: &Path| Ok(Vec::new());
+        self.finalize_into(&self.index_header(), None, &mut memory)
+    }
+
+    fn index_header(&self) -> IndexHeader {
+        IndexHeader::new(
+            TOOL_VERSION,
+            self.plan.manifest_hash.clone(),
+            self.plan.hash(),
+            self.plan.shard_count(),
+            self.plan.samples,
+        )
     }
 
     /// Streams the finalized files into writers `open` gives (one record at a time, so memory
@@ -467,6 +493,20 @@ impl Dataset {
                     .map_err(corrupt)?;
             }
             let entry = record.shard.index_entry(record_blake3);
+            // The record's name, split and sample count are the plan's: a record edited to
+            // say otherwise never reaches the index.
+            let planned_name = DatasetDir::relative_tar_name(&plan.name);
+            if (entry.name.as_str(), entry.split.as_str(), entry.samples)
+                != (planned_name.as_str(), plan.split.as_str(), plan.samples)
+            {
+                return Err(BuildError::Corrupt {
+                    path: self.record_path(&plan),
+                    reason: format!(
+                        "the record says {} with {} samples in split {}, the plan puts {} samples in {} of split {}; run the build again",
+                        entry.name, entry.samples, entry.split, plan.samples, planned_name, plan.split
+                    ),
+                });
+            }
             index.push(&entry).map_err(io_at(&index_path))?;
             let (path, split) = match wids.entry(entry.split.clone()) {
                 std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
