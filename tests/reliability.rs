@@ -1493,6 +1493,55 @@ fn a_worker_holds_compressed_members_not_the_images_of_a_shard() {
     assert!(large < small + 8 * 1024, "4: {small} KiB, 64: {large} KiB");
 }
 
+/// `status` on a plan of 10^7 one-sample shards took 96-122 s: it opened every planned
+/// shard's record and tar. Now it lists `shards/` and `records/` once and opens only what
+/// is there: on a bound directory of 100,000 planned shards and none built, strace sees
+/// no open or stat of a shard's or record's path.
+#[test]
+fn status_opens_only_the_shards_on_disk_not_every_planned_one() {
+    if Command::new("strace").arg("-V").output().is_err() {
+        skip_unless_ci("strace", "strace is not installed");
+        return;
+    }
+    let tmp = Dir::new();
+    let m = common::ball_and_handle(tmp.path().join("many.toml"), "many", 2, 16, 100_000, 1, 5);
+    let out = tmp.path().join("many");
+    // Bound (manifest.toml, build.json), nothing built: stopped during start-up.
+    let coordinator = spawn_build(&m, &out, 1, &[("BETTIMILL_TEST_PAUSE_AT_STARTUP", "120")]);
+    wait_until("build.json", Duration::from_secs(60), || {
+        out.join("build.json").exists()
+    });
+    assert!(kill("-INT", coordinator.id()));
+    assert_eq!(
+        coordinator.wait_with_output().unwrap().status.code(),
+        Some(130)
+    );
+    let trace = tmp.path().join("trace");
+    let result = Command::new("strace")
+        .args([
+            "-f",
+            "-e",
+            "trace=open,openat,stat,newfstatat,statx,access",
+            "-o",
+        ])
+        .arg(&trace)
+        .arg(common::BETTIMILL)
+        .args(["status", "--json"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", text(&result.stderr)));
+    assert_eq!(report["shards"], 100_000);
+    assert_eq!(report["missing_count"], 100_000);
+    let calls = std::fs::read_to_string(&trace).unwrap();
+    let per_shard = calls
+        .lines()
+        .filter(|l| l.contains("/records/many-") || l.contains("/shards/many-"))
+        .count();
+    assert_eq!(per_shard, 0, "status looked at planned shards one by one");
+}
+
 /// A dataset whose manifest.toml was edited after the build (another seed): `verify` names
 /// manifest.toml against build.json, and `audit` says the manifest was changed (it used to
 /// give build's advice, "use another --out directory").
