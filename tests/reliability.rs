@@ -1264,6 +1264,29 @@ fn a_no_op_build_writes_nothing_and_stats_keeps_the_recorded_build_time() {
     assert_ne!(std::fs::read(out.join("README.md")).unwrap(), b"edited\n");
 }
 
+/// A build killed between a shard's record and its timing leaves a complete shard with no
+/// `timings/NAME.json` (8 of 180 killed builds). Nothing but `stats`' build time reads
+/// timings: `verify`, a resumed build and `stats` all succeed, and `stats` says how many
+/// shards it could not time.
+#[test]
+fn a_complete_shard_without_its_timing_changes_nothing_but_the_stats_line() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 8, 2);
+    let out = tmp.path().join("untimed");
+    assert_exit(&build(&m, &out, 1), 0);
+    std::fs::remove_file(out.join("timings").join("r2d-000001.json")).unwrap();
+    assert_exit(&run(&["verify", out.to_str().unwrap()]), 0);
+    assert_exit(&build(&m, &out, 1), 0);
+    let stats = run(&["stats", out.to_str().unwrap()]);
+    assert_exit(&stats, 0);
+    assert!(
+        text(&stats.stdout).contains("(3 of 4 shards")
+            && text(&stats.stdout).contains("1 shard without a timing not counted"),
+        "{}",
+        text(&stats.stdout)
+    );
+}
+
 // ---------------------------------------------------------------- soak
 
 struct SoakReport {
