@@ -14,9 +14,14 @@
 //!   bin of the sample's stratum, which must hold the hypervolume), the `cls` member, and for
 //!   each downscaled copy its `side`, `betti`, `euler`, `hypervolume` and `preserved` (its
 //!   Betti numbers equal the full image's). The stratum's `class_label`, `mode` and `family`
-//!   are compared with the plan. Not derived from the voxels, so not checked here:
-//!   `betti_rational`, `knot_type`, `construction`, `seed`, `attempt` (a rebuild checks
-//!   those, byte for byte).
+//!   are compared with the plan, and so are the fields the plan fixes for the sample (`key`,
+//!   `field`, `class_index`, `seed`, `manifest_hash`, `tool_version`), the sample's members
+//!   (exactly the plan's fields; every planned sample present, in order) and each array's
+//!   `.npy` bytes (the writer's header and dtype). Neither derived from the voxels nor fixed
+//!   by the plan, so not checked here: `betti_rational`, `knot_type`, `construction`,
+//!   `attempt` (a rebuild checks those, byte for byte).
+//! - **files** ([`check_files`], before either): the files that are pure functions of the
+//!   plan and the records, regenerated and compared byte for byte.
 //!
 //! The scratch directory lives inside the dataset directory (`DIR/.audit-PID`) so it is on
 //! the same file system, and is removed afterwards; nothing else in DIR is written.
