@@ -14,6 +14,9 @@ cargo fmt --all --check
 echo "== cargo clippy (warnings are errors)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
 
+echo "== cargo doc (warnings are errors: broken and private links fail)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
+
 echo "== headless Chromium for the HTML viewer's test (ci/browser.sh)"
 ci/browser.sh
 
