@@ -338,10 +338,10 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
 /// and compared byte for byte, and manifest.toml against build.json's manifest hash. Cheap:
 /// no shard is read. A directory that cannot be opened as a dataset adds nothing here
 /// (the hash check has said why).
-fn plan_file_problems(dir: &Path) -> Vec<bettimill_shard::Problem> {
+fn plan_file_problems(dir: &Path) -> Vec<bettimill_format::Problem> {
     use bettimill_executor::BuildError;
     use bettimill_format::FormatError;
-    let file = |path: &str, reason: String| bettimill_shard::Problem::File {
+    let file = |path: &str, reason: String| bettimill_format::Problem::File {
         path: path.into(),
         reason,
     };
