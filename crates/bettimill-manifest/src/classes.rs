@@ -57,6 +57,15 @@ pub(crate) fn expand<'de, D: Deserializer<'de>>(
             continue;
         }
         if !table.contains_key("family") {
+            // A misspelt `family` is the likely cause: name the key written.
+            if let Some(key) = table
+                .keys()
+                .find(|key| strsim::levenshtein(key, "family") <= 2)
+            {
+                return Err(D::Error::custom(format!(
+                    "class {entry}: unknown field `{key}`: did you mean `family`?"
+                )));
+            }
             return Err(D::Error::custom(format!(
                 "class {entry}: give `family = \"...\"` or `betti = [...]`"
             )));

@@ -486,6 +486,7 @@ impl Manifest {
             };
             let mut reason = err.message().trim().to_string();
             if let Some(name) = unknown_field_name(&reason) {
+                reason = unknown_field_reason(&name, &reason);
                 field = name;
             }
             if let Some(missing) = missing_field_name(&reason) {
@@ -842,6 +843,31 @@ fn missing_field_name(message: &str) -> Option<String> {
 fn unknown_field_name(message: &str) -> Option<String> {
     let rest = message.strip_prefix("unknown field `")?;
     Some(rest.split('`').next()?.to_string())
+}
+
+/// The known name nearest to `name` (fewest single-character edits, the first of a tie),
+/// for a message that names the way on.
+fn nearest<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    known
+        .into_iter()
+        .min_by_key(|candidate| strsim::levenshtein(name, candidate))
+}
+
+/// serde's "unknown field `x`, expected one of `a`, `b`" as "unknown field `x`: did you mean
+/// `a`? The known fields are `a`, `b`".
+fn unknown_field_reason(name: &str, message: &str) -> String {
+    let Some((_, expected)) = message.split_once("expected ") else {
+        return message.to_string();
+    };
+    // serde lists the fields in backquotes: every second piece is one.
+    let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+    match nearest(name, known.iter().copied()) {
+        Some(best) => format!(
+            "unknown field `{name}`: did you mean `{best}`? The known fields are `{}`",
+            known.join("`, `")
+        ),
+        None => message.to_string(),
+    }
 }
 
 mod classes;

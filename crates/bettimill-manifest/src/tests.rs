@@ -56,6 +56,31 @@ fn unknown_field_is_named() {
 }
 
 #[test]
+fn an_unknown_field_names_the_nearest_known_one() {
+    let text = GOOD.replace("seed = 1", "sed = 1");
+    check_refused(&text, "sed", 8);
+    let reason = parse(&text).unwrap_err().to_string();
+    assert!(
+        reason.contains("unknown field `sed`: did you mean `seed`?"),
+        "{reason}"
+    );
+    assert!(
+        reason.contains("`shard_size`"),
+        "the known fields are listed: {reason}"
+    );
+}
+
+#[test]
+fn a_misspelt_family_is_named() {
+    let text = GOOD.replace("family = \"ball\"", "famliy = \"ball\"");
+    let reason = parse(&text).unwrap_err().to_string();
+    assert!(
+        reason.contains("unknown field `famliy`: did you mean `family`?"),
+        "{reason}"
+    );
+}
+
+#[test]
 fn wrong_type_is_named() {
     check_refused(&GOOD.replace("side = 24", "side = \"big\""), "side", 4);
 }
