@@ -490,6 +490,12 @@ impl DatasetDir {
         &self,
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<crate::VerifyReport, FormatError> {
+        if !self.index_path().exists() {
+            return Err(FormatError::NotADataset {
+                dir: self.root.clone(),
+                found: self.describe_unfinished(),
+            });
+        }
         let mut records = |entry: &crate::IndexShard| -> Result<ShardRecord, String> {
             let name = DatasetDir::shard_stem(&entry.name);
             let path = self.record_path(name);
@@ -534,6 +540,62 @@ impl DatasetDir {
             }
         }
         Ok(report)
+    }
+
+    /// What a directory without `index.json` holds, said for a person: a build that has
+    /// not finished, a dataset one level down, or the entries it has.
+    fn describe_unfinished(&self) -> String {
+        let root = &self.root;
+        if !root.exists() {
+            return "it does not exist".to_string();
+        }
+        if !root.is_dir() {
+            return "it is a file; give the dataset's directory (the --out of `bettimill build`)"
+                .to_string();
+        }
+        if root.join(BUILD_INFO_FILE).exists() {
+            let records = std::fs::read_dir(root.join(RECORDS_DIR))
+                .map(|entries| entries.filter_map(Result::ok).count())
+                .unwrap_or(0);
+            return format!(
+                "it holds a build that has not finished ({BUILD_INFO_FILE} and {records} completed shard(s)); run the same `bettimill build MANIFEST --out {}` again to finish it",
+                root.display()
+            );
+        }
+        let mut names: Vec<String> = match std::fs::read_dir(root) {
+            Ok(entries) => entries
+                .filter_map(Result::ok)
+                .map(|entry| entry.file_name().to_string_lossy().into_owned())
+                .collect(),
+            Err(err) => return format!("it cannot be listed ({err})"),
+        };
+        // Sorted: the message is the same on every file system.
+        names.sort();
+        if let Some(inner) = names
+            .iter()
+            .find(|name| root.join(name).join(INDEX_FILE).is_file())
+        {
+            return format!(
+                "it holds a dataset one level down: {}",
+                root.join(inner).display()
+            );
+        }
+        if names.is_empty() {
+            return "it is empty".to_string();
+        }
+        let shown: Vec<&str> = names.iter().take(5).map(String::as_str).collect();
+        let more = names.len().saturating_sub(shown.len());
+        let tail = if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        };
+        format!(
+            "it holds {} entr{} ({}{tail}) and none of a dataset's files",
+            names.len(),
+            if names.len() == 1 { "y" } else { "ies" },
+            shown.join(", ")
+        )
     }
 
     /// Reads `index.json` through once, if it exists, and says why it cannot be used (such
@@ -975,6 +1037,51 @@ mod tests {
         let info = BuildInfo::current("m1", "p1");
         layout.bind("name = \"x\"\n", &info).unwrap();
         (layout, info)
+    }
+
+    /// The message `verify` gives for a path without `index.json`.
+    fn not_a_dataset(path: &Path) -> String {
+        match DatasetDir::new(path).verify(&mut |_, _| {}) {
+            Err(err @ FormatError::NotADataset { .. }) => err.to_string(),
+            other => panic!("{}: expected NotADataset, got {other:?}", path.display()),
+        }
+    }
+
+    #[test]
+    fn verify_of_a_non_dataset_says_what_the_path_holds() {
+        let tmp = tempfile::tempdir().unwrap();
+        let root = tmp.path();
+        assert!(not_a_dataset(&root.join("nowhere")).ends_with("it does not exist"));
+        std::fs::write(root.join("file.txt"), "x").unwrap();
+        assert!(not_a_dataset(&root.join("file.txt")).contains("it is a file"));
+        let empty = root.join("empty");
+        std::fs::create_dir(&empty).unwrap();
+        assert!(not_a_dataset(&empty).ends_with("it is empty"));
+        let photos = root.join("photos");
+        std::fs::create_dir(&photos).unwrap();
+        for name in [
+            "b.png", "a.png", "c.png", "d.png", "e.png", "f.png", "g.png",
+        ] {
+            std::fs::write(photos.join(name), "x").unwrap();
+        }
+        let message = not_a_dataset(&photos);
+        assert!(
+            message.ends_with(
+                "it holds 7 entries (a.png, b.png, c.png, d.png, e.png and 2 more) and none of a dataset's files"
+            ),
+            "{message}"
+        );
+        // A dataset one level down, and a build that has not finished.
+        let (layout, _) = bound(root);
+        let message = not_a_dataset(&layout.root);
+        assert!(message.contains("has not finished (build.json and 0 completed shard(s))"));
+        assert!(
+            message.contains("bettimill build MANIFEST --out"),
+            "{message}"
+        );
+        std::fs::write(layout.index_path(), "{}").unwrap();
+        let message = not_a_dataset(root);
+        assert!(message.contains(&format!("one level down: {}", layout.root.display())));
     }
 
     #[test]

@@ -81,6 +81,14 @@ pub enum FormatError {
         /// The directory.
         dir: PathBuf,
     },
+    /// A command that reads a finished dataset was given something else.
+    #[error("{dir} is not a finished bettimill dataset (no index.json): {found}")]
+    NotADataset {
+        /// The path given.
+        dir: PathBuf,
+        /// What the path holds instead, and the way on.
+        found: String,
+    },
     /// A directory inside the dataset is a symbolic link.
     #[error("{path} is a symbolic link; bettimill does not write through links inside a dataset directory (it would write outside it): replace it with a real directory")]
     Symlinked {
