@@ -34,7 +34,45 @@ pub(crate) fn check_fits(
     mode: Mode,
     floor: TubeFloor,
 ) -> Result<(), ShapeError> {
-    check_sizes(family, dim, side, mode, floor, true)
+    check_sizes(family, dim, side, mode, floor, true).map_err(|err| match err {
+        // A refusal names the way on: the smallest side that fits.
+        ShapeError::DoesNotFit {
+            family: label,
+            dim: d,
+            side,
+            mode,
+            reason,
+        } => {
+            let way_on = match smallest_side(family, dim, mode, floor, side + 1) {
+                Some(fits) => format!("the smallest side that fits is {fits}"),
+                None => format!("no side up to {MAX_SEARCHED_SIDE} fits"),
+            };
+            ShapeError::DoesNotFit {
+                family: label,
+                dim: d,
+                side,
+                mode,
+                reason: format!("{reason}; {way_on}"),
+            }
+        }
+        other => other,
+    })
+}
+
+/// The largest side [`smallest_side`] tries.
+pub(crate) const MAX_SEARCHED_SIDE: usize = 1024;
+
+/// The smallest side from `from` up to [`MAX_SEARCHED_SIDE`] at which the construction
+/// fits, if any.
+pub(crate) fn smallest_side(
+    family: &Family,
+    dim: Dim,
+    mode: Mode,
+    floor: TubeFloor,
+    from: usize,
+) -> Option<usize> {
+    (from..=MAX_SEARCHED_SIDE)
+        .find(|&side| check_sizes(family, dim, side, mode, floor, true).is_ok())
 }
 
 /// Every object must fit the image on its own; with `packing`, all of them together

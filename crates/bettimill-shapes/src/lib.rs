@@ -316,15 +316,18 @@ impl Family {
     /// The smallest side length at which [`Family::check_fits`] succeeds (up to 1024).
     pub fn min_side(&self, dim: Dim, mode: Mode) -> Result<usize, ShapeError> {
         labels::expected(self, dim, mode)?;
-        (4..=1024)
-            .find(|&side| self.check_fits(dim, side, mode).is_ok())
-            .ok_or_else(|| ShapeError::DoesNotFit {
+        generate::smallest_side(self, dim, mode, TubeFloor::USUAL, 4).ok_or_else(|| {
+            ShapeError::DoesNotFit {
                 family: self.label(),
                 dim: dim.get(),
-                side: 1024,
+                side: generate::MAX_SEARCHED_SIDE,
                 mode,
-                reason: "does not fit at any side up to 1024".into(),
-            })
+                reason: format!(
+                    "does not fit at any side up to {}",
+                    generate::MAX_SEARCHED_SIDE
+                ),
+            }
+        })
     }
 
     /// The `knot_type` every sample of this family records in `mode`: the knot or link

@@ -127,6 +127,27 @@ fn serde_names_match_the_manifest_syntax() {
 }
 
 #[test]
+fn a_construction_that_does_not_fit_names_the_smallest_side_that_does() {
+    let (dim, mode) = (Dim::Four, Mode::Embed);
+    let smallest = Family::T2xB2.min_side(dim, mode).unwrap();
+    assert!(Family::T2xB2.check_fits(dim, smallest, mode).is_ok());
+    let message = Family::T2xB2
+        .check_fits(dim, smallest - 1, mode)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.ends_with(&format!("; the smallest side that fits is {smallest}")),
+        "{message}"
+    );
+    let message = Family::T2xB2
+        .check_fits(dim, 16, mode)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("side 16"), "{message}");
+    assert!(message.contains(&format!("the smallest side that fits is {smallest}")));
+}
+
+#[test]
 fn infeasible_requests_are_refused_up_front() {
     assert!(matches!(
         Family::Handle.check_fits(Dim::Four, 12, Mode::Carve),
