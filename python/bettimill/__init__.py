@@ -2,6 +2,7 @@
 
 - ``betti(array)``, ``euler(array)``, ``topology(array)``: what ``bettimill betti --json``
   computes for the array (same checks, same messages, same numbers).
+- ``presets()``: the built-in manifests (``Plan("demo-4d")`` works from any directory).
 - ``Plan(manifest)``: a manifest's plan; ``plan.sample(i)`` makes sample ``i`` on demand,
   equal to ``KEY.npy`` and ``KEY.json`` of the dataset ``bettimill build`` writes.
 - ``build(manifest, out)``, ``verify(dir)``: the library's build and check, in-process.
@@ -21,9 +22,9 @@ import sysconfig
 import numpy
 
 from . import _bettimill
-from ._bettimill import Plan, __version__
+from ._bettimill import Plan, __version__, presets
 
-__all__ = ["betti", "euler", "topology", "Plan", "build", "verify", "set_threads", "threads", "__version__"]
+__all__ = ["betti", "euler", "topology", "presets", "Plan", "build", "verify", "set_threads", "threads", "__version__"]
 
 # Whether set_threads was called (in this process or, through fork, its parent): a
 # DataLoader worker then keeps that count instead of the one thread it takes by default.

@@ -179,3 +179,32 @@ def test_empty_and_oversized_manifest_text_is_refused_like_a_file():
     padded = text + "# padding\n" * (1 << 17)
     with pytest.raises(ValueError, match="larger than 1048576 bytes"):
         bettimill.Plan(padded)
+
+
+def test_presets_are_built_in_and_an_unknown_name_lists_them(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    presets = bettimill.presets()
+    assert sorted(presets) == sorted(p.stem for p in (REPO / "manifests").glob("*.toml"))
+    for name, text in presets.items():
+        assert text == (REPO / "manifests" / f"{name}.toml").read_text()
+    plan = bettimill.Plan("demo-4d")
+    assert plan.hash == bettimill.Plan(REPO / "manifests" / "demo-4d.toml").hash
+    with pytest.raises(FileNotFoundError, match="no preset of that name .the presets: 4d-mixed-128, demo-2d"):
+        bettimill.Plan("demo-5d")
+    # A file of that name in the working directory is read instead.
+    (tmp_path / "demo-4d").write_text(presets["demo-2d"])
+    assert bettimill.Plan("demo-4d").dimension == 2
+
+
+def test_a_misspelt_key_is_named_with_the_nearest_known_one():
+    text = bettimill.presets()["demo-2d"]
+    with pytest.raises(ValueError, match="unknown field `famliy`: did you mean `family`?"):
+        bettimill.Plan(text.replace("family =", "famliy ="))
+    with pytest.raises(ValueError, match="unknown field `sed`: did you mean `seed`?"):
+        bettimill.Plan(text.replace("seed =", "sed ="))
+
+
+def test_verify_of_a_non_dataset_says_what_it_found(tmp_path):
+    (tmp_path / "notes.txt").write_text("x")
+    with pytest.raises(ValueError, match=r"not a finished bettimill dataset \(no index.json\): it holds 1 entry \(notes.txt\)"):
+        bettimill.verify(tmp_path)

@@ -40,6 +40,30 @@ pub const SCHEMA_VERSION: u32 = 1;
 /// The default manifest built by `bettimill build` with no argument: a small 3D demo.
 pub const DEMO_MANIFEST: &str = include_str!("../../../manifests/demo-3d.toml");
 
+/// The manifests of the repository's `manifests/` directory, by name (the file stem), in
+/// name order: built in, so that the Python package and the CLI reach them from anywhere.
+pub const PRESETS: &[(&str, &str)] = &[
+    (
+        "4d-mixed-128",
+        include_str!("../../../manifests/4d-mixed-128.toml"),
+    ),
+    ("demo-2d", include_str!("../../../manifests/demo-2d.toml")),
+    ("demo-3d", DEMO_MANIFEST),
+    ("demo-4d", include_str!("../../../manifests/demo-4d.toml")),
+    (
+        "paper-figures",
+        include_str!("../../../manifests/paper-figures.toml"),
+    ),
+];
+
+/// The text of the preset manifest `name` (see [`PRESETS`]).
+pub fn preset(name: &str) -> Option<&'static str> {
+    PRESETS
+        .iter()
+        .find(|(preset, _)| *preset == name)
+        .map(|(_, text)| *text)
+}
+
 /// A parsed and validated manifest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

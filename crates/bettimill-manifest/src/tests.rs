@@ -39,6 +39,28 @@ fn the_demo_manifest_parses() {
 }
 
 #[test]
+fn every_preset_is_a_file_of_manifests_and_parses() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../manifests");
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|entry| entry.unwrap().file_name().to_string_lossy().into_owned())
+        .filter_map(|name| name.strip_suffix(".toml").map(str::to_string))
+        .collect();
+    files.sort();
+    let names: Vec<&str> = PRESETS.iter().map(|(name, _)| *name).collect();
+    assert_eq!(names, files, "PRESETS lists every manifest of manifests/");
+    for (name, text) in PRESETS {
+        assert_eq!(
+            *text,
+            std::fs::read_to_string(dir.join(format!("{name}.toml"))).unwrap()
+        );
+        Manifest::parse(text, Path::new(name)).unwrap();
+        assert_eq!(preset(name), Some(*text));
+    }
+    assert_eq!(preset("demo-5d"), None);
+}
+
+#[test]
 fn a_good_manifest_parses() {
     let m = parse(GOOD).unwrap();
     assert_eq!(m.dimension, Dim::Three);

@@ -226,7 +226,8 @@ struct Source {
     origin: PathBuf,
 }
 
-/// A manifest given as a path (str or os.PathLike), TOML text (a str with a newline or an
+/// A manifest given as a path (str or os.PathLike), the name of a preset (a file of the
+/// repository's `manifests/`, built in: `demo-3d`), TOML text (a str with a newline or an
 /// `=`), or None for the embedded demo manifest (what `bettimill build` builds without one).
 fn manifest_source(source: Option<&Bound<'_, PyAny>>) -> PyResult<Source> {
     let Some(source) = source.filter(|s| !s.is_none()) else {
@@ -256,12 +257,26 @@ fn manifest_source(source: Option<&Bound<'_, PyAny>>) -> PyResult<Source> {
         }
     }
     let path: PathBuf = source.extract().map_err(|_| {
-        PyValueError::new_err("a manifest is a path, TOML text, or None for the demo manifest")
+        PyValueError::new_err(
+            "a manifest is a preset name, a path, TOML text, or None for the demo manifest",
+        )
     })?;
     if !path.exists() {
+        // A name that is no file here: a preset, wherever the program runs.
+        if let Some(text) = path.to_str().and_then(bettimill_manifest::preset) {
+            return Ok(Source {
+                text: text.to_string(),
+                origin: PathBuf::from(format!("<preset {}>", path.display())),
+            });
+        }
+        let names: Vec<&str> = bettimill_manifest::PRESETS
+            .iter()
+            .map(|(n, _)| *n)
+            .collect();
         return Err(PyFileNotFoundError::new_err(format!(
-            "cannot read the manifest {}: no such file",
-            path.display()
+            "cannot read the manifest {}: no such file, and no preset of that name (the presets: {})",
+            path.display(),
+            names.join(", ")
         )));
     }
     let text = bettimill_manifest::read_text(&path).map_err(value_error)?;
@@ -272,8 +287,8 @@ fn parse_manifest(source: &Source) -> PyResult<Manifest> {
     Manifest::parse(&source.text, &source.origin).map_err(value_error)
 }
 
-/// `bettimill.Plan(manifest=None)`: the plan of a manifest (a path, TOML text, or None for
-/// the demo manifest) and its samples, made on demand.
+/// `bettimill.Plan(manifest=None)`: the plan of a manifest (a preset name, a path, TOML
+/// text, or None for the demo manifest) and its samples, made on demand.
 #[pyclass(name = "Plan", module = "bettimill", frozen)]
 struct PyPlan {
     plan: Arc<Plan>,
@@ -605,6 +620,17 @@ fn run_cli(py: Python<'_>, args: Vec<OsString>, program: PathBuf) -> PyResult<i3
     detach_in_pool(py, || bettimill_cli::run_as(args, program))
 }
 
+/// `bettimill.presets()`: the names of the built-in manifests, each accepted wherever a
+/// manifest is (`bettimill.Plan("demo-4d")`), with their text.
+#[pyfunction]
+fn presets<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    for (name, text) in bettimill_manifest::PRESETS {
+        dict.set_item(name, text)?;
+    }
+    Ok(dict)
+}
+
 /// `bettimill.set_threads(n)`: the number of threads the module's computations use from now
 /// on in this process (0: `RAYON_NUM_THREADS`, else one per core). Returns the count now in
 /// force.
@@ -629,6 +655,7 @@ fn _bettimill(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run_cli, m)?)?;
     m.add_function(wrap_pyfunction!(_plan_from_text, m)?)?;
     m.add_function(wrap_pyfunction!(set_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(presets, m)?)?;
     m.add_function(wrap_pyfunction!(threads, m)?)?;
     m.add_class::<PyPlan>()?;
     m.add("__version__", bettimill_format::TOOL_VERSION)?;
