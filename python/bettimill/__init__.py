@@ -2,6 +2,7 @@
 
 - ``betti(array)``, ``euler(array)``, ``topology(array)``: what ``bettimill betti --json``
   computes for the array (same checks, same messages, same numbers).
+- ``betti_batch(array)``: one answer per item of a batch ``[B, ...]`` or ``[B, 1, ...]``.
 - ``presets()``: the built-in manifests (``Plan("demo-4d")`` works from any directory).
 - ``Plan(manifest)``: a manifest's plan; ``plan.sample(i)`` makes sample ``i`` on demand,
   equal to ``KEY.npy`` and ``KEY.json`` of the dataset ``bettimill build`` writes.
@@ -18,13 +19,32 @@ import os
 import shutil
 import sys
 import sysconfig
+import warnings
 
 import numpy
 
 from . import _bettimill
 from ._bettimill import Plan, __version__, presets
 
-__all__ = ["betti", "euler", "topology", "presets", "Plan", "build", "verify", "set_threads", "threads", "__version__"]
+__all__ = [
+    "betti",
+    "betti_batch",
+    "euler",
+    "topology",
+    "presets",
+    "Plan",
+    "build",
+    "verify",
+    "set_threads",
+    "threads",
+    "BatchShapeWarning",
+    "__version__",
+]
+
+
+class BatchShapeWarning(UserWarning):
+    """An array whose shape looks like a batch (``[1, H, W]``, ``[B, 1, H, W]``,
+    ``[B, S, S, S]``) was given where one image is read."""
 
 # Whether set_threads was called (in this process or, through fork, its parent): a
 # DataLoader worker then keeps that count instead of the one thread it takes by default.
@@ -55,6 +75,30 @@ def _as_array(array):
     return array
 
 
+def _batch_like(shape):
+    """Why ``shape`` looks like a batch of images rather than one image, or None."""
+    if len(shape) >= 3 and shape[0] == 1:
+        return "its leading axis has size 1"
+    if len(shape) == 4 and shape[1] == 1:
+        return "it looks like [batch, channel, H, W]"
+    rest = shape[1:]
+    if len(rest) >= 2 and len(set(rest)) == 1 and shape[0] != rest[0]:
+        return f"its leading axis ({shape[0]}) differs from the {len(rest)} equal sides after it"
+    return None
+
+
+def _warn_if_batch(array, stacklevel):
+    reason = _batch_like(array.shape)
+    if reason is not None:
+        warnings.warn(
+            f"an array of shape {tuple(array.shape)} is read as ONE {array.ndim}D image, but {reason}; "
+            "for one answer per image of a batch use bettimill.betti_batch(array), or index or squeeze "
+            "the array first (filter bettimill.BatchShapeWarning to silence this)",
+            BatchShapeWarning,
+            stacklevel=stacklevel,
+        )
+
+
 def topology(array, strict=False):
     """The topology of a binary image: a dict with ``betti`` (b_0..b_{d-1}), ``euler``,
     ``shape``, ``hypervolume`` (foreground voxels), ``field`` ("Z/2") and ``components``.
@@ -63,19 +107,44 @@ def topology(array, strict=False):
     (read in place, not copied); non-zero is foreground. With ``strict=True`` values other
     than 0 and 1 are refused. Bad arrays raise ``ValueError`` with the message of
     ``bettimill betti``. The voxel model: union of closed voxels, foreground
-    (3^d-1)-adjacency, background 2d-adjacency.
+    (3^d-1)-adjacency, background 2d-adjacency. A shape that looks like a batch (a leading
+    axis of size 1, ``[B, 1, H, W]``, ``[B, S, S, S]``) is still read as one image, with a
+    ``BatchShapeWarning``: ``betti_batch`` gives one answer per image.
     """
-    return _bettimill.topology(_as_array(array), strict)
+    return _topology(array, strict, stacklevel=3)
+
+
+def _topology(array, strict, stacklevel):
+    array = _as_array(array)
+    _warn_if_batch(array, stacklevel + 1)
+    return _bettimill.topology(array, strict)
 
 
 def betti(array, strict=False):
     """The Betti numbers ``[b_0, ..., b_{d-1}]`` of a binary image (see ``topology``)."""
-    return topology(array, strict)["betti"]
+    return _topology(array, strict, stacklevel=3)["betti"]
 
 
 def euler(array, strict=False):
     """The Euler characteristic of a binary image (see ``topology``)."""
-    return topology(array, strict)["euler"]
+    return _topology(array, strict, stacklevel=3)["euler"]
+
+
+def betti_batch(array, strict=False):
+    """The Betti numbers of every image of a batch: a list with one ``[b_0, ...]`` per item
+    of the leading axis. Items ``[1, *sides]`` (a channel axis of size 1, as in
+    ``[B, 1, H, W]``) are read without it; each item must then have 2 to 4 axes.
+
+    ``array``: a numpy array (or a torch tensor on the CPU, through ``numpy.asarray``)."""
+    array = _as_array(array)
+    if array.ndim < 3:
+        raise ValueError(
+            f"betti_batch takes a batch [B, ...] of 2D to 4D images, got shape {tuple(array.shape)}; "
+            "use bettimill.betti for one image"
+        )
+    if array.ndim >= 4 and array.shape[1] == 1:
+        array = array[:, 0]
+    return [_bettimill.topology(item, strict)["betti"] for item in array]
 
 
 def _console_script():

@@ -120,3 +120,60 @@ def test_arrays_beyond_an_address_space_limit_are_a_memory_error():
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert result.stdout.count("MemoryError") == 2, result.stdout + result.stderr
+
+
+def two_rings():
+    ring = np.zeros((6, 6), np.uint8)
+    ring[1:5, 1:5] = 1
+    ring[2:4, 2:4] = 0
+    disk = np.zeros((6, 6), np.uint8)
+    disk[1:5, 1:5] = 1
+    return np.stack([ring, disk, ring])
+
+
+@pytest.mark.parametrize(
+    "shape_of",
+    [lambda b: b[:, None], lambda b: b, lambda b: torch_like_batch(b)],
+    ids=["[B, 1, H, W]", "[B, H, W]", "list of lists"],
+)
+def test_betti_batch_gives_one_answer_per_item(shape_of):
+    assert bettimill.betti_batch(shape_of(two_rings())) == [[1, 1], [1, 0], [1, 1]]
+
+
+def torch_like_batch(batch):
+    return batch[:, None].tolist()
+
+
+def test_betti_batch_of_3d_items_and_a_single_image_refused():
+    cube = np.zeros((2, 1, 5, 5, 5), np.uint8)
+    cube[:, 0, 1:4, 1:4, 1:4] = 1
+    cube[1, 0, 2, 2, 2] = 0
+    assert bettimill.betti_batch(cube) == [[1, 0, 0], [1, 0, 1]]
+    with pytest.raises(ValueError, match="use bettimill.betti for one image"):
+        bettimill.betti_batch(np.zeros((4, 4), np.uint8))
+
+
+@pytest.mark.parametrize(
+    "shape,reason",
+    [
+        ((1, 1, 6, 6), "leading axis has size 1"),
+        ((1, 6, 6), "leading axis has size 1"),
+        ((3, 1, 6, 6), "[batch, channel, H, W]"),
+        ((3, 6, 6, 6), "leading axis (3) differs"),
+    ],
+)
+def test_a_batch_like_shape_warns_and_names_betti_batch(shape, reason):
+    array = np.zeros(shape, np.uint8)
+    with pytest.warns(bettimill.BatchShapeWarning, match="betti_batch") as caught:
+        bettimill.betti(array)
+    assert reason in str(caught[0].message)
+    assert caught[0].filename == __file__, "the warning points at the caller's line"
+
+
+def test_image_shapes_do_not_warn():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for shape in [(6, 6), (6, 7), (5, 5, 5), (4, 5, 6), (4, 4, 4, 4), (3, 4, 5, 6)]:
+            bettimill.topology(np.zeros(shape, np.uint8))
