@@ -13,9 +13,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPO="$(pwd)"
+# The one venv both Python suites use (ci/python-env.sh makes it; BETTIMILL_VENV moves it).
+VENV="${BETTIMILL_VENV:-$REPO/.venv}"
 
 bash ci/python-env.sh
-PYTEST=("$REPO/.venv/bin/python" -m pytest -q -rs -p no:cacheprovider tests/python)
+PYTEST=("$VENV/bin/python" -m pytest -q -rs -p no:cacheprovider tests/python)
 
 if [[ -n "${BETTIMILL_DATASET:-}" ]]; then
     echo "python-clients: testing BETTIMILL_DATASET=$BETTIMILL_DATASET" >&2

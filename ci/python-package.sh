@@ -10,14 +10,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REPO="$(pwd)"
+# The one venv both Python suites use (ci/python-env.sh makes it; BETTIMILL_VENV moves it).
+VENV="${BETTIMILL_VENV:-$REPO/.venv}"
 
 bash ci/python-env.sh
-echo "python-package: building and installing ./python into .venv (dev profile)" >&2
+echo "python-package: building and installing ./python into $VENV (dev profile)" >&2
 start=$(date +%s)
-MATURIN_PEP517_ARGS="--profile dev" "$REPO/.venv/bin/uv" pip install --quiet --python "$REPO/.venv/bin/python" \
+MATURIN_PEP517_ARGS="--profile dev" "$VENV/bin/uv" pip install --quiet --python "$VENV/bin/python" \
     --no-build-isolation --reinstall-package bettimill ./python
 echo "python-package: installed in $(( $(date +%s) - start )) s" >&2
 cargo build --quiet --locked -p bettimill-cli
 target="${CARGO_TARGET_DIR:-$REPO/target}/debug"
-BETTIMILL_CLI="$target/bettimill" PATH="$REPO/.venv/bin:$PATH" \
-    "$REPO/.venv/bin/python" -m pytest -q -rs -p no:cacheprovider python/tests
+BETTIMILL_CLI="$target/bettimill" PATH="$VENV/bin:$PATH" \
+    "$VENV/bin/python" -m pytest -q -rs -p no:cacheprovider python/tests

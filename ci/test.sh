@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The project's test command (README: "Run the tests"). CI's .ci/run calls exactly this.
 # It checks formatting and lints, runs every Rust test, then the tests that need real
-# outside parts: Python clients reading our shards (venv made by ci/python-env.sh) and a
+# outside parts: Python clients reading our shards and the Python package (both in the one
+# venv of ci/python-env.sh: $BETTIMILL_VENV, default .venv, made once and reused), a
 # real single-node Slurm (ci/slurm-up.sh), the HTML viewer in headless Chromium
 # (ci/browser.sh). In CI (CI=true) those parts are installed and
 # must work; locally they are installed too, so a green run here means the same as in CI.
