@@ -555,8 +555,7 @@ fn build<'py>(
             }
         }
     };
-    let report = py
-        .detach(|| bettimill_executor::build(request, control, |_| {}))
+    let report = detach_in_pool(py, || bettimill_executor::build(request, control, |_| {}))?
         .map_err(|err| match err {
             // An in-process build that fails (a full disk, a held lock) is an OSError, as
             // a failed file operation; a refused manifest, plan or directory a ValueError.
