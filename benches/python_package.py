@@ -1,7 +1,7 @@
 """Benchmarks of the Python package, results in BENCHMARKS.md.
 
     python benches/python_package.py betti     # needs bettimill and cripser (a scratch venv)
-    python benches/python_package.py loader    # needs bettimill[torch], webdataset, the CLI
+    python benches/python_package.py loader    # needs bettimill[torch] and webdataset
 
 betti: in-process ``bettimill.betti`` against in-process CubicalRipser at its faster route
 on a 4D 32^4 smooth blob (compare_peers.py's ``smooth``): ``computePH_T`` (T-construction,
@@ -9,14 +9,16 @@ our model) and ``computePH`` (V-construction) of the padded complement, with our
 numbers by duality (b0 = b_{d-1}(bg), b_k = b_{d-1-k}(bg), b_{d-1} = b0(bg) - 1). Best of
 --repeat runs each; every answer must agree.
 
-loader: samples/s of a DataLoader with 2 workers over ``SyntheticDataset`` (made on the fly)
-against the same samples read from the shards ``bettimill build`` wrote (webdataset).
+loader: samples per CPU-second (and per second) of a DataLoader (batch 16; 0 and 2 workers)
+over ``SyntheticDataset`` (samples made on the fly) against webdataset reading the shards
+``bettimill.build`` wrote for the same manifest, in one run: demo-4d and a 3D side-64
+manifest. CPU time is this process's plus its ended workers' (getrusage), so spinning threads
+and waiting workers count too; rounds are interleaved and the best of --repeat is kept.
 """
 
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -73,38 +75,88 @@ def bench_betti(args):
     }))
 
 
+MANIFEST_3D_64 = """\
+schema_version = 1
+name = "bench3d64"
+dimension = 3
+side = 64
+mode = ["embed", "carve"]
+samples = 128
+shard_size = 32
+seed = 11
+
+[[classes]]
+family = ["ball", "handle", "shell", "torus_shell"]
+"""
+
+
+def cpu_seconds():
+    """User + system CPU seconds of this process and of its children that have ended."""
+    import resource
+
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 def bench_loader(args):
+    import platform
+
     import torch
     import webdataset as wds
 
     import bettimill
     from bettimill.torch import SyntheticDataset
 
-    manifest = Path(args.manifest)
-    plan = bettimill.Plan(manifest)
-    n = len(plan)
+    torch.set_num_threads(1)
 
-    def rate(loader):
-        start = time.perf_counter()
-        seen = sum(len(batch[0]) for batch in loader)
-        assert seen == n, seen
-        return n / (time.perf_counter() - start)
+    def on_the_fly(voxels, label):
+        return voxels, torch.tensor(label["betti"], dtype=torch.int64)
 
-    synthetic = torch.utils.data.DataLoader(SyntheticDataset(plan), batch_size=8, num_workers=2, collate_fn=lambda b: list(zip(*b)))
-    fly = max(rate(synthetic) for _ in range(args.repeat))
+    def from_shard(sample):
+        return torch.from_numpy(sample["npy"]), torch.tensor(sample["json"]["betti"], dtype=torch.int64)
+
+    def measure(dataset, workers, n):
+        """(samples per CPU-second, samples per second) of one pass over every sample."""
+        loader = torch.utils.data.DataLoader(dataset, batch_size=16, num_workers=workers)
+        cpu, wall = cpu_seconds(), time.perf_counter()
+        seen = sum(len(voxels) for voxels, _ in loader)
+        del loader  # its workers end and are reaped, so their CPU time is counted
+        wall, cpu = time.perf_counter() - wall, cpu_seconds() - cpu
+        assert seen == n, (seen, n)
+        return seen / cpu, seen / wall
+
+    print(f"{time.strftime('%Y-%m-%d')}, {platform.machine()}, {os.cpu_count()} cores, bettimill "
+          f"{bettimill.__version__}, torch {torch.__version__}, webdataset {wds.__version__}")
+    print("| manifest | workers | loader | samples / CPU-s | samples / s |")
+    print("|---|---|---|---|---|")
+    manifests = [(m, m) for m in args.manifests] + [("3D side 64", MANIFEST_3D_64)]
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "built"
-        subprocess.run([args.cli, "build", manifest, "--out", out, "--quiet"], check=True)
-        index = json.loads((out / "index.json").read_text())
-        urls = [str(out / s["name"]) for s in index["shards"]]
-        dataset = wds.WebDataset(urls, shardshuffle=False, empty_check=False).decode().to_tuple("npy;npy.gz;npy.zst", "json")
-        disk = max(rate(torch.utils.data.DataLoader(dataset.batched(8, collation_fn=lambda b: list(zip(*b))), batch_size=None, num_workers=2)) for _ in range(args.repeat))
-    print(json.dumps({
-        "manifest": str(manifest.relative_to(HERE.parent)) if manifest.is_absolute() else str(manifest),
-        "samples": n,
-        "on_the_fly_samples_per_s": round(fly, 1),
-        "from_shards_samples_per_s": round(disk, 1),
-    }))
+        for name, manifest in manifests:
+            plan = bettimill.Plan(manifest)
+            out = Path(tmp) / plan.name
+            bettimill.build(manifest, out)
+            index = json.loads((out / "index.json").read_text())
+            urls = [str(out / s["name"]) for s in index["shards"]]
+            loaders = [
+                ("SyntheticDataset", lambda: SyntheticDataset(plan, transform=on_the_fly)),
+                (
+                    "webdataset shards",
+                    lambda: wds.WebDataset(urls, shardshuffle=False, empty_check=False)
+                    .decode()
+                    .rename(npy="npy;npy.gz;npy.zst", json="json")
+                    .map(from_shard),
+                ),
+            ]
+            for workers in args.workers:
+                # Interleaved rounds, best of each: the machine's speed drifts.
+                results = {label: [] for label, _ in loaders}
+                for _ in range(args.repeat):
+                    for label, make in loaders:
+                        results[label].append(measure(make(), workers, len(plan)))
+                for label, runs in results.items():
+                    per_cpu, per_s = max(runs)
+                    print(f"| {name} | {workers} | {label} | {per_cpu:.1f} | {per_s:.1f} |", flush=True)
 
 
 def main():
@@ -113,8 +165,8 @@ def main():
     parser.add_argument("--side", type=int, default=32)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--manifest", default=str(HERE.parent / "manifests" / "demo-3d.toml"))
-    parser.add_argument("--cli", default=os.environ.get("BETTIMILL_CLI", "bettimill"))
+    parser.add_argument("--manifests", nargs="+", default=["demo-4d"], help="loader: presets or paths (a 3D side-64 manifest is added)")
+    parser.add_argument("--workers", type=int, nargs="+", default=[0, 2], help="loader: DataLoader worker counts")
     args = parser.parse_args()
     (bench_betti if args.part == "betti" else bench_loader)(args)
 
