@@ -285,7 +285,10 @@ pub fn check_files(dataset: &Dataset) -> Vec<Finding> {
     let unusable = |err: BuildError| {
         let (file, reason) = match err {
             BuildError::Corrupt { path, reason } => (relative(&path), reason),
-            other => ("index.json".to_string(), other.to_string()),
+            other => (
+                bettimill_format::dir::INDEX_FILE.to_string(),
+                other.to_string(),
+            ),
         };
         vec![Finding::FileDiffers {
             file,

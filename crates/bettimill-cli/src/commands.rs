@@ -358,7 +358,7 @@ fn plan_file_problems(dir: &Path) -> Vec<bettimill_format::Problem> {
                     &name,
                     format!("{field} says {stored}, the build writes {computed}"),
                 ),
-                other => file("index.json", other.to_string()),
+                other => file(bettimill_format::dir::INDEX_FILE, other.to_string()),
             })
             .collect(),
         Err(BuildError::Format(FormatError::DifferentManifest {

@@ -72,12 +72,14 @@ fn read_stream(
     let admit = |shape: &[usize]| {
         if !(2..=4).contains(&shape.len()) {
             // Refused by its rank once read.
-            return Ok(());
+            return None;
         }
         let voxels = shape.iter().fold(1u64, |n, &side| {
             n.saturating_mul((side as u64).saturating_add(2 * width as u64))
         });
         bettimill_plan::memory::admit_image("the image", shape.len(), voxels)
+            .err()
+            .map(|refusal| refusal.to_string())
     };
     let read = bettimill_grid::npy::read_from_padded_admitted(
         decoded,

@@ -487,6 +487,29 @@ impl BinaryImage {
     }
 }
 
+/// Room for `extra` more voxels of an image of at most `total`: doubling as data arrives
+/// (a lying header costs only the data sent), never past `total`; failure is an error.
+pub(crate) fn reserve(
+    voxels: &mut Vec<u8>,
+    extra: usize,
+    total: usize,
+) -> Result<(), npy::NpyError> {
+    let needed = voxels.len().saturating_add(extra);
+    if needed <= voxels.capacity() {
+        return Ok(());
+    }
+    let target = voxels.capacity().saturating_mul(2).min(total).max(needed);
+    voxels
+        .try_reserve_exact(target - voxels.len())
+        .map_err(|_| out_of_memory(target))
+}
+
+pub(crate) fn out_of_memory(bytes: usize) -> npy::NpyError {
+    npy::NpyError::Memory(format!(
+        "cannot allocate {bytes} bytes for the image: not enough memory"
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -158,40 +158,19 @@ pub fn read_from_padded<R: Read>(
     limit: u64,
     width: usize,
 ) -> Result<NpyImage, NpyError> {
-    read_padded_within(reader, strict, limit, width, Placer::AHEAD, &|_| Ok(()))
+    read_padded_within(reader, strict, limit, width, Placer::AHEAD, &|_| None)
 }
 
-/// [`read_from_padded`] that asks `admit` about the shape (the header's, not padded) once
-/// the header is read and before any voxel is allocated; its refusal (a message saying
-/// how much memory the image needs and how much there is) becomes [`NpyError::Memory`].
+/// [`read_from_padded`] that asks `admit` about the shape (the header's) once the header is
+/// read, before any voxel is allocated; a refusal (its reason) becomes [`NpyError::Memory`].
 pub fn read_from_padded_admitted<R: Read>(
     reader: R,
     strict: bool,
     limit: u64,
     width: usize,
-    admit: &dyn Fn(&[usize]) -> Result<(), String>,
+    admit: &dyn Fn(&[usize]) -> Option<String>,
 ) -> Result<NpyImage, NpyError> {
     read_padded_within(reader, strict, limit, width, Placer::AHEAD, admit)
-}
-
-/// Makes room for `extra` more voxels in `voxels`, an image of at most `total` voxels:
-/// doubling as the data arrives (so a header that lies about the shape costs no more than
-/// the data sent), never past `total`, and a failed allocation is an error, not an abort.
-fn reserve(voxels: &mut Vec<u8>, extra: usize, total: usize) -> Result<(), NpyError> {
-    let needed = voxels.len().saturating_add(extra);
-    if needed <= voxels.capacity() {
-        return Ok(());
-    }
-    let target = voxels.capacity().saturating_mul(2).min(total).max(needed);
-    voxels
-        .try_reserve_exact(target - voxels.len())
-        .map_err(|_| out_of_memory(target))
-}
-
-fn out_of_memory(bytes: usize) -> NpyError {
-    NpyError::Memory(format!(
-        "cannot allocate {bytes} bytes for the image: not enough memory"
-    ))
 }
 
 /// [`read_from_padded`] with at most `ahead` bytes of background placed ahead of the data.
@@ -201,7 +180,7 @@ fn read_padded_within<R: Read>(
     limit: u64,
     width: usize,
     ahead: usize,
-    admit: &dyn Fn(&[usize]) -> Result<(), String>,
+    admit: &dyn Fn(&[usize]) -> Option<String>,
 ) -> Result<NpyImage, NpyError> {
     let io = |source| NpyError::Io {
         path: "the stream".to_string(),
@@ -242,7 +221,9 @@ fn read_padded_within<R: Read>(
     if expected > limit {
         return Err(NpyError::TooLarge { expected, limit });
     }
-    admit(&shape).map_err(NpyError::Memory)?;
+    if let Some(refusal) = admit(&shape) {
+        return Err(NpyError::Memory(refusal));
+    }
     // The data goes straight into the voxels as it arrives, a chunk at a time: no buffer
     // of the file's bytes beside the image (half the peak for a one-byte dtype), and the
     // voxels grow only with what was received. Errors come in the order `read_bytes`
@@ -253,7 +234,6 @@ fn read_padded_within<R: Read>(
         0 => None,
         _ => Placer::new(&shape, width, ahead),
     };
-    // The most voxels the image can hold (padded when placed), to grow to and no further.
     let total = match &placer {
         Some(placer) => placer.len,
         None => usize::try_from(expected / size as u64).unwrap_or(usize::MAX),
@@ -285,7 +265,7 @@ fn read_padded_within<R: Read>(
                 &mut converted
             }
             None => {
-                reserve(&mut voxels, whole / size, total)?;
+                crate::reserve(&mut voxels, whole / size, total)?;
                 &mut voxels
             }
         };
@@ -334,7 +314,7 @@ fn read_padded_within<R: Read>(
     let image = match placer {
         Some(placer) => {
             let rest = placer.len - voxels.len();
-            reserve(&mut voxels, rest, placer.len)?;
+            crate::reserve(&mut voxels, rest, placer.len)?;
             voxels.resize(placer.len, 0);
             voxels.shrink_to_fit();
             BinaryImage::from_vec(&placer.shape, voxels)?
@@ -422,7 +402,7 @@ impl Placer {
             } else {
                 voxels.len()
             };
-            reserve(voxels, end + take - voxels.len(), self.len)?;
+            crate::reserve(voxels, end + take - voxels.len(), self.len)?;
             if self.received == 0 {
                 voxels.resize(self.start, 0);
             }
@@ -518,7 +498,7 @@ pub fn image_from_values<T: Into<i128>>(
     let mut voxels = Vec::new();
     voxels
         .try_reserve_exact(n_voxels)
-        .map_err(|_| out_of_memory(n_voxels))?;
+        .map_err(|_| crate::out_of_memory(n_voxels))?;
     for (index, value) in values.into_iter().enumerate() {
         let value: i128 = value.into();
         if strict && value != 0 && value != 1 {
@@ -859,7 +839,7 @@ mod tests {
                 assert_eq!(padded.image, img.padded(width), "{shape:?} by {width}");
                 // Nothing may be placed ahead: read, then padded.
                 let after =
-                    read_padded_within(&bytes[..], true, 1 << 20, width, 0, &|_| Ok(())).unwrap();
+                    read_padded_within(&bytes[..], true, 1 << 20, width, 0, &|_| None).unwrap();
                 assert_eq!(
                     after.image,
                     img.padded(width),

@@ -416,15 +416,6 @@ impl Plan {
             .sum()
     }
 
-    /// Samples of the largest shard: `shard_size`, unless every split is smaller.
-    pub fn largest_shard(&self) -> u64 {
-        self.splits
-            .iter()
-            .map(|(_, size)| (*size).min(self.shard_size))
-            .max()
-            .unwrap_or(0)
-    }
-
     /// Shard `index` (from 0, over the whole dataset). Panics if `index >= shard_count()`:
     /// callers take indexes from [`Plan::shards`] or check them first.
     pub fn shard(&self, index: u64) -> ShardPlan {

@@ -204,21 +204,37 @@ fn kib_field(text: &str, name: &str) -> Option<u64> {
     Some(kib.saturating_mul(1024))
 }
 
+/// An image that needs more memory than is available; its message has both numbers.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ImageTooLarge(pub String);
+
 /// Refuses an image of `voxels` voxels in `dim` dimensions when computing it needs more
 /// than the memory available ([`available`]), with both numbers in words; `what` names the
 /// image (`"the array"`, `"sample 0"`).
-pub fn admit_image(what: &str, dim: usize, voxels: u64) -> Result<(), String> {
+pub fn admit_image(what: &str, dim: usize, voxels: u64) -> Result<(), ImageTooLarge> {
     let need = image_bytes(dim, voxels);
     match available() {
-        Some(room) if need > room => Err(format!(
+        Some(room) if need > room => Err(ImageTooLarge(format!(
             "{what} ({dim}D, {voxels} voxels) needs about {} of memory ({} bytes per voxel + {}), \
              more than the {} available (MemAvailable, or the room under the address-space limit)",
             human_bytes(need),
             PEAK_BYTES_PER_VOXEL[dim.clamp(2, 4) - 2],
             human_bytes(FIXED_BYTES),
             human_bytes(room)
-        )),
+        ))),
         _ => Ok(()),
+    }
+}
+
+impl Plan {
+    /// Samples of the largest shard: `shard_size`, unless every split is smaller.
+    pub fn largest_shard(&self) -> u64 {
+        self.splits
+            .iter()
+            .map(|(_, size)| (*size).min(self.shard_size))
+            .max()
+            .unwrap_or(0)
     }
 }
 
@@ -346,7 +362,9 @@ mod tests {
     fn an_image_beyond_any_memory_is_refused_with_the_numbers() {
         // 10^12 voxels (a broadcast 10^6 x 10^6 array) need 22 TiB: more than any machine
         // this runs on has.
-        let err = admit_image("the array", 2, 1_000_000_000_000).unwrap_err();
+        let err = admit_image("the array", 2, 1_000_000_000_000)
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("the array (2D, 1000000000000 voxels) needs about 21.8 TiB"),
             "{err}"

@@ -165,7 +165,7 @@ fn read_array(py: Python<'_>, array: &Bound<'_, PyAny>, strict: bool) -> PyResul
         .iter()
         .fold(1u64, |n, &side| n.saturating_mul(side as u64 + 2));
     bettimill_plan::memory::admit_image("the array", untyped.ndim(), padded)
-        .map_err(PyMemoryError::new_err)?;
+        .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
     if dtype.big_endian && dtype.size > 1 {
         return Err(PyValueError::new_err(format!(
             "dtype {descr:?} is big-endian: convert it with array.astype(array.dtype.newbyteorder('='))"
@@ -477,7 +477,7 @@ impl PyPlan {
             self.plan.dimension.get(),
             voxels,
         )
-        .map_err(PyMemoryError::new_err)?;
+        .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
         let plan = Arc::clone(&self.plan);
         let (image, json) = detach_in_pool(py, move || {
             let task = plan.task(index).expect("the index was checked");
