@@ -15,6 +15,11 @@ pub enum MethodArg {
     Dilate,
     /// Noise-modulated topology-preserving erosion.
     Erode,
+    /// Thin protrusions grown along persistent random directions (`--count` of them,
+    /// `--steps` voxels long).
+    Tentacles,
+    /// Random-walk bodies (`--count` walkers of `--steps` steps).
+    Walk,
     /// 2D only: the paper's hit-or-miss thickening (thinning of the background), each flip
     /// guarded by the simple-point test; `--steps` counts rounds; no noise, no seed.
     HitOrMiss,
@@ -52,6 +57,9 @@ pub struct DeformArgs {
     /// plain topology-preserving morphology (the manifest's default).
     #[arg(long, default_value_t = bettimill_deform::DEFAULT_GROWTH_PROBABILITY)]
     growth_probability: f64,
+    /// Tentacles and walk: how many.
+    #[arg(long, default_value_t = bettimill_deform::DEFAULT_COUNT)]
+    count: u32,
     /// Refuse input values other than 0 and 1.
     #[arg(long)]
     strict: bool,
@@ -68,6 +76,8 @@ pub fn run(args: &DeformArgs) -> anyhow::Result<ExitStatus> {
         MethodArg::Moves => Method::Moves,
         MethodArg::Dilate => Method::Dilate,
         MethodArg::Erode => Method::Erode,
+        MethodArg::Tentacles => Method::Tentacles,
+        MethodArg::Walk => Method::Walk,
         MethodArg::HitOrMiss => Method::Dilate,
     };
     let settings = DeformSettings {
@@ -77,6 +87,7 @@ pub fn run(args: &DeformArgs) -> anyhow::Result<ExitStatus> {
         octaves: args.octaves,
         max_distance: args.max_distance,
         growth_probability: args.growth_probability,
+        count: args.count,
     };
     let mut image = input.image.clone();
     let before = bettimill_homology::try_topology(&image)?;

@@ -1,22 +1,22 @@
 //! A lazily evaluated noise field over an image.
 //!
-//! Deformations only look at the noise next to the object's boundary, a small fraction of
-//! the voxels of a 3D or 4D image, so values are computed on first use and cached rather
-//! than filling the whole field up front (a full 32^4 field with 3 octaves costs more than
-//! the 10,000 moves that read it). The values are those of
-//! [`bettimill_noise::noise_field`] with the same seed, frequency and octaves, so the two
-//! are interchangeable.
+//! Deformations only look at the noise next to the phase's boundary, a small fraction of
+//! the voxels of a 3D or 4D image, so values are computed on first use and kept in a map
+//! keyed by voxel, rather than filling (or even allocating) the whole field: a 128^4
+//! field would be a gigabyte. The map is only looked up, never iterated, so its order
+//! cannot reach a result. The values are those of [`bettimill_noise::noise_field`] with
+//! the same seed, frequency and octaves, so the two are interchangeable.
 
 use bettimill_grid::BinaryImage;
 use bettimill_noise::{Fractal, NoiseError};
+use std::collections::HashMap;
 
 /// Noise values per flat voxel index, computed on demand.
 pub(crate) struct NoiseCache {
     fractal: Fractal,
     strides: [usize; 4],
     d: usize,
-    // NaN marks "not computed yet"; the noise itself is never NaN.
-    values: Vec<f32>,
+    values: HashMap<usize, f32>,
 }
 
 impl NoiseCache {
@@ -33,15 +33,14 @@ impl NoiseCache {
             fractal,
             strides,
             d: image.dim().get(),
-            values: vec![f32::NAN; image.len()],
+            values: HashMap::new(),
         })
     }
 
     /// The noise at flat index `index`.
     #[inline]
     pub(crate) fn get(&mut self, index: usize) -> f32 {
-        let v = self.values[index];
-        if !v.is_nan() {
+        if let Some(&v) = self.values.get(&index) {
             return v;
         }
         let mut coords = [0usize; 4];
@@ -51,7 +50,7 @@ impl NoiseCache {
             rest %= self.strides[axis];
         }
         let v = self.fractal.sample(coords) as f32;
-        self.values[index] = v;
+        self.values.insert(index, v);
         v
     }
 }

@@ -1,23 +1,30 @@
 //! Topology-preserving deformations of binary images.
 //!
-//! This crate implements the two deformations of the paper's "roadmap towards 4D
+//! This crate implements the deformations of the paper's "roadmap towards 4D
 //! deformations" for 2D, 3D and 4D images, on top of the exact simple-point test of
-//! `bettimill-homology`:
+//! `bettimill-homology`, and the growth along random paths that other topology data
+//! generators use. Every method acts on a [`Phase`]: the part of the image that carries
+//! its topology (the objects in embed mode, the cavities in carve mode), inside a box
+//! that keeps the rest (a carved solid's outer boundary) as built.
 //!
-//! - [`Method::Moves`], hypervolume-preserving moves: a foreground boundary voxel at low
-//!   noise is moved to a background voxel at higher noise within `max_distance`, only when
-//!   deleting it is simple and then adding the target (in the image without the source) is
-//!   simple. The foreground count never changes.
-//! - [`Method::Dilate`] and [`Method::Erode`], modified morphology: dilation (erosion) by the
-//!   unit ball, where a voxel is added (removed) only when it is simple, and only the
+//! - [`Method::Moves`], volume-preserving moves: a boundary voxel of the phase at low
+//!   noise is moved to a voxel outside it at higher noise within `max_distance`, only when
+//!   both flips are simple. The phase bulges where the noise is high and narrows where it
+//!   is low; its voxel count never changes.
+//! - [`Method::Dilate`] and [`Method::Erode`], modified morphology: growth (shrinking) of
+//!   the phase by the unit ball, where a voxel flips only when it is simple, and only the
 //!   `growth_probability` fraction of the frontier with the highest (lowest) noise takes part
 //!   in each iteration, so high-noise regions grow and low-noise regions do not ("lumpy"
 //!   results). This is the simple-point generalisation of the paper's 2D hit-or-miss
 //!   thickening and thinning: every flip a hit-or-miss structuring element may make
 //!   without changing topology is a simple-point flip, and the simple-point test covers 3D
 //!   and 4D without enumerating structuring elements.
-//! - [`target_hypervolume`] brings the foreground count into `[lo, hi]` by the same
-//!   topology-preserving growth or shrinking.
+//! - [`Method::Tentacles`] and [`Method::Walk`]: thick paths grown from the phase's
+//!   surface along persistent or plain random walks (`walkers.rs`).
+//! - [`target_hypervolume_phase`] brings the foreground count into `[lo, hi]` by the same
+//!   noise-guided growth or shrinking of the phase.
+//! - [`draw_settings`] turns a manifest's step, whose settings may be ranges, into one
+//!   sample's settings.
 //!
 //! The objects to deform come from the shape library, `bettimill-shapes` (a
 //! dev-dependency here: the tests, examples and benchmarks deform its scenes).
@@ -25,8 +32,10 @@
 //! Invariants shared by everything here:
 //! - Topology is never changed: every flip is a simple-point flip applied to the image as
 //!   it is at that moment, so the Betti numbers before and after are identical.
-//! - The outermost layer of voxels is never edited (the simple-point test needs every
-//!   neighbour of a voxel to exist), so a background border stays background.
+//! - Only voxels in the phase's box change, and the box never includes the outermost
+//!   layer (the simple-point test needs every neighbour of a voxel to exist).
+//! - Work and memory follow the phase's frontier, not the image: after one scan of the
+//!   box, nothing visits or allocates per voxel of the image but bitsets (one bit a voxel).
 //! - Results depend only on the input image, the settings and the seed: the randomness is
 //!   `ChaCha8Rng`, the noise is `bettimill-noise`, and the only parallel step (simple-point
 //!   decisions within one 3^d parity subfield, whose voxels are 3 apart and so cannot
@@ -36,102 +45,21 @@ mod field;
 pub mod hitmiss;
 mod morphology;
 mod moves;
+mod phase;
+mod walkers;
 
 use bettimill_grid::BinaryImage;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+pub use bettimill_types::deform::{
+    DeformSettings, DeformStep, Deformation, Method, Spread, DEFAULT_COUNT,
+    DEFAULT_GROWTH_PROBABILITY, DEFAULT_MAX_DISTANCE, DEFAULT_NOISE_FREQUENCY, DEFAULT_OCTAVES,
+    MAX_DISTANCE,
+};
 pub use morphology::{DEFAULT_TARGET_FREQUENCY, DEFAULT_TARGET_OCTAVES};
-
-/// The largest `max_distance` accepted; the target search visits (2m+1)^d voxels per move.
-pub const MAX_DISTANCE: u32 = 8;
-
-/// Which deformation [`deform`] applies.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Method {
-    /// Hypervolume-preserving moves; `steps` counts moves applied.
-    Moves,
-    /// Topology-preserving, noise-modulated dilation; `steps` counts iterations.
-    Dilate,
-    /// Topology-preserving, noise-modulated erosion; `steps` counts iterations.
-    Erode,
-}
-
-/// Default [`DeformSettings::noise_frequency`].
-pub const DEFAULT_NOISE_FREQUENCY: f64 = 0.08;
-/// Default [`DeformSettings::octaves`].
-pub const DEFAULT_OCTAVES: u32 = 3;
-/// Default [`DeformSettings::max_distance`].
-pub const DEFAULT_MAX_DISTANCE: u32 = 1;
-/// Default [`DeformSettings::growth_probability`].
-pub const DEFAULT_GROWTH_PROBABILITY: f64 = 0.5;
-
-/// Everything that decides a deformation besides the image and the seed.
-///
-/// This is the one schema of deformation settings: the manifest's `[deform]` table is read
-/// straight into it (so its defaults are the manifest's defaults), the `bettimill deform`
-/// command fills it from its flags with the same defaults, and [`DeformSettings::validate`]
-/// holds the one set of ranges. Its serialised form is the `deform` field of a label.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DeformSettings {
-    /// The deformation.
-    pub method: Method,
-    /// Moves to apply ([`Method::Moves`]) or iterations ([`Method::Dilate`],
-    /// [`Method::Erode`]).
-    pub steps: u32,
-    /// Noise frequency in lattice cells per voxel, in (0, 1] (1/16 gives features ~16
-    /// voxels wide).
-    #[serde(default = "default_noise_frequency")]
-    pub noise_frequency: f64,
-    /// Octaves of fractal noise (1 ..= [`bettimill_noise::MAX_OCTAVES`]).
-    #[serde(default = "default_octaves")]
-    pub octaves: u32,
-    /// Moves only: the largest Chebyshev distance between a moved voxel's old and new
-    /// position (1 ..= [`MAX_DISTANCE`], checked for every method). 1 means a neighbour, as
-    /// in the paper.
-    #[serde(default = "default_max_distance")]
-    pub max_distance: u32,
-    /// Dilate and erode only: the fraction (0, 1] of the frontier allowed to flip in each
-    /// iteration, the ones at the highest noise for dilation and the lowest for erosion.
-    /// 1 is plain topology-preserving dilation (erosion).
-    #[serde(default = "default_growth_probability")]
-    pub growth_probability: f64,
-}
-
-fn default_noise_frequency() -> f64 {
-    DEFAULT_NOISE_FREQUENCY
-}
-fn default_octaves() -> u32 {
-    DEFAULT_OCTAVES
-}
-fn default_max_distance() -> u32 {
-    DEFAULT_MAX_DISTANCE
-}
-fn default_growth_probability() -> f64 {
-    DEFAULT_GROWTH_PROBABILITY
-}
-
-impl DeformSettings {
-    /// `method` for `steps` with every other setting at its default.
-    pub fn new(method: Method, steps: u32) -> DeformSettings {
-        DeformSettings {
-            method,
-            steps,
-            noise_frequency: DEFAULT_NOISE_FREQUENCY,
-            octaves: DEFAULT_OCTAVES,
-            max_distance: DEFAULT_MAX_DISTANCE,
-            growth_probability: DEFAULT_GROWTH_PROBABILITY,
-        }
-    }
-}
-
-impl Default for DeformSettings {
-    /// 600 hypervolume-preserving moves with the default settings.
-    fn default() -> Self {
-        DeformSettings::new(Method::Moves, 600)
-    }
-}
+pub use phase::Phase;
 
 /// What a deformation did.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -187,46 +115,8 @@ pub enum DeformError {
     },
 }
 
-impl DeformSettings {
-    /// Checks every field's range.
-    pub fn validate(&self) -> Result<(), DeformError> {
-        let bad = |field, reason: String| Err(DeformError::InvalidSetting { field, reason });
-        if !(self.noise_frequency > 0.0 && self.noise_frequency <= 1.0) {
-            return bad(
-                "noise_frequency",
-                format!("must be in (0, 1], got {}", self.noise_frequency),
-            );
-        }
-        if self.octaves == 0 || self.octaves > bettimill_noise::MAX_OCTAVES {
-            return bad(
-                "octaves",
-                format!(
-                    "must be between 1 and {}, got {}",
-                    bettimill_noise::MAX_OCTAVES,
-                    self.octaves
-                ),
-            );
-        }
-        if !(1..=MAX_DISTANCE).contains(&self.max_distance) {
-            return bad(
-                "max_distance",
-                format!(
-                    "must be between 1 and {MAX_DISTANCE}, got {}",
-                    self.max_distance
-                ),
-            );
-        }
-        if !(self.growth_probability > 0.0 && self.growth_probability <= 1.0) {
-            return bad(
-                "growth_probability",
-                format!("must be in (0, 1], got {}", self.growth_probability),
-            );
-        }
-        Ok(())
-    }
-}
-
-/// Deforms `image` in place without changing its topology.
+/// Deforms the foreground of `image` in place without changing its topology (the
+/// objects of embed mode; [`deform_phase`] with [`Phase::foreground`]).
 ///
 /// Deterministic: the same image, settings and seed give the same result on any machine
 /// and any number of threads. Returns an error (leaving the image untouched) only for
@@ -236,70 +126,126 @@ pub fn deform(
     settings: &DeformSettings,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
-    settings.validate()?;
-    let noise = field::NoiseCache::new(image, seed, settings.noise_frequency, settings.octaves)?;
+    let phase = Phase::foreground(image);
+    deform_phase(image, settings, &phase, seed)
+}
+
+/// Deforms `phase` of `image` in place without changing its topology: grows, shrinks,
+/// moves or extends the voxels of the phase's value inside its box, and nothing else.
+///
+/// Deterministic: the same image, settings, phase and seed give the same result on any
+/// machine and any number of threads. Returns an error (leaving the image untouched) only
+/// for invalid settings.
+pub fn deform_phase(
+    image: &mut BinaryImage,
+    settings: &DeformSettings,
+    phase: &Phase,
+    seed: u64,
+) -> Result<DeformReport, DeformError> {
+    settings
+        .validate()
+        .map_err(|err| DeformError::InvalidSetting {
+            field: err.field,
+            reason: err.reason,
+        })?;
     let report = match settings.method {
-        Method::Moves => moves::run(image, noise, settings.steps, settings.max_distance, seed),
+        Method::Moves => {
+            let noise =
+                field::NoiseCache::new(image, seed, settings.noise_frequency, settings.octaves)?;
+            moves::run(
+                image,
+                noise,
+                phase,
+                settings.steps,
+                settings.max_distance,
+                seed,
+            )
+        }
         Method::Dilate | Method::Erode => morphology::run(
             image,
-            noise,
-            settings.method == Method::Dilate,
+            &morphology::Morphology {
+                phase,
+                grow: settings.method == Method::Dilate,
+                steps: settings.steps,
+                growth_probability: settings.growth_probability,
+                noise_frequency: settings.noise_frequency,
+                octaves: settings.octaves,
+                seed,
+            },
+        )?,
+        Method::Tentacles | Method::Walk => walkers::run(
+            image,
+            phase,
+            settings.count,
             settings.steps,
-            settings.growth_probability,
+            settings.method == Method::Tentacles,
             seed,
         ),
     };
     Ok(report)
 }
 
+/// The settings one sample applies for `step`: each range drawn uniformly from `seed`
+/// (integers inclusive; reals rounded to six decimals, so a label records them exactly).
+pub fn draw_settings(step: &DeformStep, seed: u64) -> DeformSettings {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut int = |spread: &Spread<u32>| match *spread {
+        Spread::One(v) => v,
+        Spread::Range([lo, hi]) => (lo as u64 + rng.gen_range(0..=(hi - lo) as u64)) as u32,
+    };
+    let steps = int(&step.steps);
+    let count = int(&step.count);
+    let mut real = |spread: &Spread<f64>| match *spread {
+        Spread::One(v) => v,
+        Spread::Range([lo, hi]) => {
+            let u = (rng.gen::<u64>() >> 11) as f64 / (1u64 << 53) as f64;
+            (libm::round((lo + (hi - lo) * u) * 1e6) / 1e6).clamp(lo, hi)
+        }
+    };
+    let noise_frequency = real(&step.noise_frequency);
+    let growth_probability = real(&step.growth_probability);
+    DeformSettings {
+        method: step.method,
+        steps,
+        noise_frequency,
+        octaves: step.octaves,
+        max_distance: step.max_distance,
+        growth_probability,
+        count,
+    }
+}
+
 /// Brings the foreground count into `[lo, hi]` by topology-preserving growth (if below)
-/// or shrinking (if above), flipping frontier voxels one at a time in order of noise
-/// (highest first when growing, lowest first when shrinking; noise of
-/// [`DEFAULT_TARGET_FREQUENCY`] and [`DEFAULT_TARGET_OCTAVES`] seeded by `seed`). It stops
-/// as soon as the count reaches the range, so it lands exactly on `lo` or `hi`.
-///
-/// Fails, leaving the image unchanged, when `lo > hi` or when no simple frontier voxel is
-/// left before the range is reached (an empty image cannot grow; a closed curve cannot
-/// shrink).
+/// or shrinking (if above) of the foreground ([`target_hypervolume_phase`] with
+/// [`Phase::foreground`]).
 pub fn target_hypervolume(
     image: &mut BinaryImage,
     lo: u64,
     hi: u64,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
-    morphology::target(image, lo, hi, seed)
+    let phase = Phase::foreground(image);
+    morphology::target(image, lo, hi, &phase, seed)
 }
 
-/// The flat indices of voxels at least one voxel away from every face, in increasing
-/// order: the only voxels a deformation may edit.
-pub(crate) fn for_each_interior(image: &BinaryImage, mut f: impl FnMut(usize)) {
-    let shape = image.shape();
-    let strides = image.strides();
-    let d = shape.len();
-    if shape.iter().any(|&n| n < 3) {
-        return;
-    }
-    // Odometer over the leading axes, each in 1 ..= n-2.
-    let mut coords = [1usize; 4];
-    let last = shape[d - 1];
-    loop {
-        let base: usize = (0..d - 1).map(|a| coords[a] * strides[a]).sum();
-        for i in 1..last - 1 {
-            f(base + i);
-        }
-        let mut axis = d - 1;
-        loop {
-            if axis == 0 {
-                return;
-            }
-            axis -= 1;
-            coords[axis] += 1;
-            if coords[axis] + 1 < shape[axis] {
-                break;
-            }
-            coords[axis] = 1;
-        }
-    }
+/// Brings the foreground count into `[lo, hi]` by topology-preserving growth or
+/// shrinking of `phase` (the cavities of carve mode shrink to raise the count and grow to
+/// lower it), flipping frontier voxels of the phase's box one at a time in order of noise
+/// (highest first when the phase grows, lowest first when it shrinks; noise of
+/// [`DEFAULT_TARGET_FREQUENCY`] and [`DEFAULT_TARGET_OCTAVES`] seeded by `seed`). It stops
+/// as soon as the count reaches the range, so it lands exactly on `lo` or `hi`.
+///
+/// Fails, leaving the image unchanged, when `lo > hi` or when no simple frontier voxel is
+/// left before the range is reached (an empty phase cannot grow; a closed curve cannot
+/// shrink).
+pub fn target_hypervolume_phase(
+    image: &mut BinaryImage,
+    lo: u64,
+    hi: u64,
+    phase: &Phase,
+    seed: u64,
+) -> Result<DeformReport, DeformError> {
+    morphology::target(image, lo, hi, phase, seed)
 }
 
 #[cfg(test)]
@@ -307,75 +253,39 @@ mod tests {
     use super::*;
 
     #[test]
-    fn interior_iteration_visits_exactly_the_interior() {
-        for shape in [vec![5usize, 4], vec![3, 6, 4], vec![4, 3, 5, 4], vec![2, 5]] {
-            let image = BinaryImage::zeros(&shape).unwrap();
-            let mut seen = Vec::new();
-            for_each_interior(&image, |i| seen.push(i));
-            let expected: Vec<usize> = (0..image.len())
-                .filter(|&i| bettimill_grid::neighbourhood::is_interior(&image, i, 1))
-                .collect();
-            assert_eq!(seen, expected, "{shape:?}");
-        }
-    }
-
-    #[test]
-    fn settings_are_validated() {
-        let ok = DeformSettings::default();
-        assert_eq!(ok.validate(), Ok(()));
-        for broken in [
-            DeformSettings {
-                noise_frequency: 0.0,
-                ..ok.clone()
-            },
-            DeformSettings {
-                octaves: 0,
-                ..ok.clone()
-            },
-            DeformSettings {
-                max_distance: 0,
-                ..ok.clone()
-            },
-            DeformSettings {
-                max_distance: MAX_DISTANCE + 1,
-                ..ok.clone()
-            },
-            DeformSettings {
-                growth_probability: f64::NAN,
-                ..ok.clone()
-            },
-            DeformSettings {
-                growth_probability: 1.5,
-                ..ok.clone()
-            },
-            // The manifest once accepted 0 and every build attempt then failed.
-            DeformSettings {
-                growth_probability: 0.0,
-                ..ok.clone()
-            },
-            DeformSettings {
-                noise_frequency: 1.5,
-                ..ok.clone()
-            },
-        ] {
-            assert!(
-                matches!(broken.validate(), Err(DeformError::InvalidSetting { .. })),
-                "{broken:?}"
-            );
-        }
-    }
-
-    #[test]
-    fn settings_round_trip_through_json_and_reject_unknown_fields() {
-        let s = DeformSettings {
-            method: Method::Dilate,
-            ..DeformSettings::default()
+    fn drawn_settings_stay_in_their_ranges_and_vary_with_the_seed() {
+        let step = DeformStep {
+            steps: Spread::Range([2, 9]),
+            noise_frequency: Spread::Range([0.05, 0.2]),
+            growth_probability: Spread::Range([0.3, 0.6]),
+            count: Spread::Range([1, 4]),
+            ..DeformStep::new(Method::Tentacles, 0)
         };
-        let text = serde_json::to_string(&s).unwrap();
-        assert!(text.contains("\"dilate\""), "{text}");
-        let back: DeformSettings = serde_json::from_str(&text).unwrap();
-        assert_eq!(back, s);
-        let extra = text.replace('}', ",\"radius\":3}");
-        assert!(serde_json::from_str::<DeformSettings>(&extra).is_err());
+        let drawn: Vec<DeformSettings> = (0..64).map(|seed| draw_settings(&step, seed)).collect();
+        for s in &drawn {
+            assert!((2..=9).contains(&s.steps), "{s:?}");
+            assert!((0.05..=0.2).contains(&s.noise_frequency), "{s:?}");
+            assert!((0.3..=0.6).contains(&s.growth_probability), "{s:?}");
+            assert!((1..=4).contains(&s.count), "{s:?}");
+            assert_eq!(s.validate(), Ok(()));
+        }
+        let steps: std::collections::BTreeSet<u32> = drawn.iter().map(|s| s.steps).collect();
+        assert_eq!(
+            steps.len(),
+            8,
+            "every value of the range is drawn: {steps:?}"
+        );
+        assert_eq!(draw_settings(&step, 7), draw_settings(&step, 7));
+        // One value draws itself.
+        let fixed = DeformStep::new(Method::Dilate, 3);
+        assert_eq!(
+            draw_settings(&fixed, 11),
+            DeformSettings::new(Method::Dilate, 3)
+        );
+    }
+
+    #[test]
+    fn the_leaf_crate_and_the_noise_agree_on_the_octave_limit() {
+        assert_eq!(bettimill_types::MAX_OCTAVES, bettimill_noise::MAX_OCTAVES);
     }
 }

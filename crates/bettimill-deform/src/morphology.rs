@@ -1,14 +1,20 @@
-//! Modified morphology: topology-preserving, noise-modulated dilation and erosion by the
-//! unit ball, and hypervolume targeting built from the same flips.
+//! Modified morphology: topology-preserving, noise-modulated growth and shrinking of a
+//! phase, and hypervolume targeting built from the same flips.
 //!
-//! One iteration of dilation takes the frontier (interior background voxels with a
-//! foreground face-neighbour, i.e. what a unit-ball dilation would add), keeps the
-//! `growth_probability` fraction of it with the highest noise, and adds each kept voxel
-//! that is simple in the image as it is at that moment. Erosion is the mirror image
-//! (foreground voxels with a background face-neighbour, lowest noise first, removed when
-//! simple). Because the noise is fixed, the same regions keep growing from one iteration to
-//! the next, which gives the paper's lumpy thick-and-thin results; with probability 1 this
-//! is plain topology-preserving dilation (thickening) or erosion (thinning).
+//! One iteration of growth takes the frontier (voxels of the other phase in the box with a
+//! face neighbour in the phase, i.e. what a unit-ball dilation of the phase would add),
+//! keeps the `growth_probability` fraction of it with the highest noise, and flips each
+//! kept voxel that is simple in the image as it is at that moment. Shrinking is the mirror
+//! image (phase voxels with a face neighbour outside it, lowest noise first). Because the
+//! noise is fixed, the same regions keep growing from one iteration to the next, which
+//! gives the paper's lumpy thick-and-thin results; with probability 1 this is plain
+//! topology-preserving dilation (thickening) or erosion (thinning).
+//!
+//! Only the frontier is ever visited: it is found by one scan of the box, then kept up to
+//! date from the flips (a voxel joins it when a face neighbour flips, and leaves it when
+//! it flips itself), so an iteration costs what its frontier costs, not what the image
+//! does. The noise of a candidate is computed when it is ranked (in parallel: each value
+//! depends only on its coordinates), never stored for the whole image.
 //!
 //! Order of the flips within an iteration: the kept voxels are split into the 3^d parity
 //! subfields (coordinates modulo 3), visited in an order shuffled per iteration by the
@@ -17,9 +23,8 @@
 //! the decisions of a subfield are made in parallel against the same image and then
 //! applied, with the same outcome as applying them one by one, on any number of threads.
 
-use crate::field::NoiseCache;
+use crate::phase::{BitSet, Layout, Phase};
 use crate::{DeformError, DeformReport};
-use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::BinaryImage;
 use bettimill_homology::simple::{SimpleCache, SimpleTester};
 use bettimill_noise::Fractal;
@@ -40,83 +45,103 @@ const MORPHOLOGY_STREAM: u64 = 2;
 /// fork. The answers are the same either way.
 const PARALLEL_SUBFIELD: usize = 256;
 
-/// Interior voxels a unit-ball dilation would add (`grow`) or erosion would remove.
-fn frontier(image: &BinaryImage, grow: bool) -> Vec<usize> {
-    let faces = flat_offsets(image, &face_offsets(image.dim()));
-    let data = image.data();
-    let (inside, outside) = if grow { (0u8, 1u8) } else { (1u8, 0u8) };
-    let mut out = Vec::new();
-    crate::for_each_interior(image, |v| {
-        if data[v] == inside
-            && faces
-                .iter()
-                .any(|&f| data[(v as isize + f) as usize] == outside)
-        {
-            out.push(v);
-        }
-    });
-    out
-}
-
-/// Sorts candidates by noise, highest first when growing and lowest first when shrinking;
-/// ties go to the lower index so the order is total.
-fn sort_by_noise(candidates: &mut [usize], noise: &mut NoiseCache, grow: bool) {
-    let mut keyed: Vec<(f32, usize)> = candidates.iter().map(|&v| (noise.get(v), v)).collect();
-    keyed.sort_unstable_by(|a, b| {
-        let by_noise = if grow {
-            b.0.total_cmp(&a.0)
-        } else {
-            a.0.total_cmp(&b.0)
-        };
-        by_noise.then(a.1.cmp(&b.1))
-    });
-    for (slot, (_, v)) in candidates.iter_mut().zip(keyed) {
-        *slot = v;
+/// The f32 noise mapped to a u32 whose unsigned order is `f32::total_cmp`'s, reversed when
+/// `highest_first`, so that sorting by it ranks the candidates.
+#[inline]
+fn rank_key(noise: f64, highest_first: bool) -> u32 {
+    let bits = (noise as f32).to_bits();
+    let ordered = if bits >> 31 == 1 {
+        !bits
+    } else {
+        bits | 1 << 31
+    };
+    if highest_first {
+        !ordered
+    } else {
+        ordered
     }
 }
 
-fn subfield(image: &BinaryImage, v: usize) -> usize {
-    let c = image.coords(v);
-    (0..image.dim().get()).fold(0, |acc, a| acc * 3 + c[a] % 3)
+/// The candidates in rank order: by noise, highest first when `highest_first`, ties to
+/// the lower index (a total order, so the result does not depend on the input order or
+/// the thread count).
+fn rank_by_noise(
+    candidates: &[usize],
+    fractal: &Fractal,
+    layout: &Layout,
+    highest_first: bool,
+) -> Vec<usize> {
+    let mut keyed: Vec<(u32, usize)> = candidates
+        .par_iter()
+        .map(|&v| (rank_key(fractal.sample(layout.coords(v)), highest_first), v))
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, v)| v).collect()
 }
 
-pub(crate) fn run(
-    image: &mut BinaryImage,
-    mut noise: NoiseCache,
-    grow: bool,
-    steps: u32,
-    growth_probability: f64,
-    seed: u64,
-) -> DeformReport {
+/// What one growth or shrinking run needs besides the image.
+pub(crate) struct Morphology<'a> {
+    pub(crate) phase: &'a Phase,
+    /// True to grow the phase, false to shrink it.
+    pub(crate) grow: bool,
+    pub(crate) steps: u32,
+    pub(crate) growth_probability: f64,
+    pub(crate) noise_frequency: f64,
+    pub(crate) octaves: u32,
+    pub(crate) seed: u64,
+}
+
+pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformReport, DeformError> {
     let dim = image.dim();
     let foreground_before = image.count_foreground();
+    let mut report = DeformReport {
+        applied: 0,
+        rejected: 0,
+        iterations: 0,
+        foreground_before,
+        foreground_after: foreground_before,
+    };
+    let layout = Layout::new(image, job.phase);
+    if job.steps == 0 || layout.is_empty() {
+        return Ok(report);
+    }
+    let fractal = Fractal::new(dim, job.seed, job.noise_frequency, job.octaves)?;
     let tester = SimpleTester::new(dim);
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(job.seed);
     rng.set_stream(MORPHOLOGY_STREAM);
     let n_subfields = 3usize.pow(dim.get() as u32);
-    let flip_to = grow as u8;
-    let (mut applied, mut rejected, mut iterations) = (0u64, 0u64, 0u64);
+    let flip_from = if job.grow {
+        job.phase.other()
+    } else {
+        job.phase.value
+    };
+    let flip_to = 1 - flip_from;
     let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); n_subfields];
-    for _ in 0..steps {
-        let mut candidates = frontier(image, grow);
+    let mut candidates = layout.frontier(image, flip_from);
+    let mut queued = BitSet::new(image.len());
+    for &v in &candidates {
+        queued.insert(v);
+    }
+    for _ in 0..job.steps {
         if candidates.is_empty() {
             break;
         }
-        if growth_probability < 1.0 {
-            sort_by_noise(&mut candidates, &mut noise, grow);
-            let keep = libm::ceil(growth_probability * candidates.len() as f64) as usize;
-            candidates.truncate(keep.max(1));
-            candidates.sort_unstable();
-        }
+        let kept: Vec<usize> = if job.growth_probability < 1.0 {
+            let ranked = rank_by_noise(&candidates, &fractal, &layout, job.grow);
+            let keep = libm::ceil(job.growth_probability * ranked.len() as f64) as usize;
+            ranked[..keep.clamp(1, ranked.len())].to_vec()
+        } else {
+            candidates.clone()
+        };
         for bucket in buckets.iter_mut() {
             bucket.clear();
         }
-        for &v in &candidates {
-            buckets[subfield(image, v)].push(v);
+        for &v in &kept {
+            buckets[layout.subfield(v)].push(v);
         }
         let mut order: Vec<usize> = (0..n_subfields).collect();
         order.shuffle(&mut rng);
-        iterations += 1;
+        report.iterations += 1;
         let mut flipped = 0u64;
         for &class in &order {
             let members = &buckets[class];
@@ -138,30 +163,45 @@ pub(crate) fn run(
                     data[v] = flip_to;
                     flipped += 1;
                 } else {
-                    rejected += 1;
+                    report.rejected += 1;
                 }
             }
         }
-        applied += flipped;
-        // The image and the noise are unchanged by an iteration that flips nothing, so
-        // every further iteration would flip nothing too.
+        report.applied += flipped;
+        // The image is unchanged by an iteration that flips nothing, and so is the
+        // frontier: every further iteration would flip nothing too.
         if flipped == 0 {
             break;
         }
+        // The next frontier: the candidates that did not flip (their neighbour across the
+        // frontier is still there: growth and shrinking are monotone), and the face
+        // neighbours of flipped voxels that are still on the flipping side.
+        let data = image.data();
+        let mut next: Vec<usize> = candidates
+            .iter()
+            .copied()
+            .filter(|&v| data[v] == flip_from)
+            .collect();
+        for &v in &kept {
+            if data[v] == flip_to {
+                layout.for_each_face_neighbour_in_box(v, |u| {
+                    if data[u] == flip_from && queued.insert(u) {
+                        next.push(u);
+                    }
+                });
+            }
+        }
+        candidates = next;
     }
-    DeformReport {
-        applied,
-        rejected,
-        iterations,
-        foreground_before,
-        foreground_after: image.count_foreground(),
-    }
+    report.foreground_after = image.count_foreground();
+    Ok(report)
 }
 
 pub(crate) fn target(
     image: &mut BinaryImage,
     lo: u64,
     hi: u64,
+    phase: &Phase,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
     if lo > hi {
@@ -178,8 +218,16 @@ pub(crate) fn target(
     if (lo..=hi).contains(&start) {
         return Ok(report);
     }
-    let grow = start < lo;
-    let goal = if grow { lo } else { hi };
+    // The foreground grows by flipping background voxels, whichever side the phase is.
+    let grow_foreground = start < lo;
+    let goal = if grow_foreground { lo } else { hi };
+    let (inside, flip_to) = if grow_foreground {
+        (0u8, 1u8)
+    } else {
+        (1u8, 0u8)
+    };
+    // Growing the phase ranks the highest noise first, shrinking it the lowest.
+    let grows_phase = flip_to == phase.value;
     let fractal = Fractal::new(
         image.dim(),
         seed,
@@ -187,25 +235,29 @@ pub(crate) fn target(
         DEFAULT_TARGET_OCTAVES,
     )?;
     let tester = SimpleTester::new(image.dim());
-    // The configuration is read straight from the voxel bytes (only interior voxels are
-    // ever candidates) and the answers are memoised: both are pure functions of the
-    // image, so they change no result, only its cost.
+    let layout = Layout::new(image, phase);
+    // The configuration is read straight from the voxel bytes (only voxels in the box,
+    // which keeps off the outermost layer, are ever candidates) and the answers are
+    // memoised: both are pure functions of the image, so they change no result, only its
+    // cost.
     let strides = image.strides().to_vec();
     let mut memo = SimpleCache::new(MEMO_BITS);
-    let layout = Layout::new(image);
     // Voxels flipped so far (to undo them on failure) and voxels already queued for the
-    // next iteration (to queue each once): bitsets, 1/8 byte per voxel each.
-    let mut flipped_set = BitSet::new(image.len());
+    // next iteration (to queue each once).
+    let mut flipped_list: Vec<usize> = Vec::new();
     let mut queued = BitSet::new(image.len());
     let mut count = start;
-    let (inside, flip_to) = if grow { (0u8, 1u8) } else { (1u8, 0u8) };
-    let mut candidates = frontier(image, grow);
+    let mut candidates = if layout.is_empty() {
+        Vec::new()
+    } else {
+        layout.frontier(image, inside)
+    };
     loop {
-        let order = sort_by_target_noise(&candidates, &fractal, &layout, grow);
+        let order = rank_by_noise(&candidates, &fractal, &layout, grows_phase);
         report.iterations += 1;
         let mut flipped = 0u64;
         let mut next = Vec::new();
-        queued.clear();
+        queued.remove_all(&candidates);
         // One at a time, in noise order, so the count stops exactly on the goal.
         for (k, &v) in order.iter().enumerate() {
             if count == goal {
@@ -225,11 +277,15 @@ pub(crate) fn target(
             let data = image.data_mut();
             if memo.is_simple(&tester, tester.configuration_in(data, &strides, v)) {
                 data[v] = flip_to;
-                flipped_set.insert(v);
-                count = if grow { count + 1 } else { count - 1 };
+                flipped_list.push(v);
+                count = if grow_foreground {
+                    count + 1
+                } else {
+                    count - 1
+                };
                 flipped += 1;
-                // Its interior face neighbours still on the inside join the frontier.
-                layout.for_each_interior_face_neighbour(v, |u| {
+                // Its face neighbours in the box still on the inside join the frontier.
+                layout.for_each_face_neighbour_in_box(v, |u| {
                     if data[u] == inside && queued.insert(u) {
                         next.push(u);
                     }
@@ -249,7 +305,9 @@ pub(crate) fn target(
         }
         if flipped == 0 {
             let data = image.data_mut();
-            flipped_set.for_each(|v| data[v] = inside);
+            for &v in &flipped_list {
+                data[v] = inside;
+            }
             return Err(DeformError::HypervolumeUnreachable {
                 start,
                 lo,
@@ -258,8 +316,8 @@ pub(crate) fn target(
             });
         }
         // A voxel queued before it was flipped later in the same iteration is no longer
-        // on the inside; the frontier of the next iteration is exactly the interior voxels
-        // on the inside with a face neighbour outside, as a full scan would find.
+        // on the inside; the frontier of the next iteration is exactly the voxels of the
+        // box on the inside with a face neighbour outside, as a full scan would find.
         let data = image.data();
         next.retain(|&u| data[u] == inside);
         candidates = next;
@@ -272,140 +330,46 @@ const LOOKAHEAD: usize = 16;
 /// log2 of the targeting loop's simple-point memo slots.
 const MEMO_BITS: u32 = 12;
 
-/// Flat-index geometry of an image for the targeting loop.
-struct Layout {
-    d: usize,
-    shape: [usize; 4],
-    strides: [usize; 4],
-}
-
-impl Layout {
-    fn new(image: &BinaryImage) -> Layout {
-        let d = image.dim().get();
-        let mut shape = [1usize; 4];
-        let mut strides = [0usize; 4];
-        shape[..d].copy_from_slice(image.shape());
-        strides[..d].copy_from_slice(image.strides());
-        Layout { d, shape, strides }
-    }
-
-    #[inline]
-    fn coords(&self, mut index: usize) -> [usize; 4] {
-        let mut out = [0usize; 4];
-        for (coordinate, &stride) in out.iter_mut().zip(&self.strides[..self.d]) {
-            *coordinate = index / stride;
-            index %= stride;
-        }
-        out
-    }
-
-    /// Calls `f` with every face neighbour of `v` that is an interior voxel.
-    #[inline]
-    fn for_each_interior_face_neighbour(&self, v: usize, mut f: impl FnMut(usize)) {
-        let c = self.coords(v);
-        for ((&ca, &s), &n) in c.iter().zip(&self.strides).zip(&self.shape).take(self.d) {
-            if ca >= 2 {
-                f(v - s);
-            }
-            if ca + 3 <= n {
-                f(v + s);
-            }
-        }
-    }
-}
-
-/// A fixed-size set of flat indices.
-struct BitSet {
-    words: Vec<u64>,
-}
-
-impl BitSet {
-    fn new(len: usize) -> BitSet {
-        BitSet {
-            words: vec![0; len.div_ceil(64)],
-        }
-    }
-
-    /// Inserts `i`; true if it was not there.
-    #[inline]
-    fn insert(&mut self, i: usize) -> bool {
-        let (w, bit) = (i / 64, 1u64 << (i % 64));
-        let fresh = self.words[w] & bit == 0;
-        self.words[w] |= bit;
-        fresh
-    }
-
-    fn clear(&mut self) {
-        self.words.iter_mut().for_each(|w| *w = 0);
-    }
-
-    fn for_each(&self, mut f: impl FnMut(usize)) {
-        for (w, &word) in self.words.iter().enumerate() {
-            let mut rest = word;
-            while rest != 0 {
-                f(w * 64 + rest.trailing_zeros() as usize);
-                rest &= rest - 1;
-            }
-        }
-    }
-}
-
-/// The candidates in the targeting order: by noise, highest first when growing and lowest
-/// first when shrinking, ties to the lower index (a total order, so the result does not
-/// depend on the input order). The noise of each voxel is computed here, in parallel (each
-/// value depends only on its coordinate), rather than cached for the whole image.
-fn sort_by_target_noise(
-    candidates: &[usize],
-    fractal: &Fractal,
-    layout: &Layout,
-    grow: bool,
-) -> Vec<usize> {
-    // The f32 noise mapped to a u32 whose unsigned order is `f32::total_cmp`'s (reversed
-    // when growing), so a pair sorts as one integer.
-    let key = |v: usize| -> u32 {
-        let noise = fractal.sample(layout.coords(v)) as f32;
-        let bits = noise.to_bits();
-        let ordered = if bits >> 31 == 1 {
-            !bits
-        } else {
-            bits | 1 << 31
-        };
-        if grow {
-            !ordered
-        } else {
-            ordered
-        }
-    };
-    if candidates.len() <= u32::MAX as usize && layout_fits_u32(layout) {
-        let mut keyed: Vec<u64> = candidates
-            .par_iter()
-            .map(|&v| (key(v) as u64) << 32 | v as u64)
-            .collect();
-        keyed.par_sort_unstable();
-        keyed
-            .into_iter()
-            .map(|k| (k & 0xFFFF_FFFF) as usize)
-            .collect()
-    } else {
-        let mut keyed: Vec<(u32, usize)> = candidates.par_iter().map(|&v| (key(v), v)).collect();
-        keyed.par_sort_unstable();
-        keyed.into_iter().map(|(_, v)| v).collect()
-    }
-}
-
-/// Whether every flat index of the image fits in 32 bits.
-fn layout_fits_u32(layout: &Layout) -> bool {
-    layout.shape[..layout.d]
-        .iter()
-        .try_fold(1u64, |acc, &n| acc.checked_mul(n as u64))
-        .is_some_and(|len| len <= 1 << 32)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::field::NoiseCache;
     use rand::{Rng, SeedableRng};
+
+    /// The voxels of the phase's box of value `inside` with a face neighbour of the other
+    /// value, by a plain scan of the whole image.
+    fn scan_frontier(image: &BinaryImage, phase: &Phase, inside: u8) -> Vec<usize> {
+        let d = image.dim().get();
+        let faces = bettimill_grid::neighbourhood::flat_offsets(
+            image,
+            &bettimill_grid::neighbourhood::face_offsets(image.dim()),
+        );
+        let data = image.data();
+        (0..image.len())
+            .filter(|&v| {
+                let c = image.coords(v);
+                (0..d).all(|a| c[a] >= phase.lo[a].max(1) && c[a] <= phase.hi[a])
+                    && data[v] == inside
+                    && faces
+                        .iter()
+                        .any(|&f| data[(v as isize + f) as usize] == 1 - inside)
+            })
+            .collect()
+    }
+
+    /// Sorts by noise, highest first when `highest_first`, ties to the lower index.
+    fn sort_by_noise(candidates: &mut Vec<usize>, noise: &mut NoiseCache, highest_first: bool) {
+        let mut keyed: Vec<(f32, usize)> = candidates.iter().map(|&v| (noise.get(v), v)).collect();
+        keyed.sort_by(|a, b| {
+            let by_noise = if highest_first {
+                b.0.total_cmp(&a.0)
+            } else {
+                a.0.total_cmp(&b.0)
+            };
+            by_noise.then(a.1.cmp(&b.1))
+        });
+        *candidates = keyed.into_iter().map(|(_, v)| v).collect();
+    }
 
     /// The targeting loop as first written: a full frontier scan per iteration, the noise
     /// from a whole-image cache, the plain simple-point test, one flip at a time. The fast
@@ -414,6 +378,7 @@ mod tests {
         image: &mut BinaryImage,
         lo: u64,
         hi: u64,
+        phase: &Phase,
         seed: u64,
     ) -> Result<DeformReport, DeformError> {
         let start = image.count_foreground();
@@ -429,6 +394,8 @@ mod tests {
         }
         let grow = start < lo;
         let goal = if grow { lo } else { hi };
+        let inside = if grow { 0 } else { 1 };
+        let highest_first = 1 - inside == phase.value;
         let mut noise = NoiseCache::new(
             image,
             seed,
@@ -439,8 +406,8 @@ mod tests {
         let original = image.clone();
         let mut count = start;
         loop {
-            let mut candidates = frontier(image, grow);
-            sort_by_noise(&mut candidates, &mut noise, grow);
+            let mut candidates = scan_frontier(image, phase, inside);
+            sort_by_noise(&mut candidates, &mut noise, highest_first);
             report.iterations += 1;
             let mut flipped = 0u64;
             for v in candidates {
@@ -472,6 +439,63 @@ mod tests {
         }
     }
 
+    /// Growth or shrinking as the definition reads: a full frontier scan per iteration,
+    /// the kept share by noise, then every kept voxel of each subfield decided against the
+    /// image as the subfield found it.
+    fn run_reference(image: &mut BinaryImage, job: &Morphology) -> u64 {
+        let dim = image.dim();
+        let tester = SimpleTester::new(dim);
+        let mut noise = NoiseCache::new(image, job.seed, job.noise_frequency, job.octaves).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(job.seed);
+        rng.set_stream(MORPHOLOGY_STREAM);
+        let n_subfields = 3usize.pow(dim.get() as u32);
+        let inside = if job.grow {
+            1 - job.phase.value
+        } else {
+            job.phase.value
+        };
+        let mut applied = 0;
+        for _ in 0..job.steps {
+            let mut candidates = scan_frontier(image, job.phase, inside);
+            if candidates.is_empty() {
+                break;
+            }
+            if job.growth_probability < 1.0 {
+                sort_by_noise(&mut candidates, &mut noise, job.grow);
+                let keep = libm::ceil(job.growth_probability * candidates.len() as f64) as usize;
+                candidates.truncate(keep.max(1));
+            }
+            let mut order: Vec<usize> = (0..n_subfields).collect();
+            order.shuffle(&mut rng);
+            let mut flipped = 0;
+            for class in order {
+                let members: Vec<usize> = candidates
+                    .iter()
+                    .copied()
+                    .filter(|&v| {
+                        let c = image.coords(v);
+                        (0..dim.get()).fold(0, |acc, a| acc * 3 + c[a] % 3) == class
+                    })
+                    .collect();
+                let decisions: Vec<bool> = members
+                    .iter()
+                    .map(|&v| tester.is_simple(image, v))
+                    .collect();
+                for (v, ok) in members.into_iter().zip(decisions) {
+                    if ok {
+                        image.data_mut()[v] = 1 - inside;
+                        flipped += 1;
+                    }
+                }
+            }
+            applied += flipped;
+            if flipped == 0 {
+                break;
+            }
+        }
+        applied
+    }
+
     /// Random blobs with a background border: a few random boxes.
     fn blobs(shape: &[usize], rng: &mut ChaCha8Rng) -> BinaryImage {
         let mut image = BinaryImage::zeros(shape).unwrap();
@@ -499,10 +523,25 @@ mod tests {
         image
     }
 
-    #[test]
-    fn targeting_matches_the_reference_loop_on_any_thread_count() {
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let pools: Vec<rayon::ThreadPool> = [1, 2, 4]
+    /// A solid cube (one background layer) with a few random box cavities, and the phase
+    /// of its cavities two voxels in from the solid's faces.
+    fn carved(shape: &[usize], rng: &mut ChaCha8Rng) -> (BinaryImage, Phase) {
+        let mut image = blobs(shape, rng);
+        let d = shape.len();
+        for v in 0..image.len() {
+            let c = image.coords(v);
+            let border = (0..d).any(|a| c[a] == 0 || c[a] + 1 == shape[a]);
+            let cavity = image.data()[v] == 1 && (0..d).all(|a| c[a] >= 3 && c[a] + 4 <= shape[a]);
+            image.data_mut()[v] = (!border && !cavity) as u8;
+        }
+        let lo = vec![2usize; d];
+        let hi: Vec<usize> = shape.iter().map(|&n| n - 3).collect();
+        let phase = Phase::cavities(&image, &lo, &hi);
+        (image, phase)
+    }
+
+    fn pools() -> Vec<rayon::ThreadPool> {
+        [1, 2, 4]
             .iter()
             .map(|&n| {
                 rayon::ThreadPoolBuilder::new()
@@ -510,27 +549,41 @@ mod tests {
                     .build()
                     .unwrap()
             })
-            .collect();
-        for shape in [
-            vec![40usize, 36],
-            vec![18, 20, 16],
-            vec![10, 11, 9, 12],
-            vec![14, 14, 14, 14],
-        ] {
-            for round in 0..6u64 {
-                let image = blobs(&shape, &mut rng);
+            .collect()
+    }
+
+    const SHAPES: [&[usize]; 4] = [
+        &[40, 36],
+        &[18, 20, 16],
+        &[10, 11, 9, 12],
+        &[14, 14, 14, 14],
+    ];
+
+    #[test]
+    fn targeting_matches_the_reference_loop_on_any_thread_count() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let pools = pools();
+        for shape in SHAPES {
+            for round in 0..8u64 {
+                let (image, phase) = if round % 2 == 0 {
+                    let image = blobs(shape, &mut rng);
+                    let phase = Phase::foreground(&image);
+                    (image, phase)
+                } else {
+                    carved(shape, &mut rng)
+                };
                 let start = image.count_foreground();
                 let len = image.len() as u64;
-                let (lo, hi) = match round % 3 {
-                    0 => (start / 3, start / 3 + 5),
-                    1 => ((start + len) / 2, (start + len) / 2 + 3),
-                    _ => (len, len),
+                let (lo, hi) = match round % 4 {
+                    0 | 1 => (start / 3, start / 3 + 5),
+                    2 => ((start + len) / 2, (start + len) / 2 + 3),
+                    _ => (start + 3, start + 9),
                 };
                 let mut expected = image.clone();
-                let want = target_reference(&mut expected, lo, hi, round);
+                let want = target_reference(&mut expected, lo, hi, &phase, round);
                 for pool in &pools {
                     let mut found = image.clone();
-                    let got = pool.install(|| target(&mut found, lo, hi, round));
+                    let got = pool.install(|| target(&mut found, lo, hi, &phase, round));
                     assert_eq!(got, want, "{shape:?} round {round}");
                     assert_eq!(found.data(), expected.data(), "{shape:?} round {round}");
                     if got.is_ok() {
@@ -542,6 +595,44 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn growth_and_shrinking_match_the_reference_on_any_thread_count() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let pools = pools();
+        for shape in SHAPES {
+            for round in 0..8u64 {
+                let (image, phase) = if round % 2 == 0 {
+                    let image = blobs(shape, &mut rng);
+                    let phase = Phase::foreground(&image);
+                    (image, phase)
+                } else {
+                    carved(shape, &mut rng)
+                };
+                let job = Morphology {
+                    phase: &phase,
+                    grow: round % 4 < 2,
+                    steps: 1 + round as u32 % 3,
+                    growth_probability: [1.0, 0.4, 0.7, 0.2][round as usize % 4],
+                    noise_frequency: 0.2,
+                    octaves: 2,
+                    seed: round,
+                };
+                let mut expected = image.clone();
+                let applied = run_reference(&mut expected, &job);
+                for pool in &pools {
+                    let mut found = image.clone();
+                    let report = pool.install(|| run(&mut found, &job)).unwrap();
+                    assert_eq!(report.applied, applied, "{shape:?} round {round}");
+                    assert_eq!(found.data(), expected.data(), "{shape:?} round {round}");
+                }
+                assert_eq!(
+                    bettimill_homology::topology(&expected).betti,
+                    bettimill_homology::topology(&image).betti
+                );
             }
         }
     }

@@ -1,16 +1,17 @@
-//! Hypervolume-preserving moves (the paper's pixel-moving deformation, in any dimension).
+//! Hypervolume-preserving moves (the paper's pixel-moving deformation, in any dimension),
+//! of the phase that carries the topology (see `phase.rs`).
 //!
-//! One move takes a foreground boundary voxel `x` (foreground, with a background
-//! face-neighbour) and a background voxel `z` within Chebyshev distance `max_distance` of
-//! it, with `noise(z) > noise(x)`, and flips both. It is applied only when `x` is simple in
+//! One move takes a boundary voxel `x` of the phase (in the phase, with a face neighbour
+//! outside it) and a voxel `z` outside the phase within Chebyshev distance `max_distance`
+//! of it, both in the phase's box, with `noise(z) > noise(x)`, and flips both. It is applied only when `x` is simple in
 //! the image and then `z` is simple in the image without `x`; the order matters when the
 //! two are close, since deleting `x` changes `z`'s neighbourhood. Both flips are simple, so
 //! topology is unchanged, and the foreground count is unchanged by construction.
 //!
 //! Choosing `x`: a tournament of [`TOURNAMENT`] random boundary voxels, lowest noise wins,
 //! so the process prefers low-noise voxels without always hammering the single lowest one.
-//! Choosing `z`: the highest-noise candidate that passes the test, among background voxels
-//! with a foreground face-neighbour. Every move strictly
+//! Choosing `z`: the highest-noise candidate that passes the test, among voxels outside the
+//! phase with a face neighbour in it. Every move strictly
 //! raises the sum of the noise over the foreground, so the process cannot cycle; when no
 //! move is possible any more it stops early and the report says how many were applied.
 //!
@@ -21,12 +22,14 @@
 //! background neighbours all have lower noise, and most attempts are wasted.
 
 use crate::field::NoiseCache;
+use crate::phase::{BitSet, Layout, Phase};
 use crate::DeformReport;
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::BinaryImage;
 use bettimill_homology::simple::SimpleTester;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::collections::HashMap;
 
 /// Random boundary voxels drawn per move; the lowest-noise one is the source.
 pub(crate) const TOURNAMENT: usize = 4;
@@ -45,62 +48,59 @@ pub(crate) fn index_below(rng: &mut ChaCha8Rng, n: usize) -> usize {
     rng.gen_range(0..n as u64) as usize
 }
 
-/// The foreground voxels with a background face-neighbour, as a list that supports
-/// uniform random draws plus a slot table for O(1) insertion and removal.
+/// The phase's boundary voxels, as a list that supports uniform random draws plus a slot
+/// map for O(1) insertion and removal (a map, not a table over the image: the boundary is
+/// a small part of a large image; it is only looked up, so its order reaches nothing).
 struct BoundarySet {
     list: Vec<usize>,
-    // 0 = absent, otherwise position in `list` plus one.
-    slot: Vec<u32>,
+    // Position in `list`.
+    slot: HashMap<usize, usize>,
 }
 
 impl BoundarySet {
     fn insert(&mut self, v: usize) {
-        if self.slot[v] == 0 {
+        if let std::collections::hash_map::Entry::Vacant(e) = self.slot.entry(v) {
+            e.insert(self.list.len());
             self.list.push(v);
-            self.slot[v] = self.list.len() as u32;
         }
     }
 
     fn remove(&mut self, v: usize) {
-        let s = self.slot[v];
-        if s != 0 {
-            let pos = s as usize - 1;
-            let last = *self.list.last().expect("slot says the list is non-empty");
+        if let Some(pos) = self.slot.remove(&v) {
+            let last = *self
+                .list
+                .last()
+                .expect("the map says the list is non-empty");
             self.list.swap_remove(pos);
             if last != v {
-                self.slot[last] = s;
+                self.slot.insert(last, pos);
             }
-            self.slot[v] = 0;
         }
     }
 }
 
 struct Geometry {
-    shape: [usize; 4],
-    d: usize,
+    layout: Layout,
+    value: u8,
     faces: Vec<isize>,
 }
 
 impl Geometry {
-    fn interior(&self, image: &BinaryImage, v: usize) -> bool {
-        let c = image.coords(v);
-        (0..self.d).all(|a| c[a] >= 1 && c[a] + 1 < self.shape[a])
-    }
-
     fn is_boundary(&self, image: &BinaryImage, v: usize) -> bool {
         let data = image.data();
-        data[v] == 1
-            && self.interior(image, v)
+        data[v] == self.value
+            && self.layout.in_box(v)
             && self
                 .faces
                 .iter()
-                .any(|&f| data[(v as isize + f) as usize] == 0)
+                .any(|&f| data[(v as isize + f) as usize] != self.value)
     }
 }
 
 pub(crate) fn run(
     image: &mut BinaryImage,
     mut noise: NoiseCache,
+    phase: &Phase,
     steps: u32,
     max_distance: u32,
     seed: u64,
@@ -114,10 +114,20 @@ pub(crate) fn run(
     let mut shape = [1usize; 4];
     shape[..d].copy_from_slice(image.shape());
     let geometry = Geometry {
-        shape,
-        d,
+        layout: Layout::new(image, phase),
+        value: phase.value,
         faces: flat_offsets(image, &face_offsets(dim)),
     };
+    let (inside, outside) = (phase.value, phase.other());
+    if steps == 0 || geometry.layout.is_empty() {
+        return DeformReport {
+            applied: 0,
+            rejected: 0,
+            iterations: 0,
+            foreground_before,
+            foreground_after: foreground_before,
+        };
+    }
 
     // Target offsets: the Chebyshev ball of radius m without its centre, in lexicographic
     // order (the order only breaks exact noise ties, but it must be fixed).
@@ -158,7 +168,7 @@ pub(crate) fn run(
             .sum();
         refresh_rows.push((off, rows));
     }
-    let mut stuck = vec![false; image.len()];
+    let mut stuck = BitSet::new(image.len());
     let mut n_stuck = 0usize;
     // Stuck voxels per row along the last axis: a small array that is cheap to consult,
     // where reading `stuck` itself over a 4D ball costs a cache miss per row.
@@ -167,13 +177,11 @@ pub(crate) fn run(
 
     let mut boundary = BoundarySet {
         list: Vec::new(),
-        slot: vec![0; image.len()],
+        slot: HashMap::new(),
     };
-    crate::for_each_interior(image, |v| {
-        if geometry.is_boundary(image, v) {
-            boundary.insert(v);
-        }
-    });
+    for v in geometry.layout.frontier(image, inside) {
+        boundary.insert(v);
+    }
 
     let max_attempts = steps as u64 * ATTEMPTS_PER_MOVE + 1024;
     let (mut applied, mut rejected, mut attempts) = (0u64, 0u64, 0u64);
@@ -192,37 +200,39 @@ pub(crate) fn run(
         }
         if !tester.is_simple(image, source) {
             rejected += 1;
-            stuck[source] = true;
+            stuck.insert(source);
             n_stuck += 1;
             stuck_in_row[source / row_len] += 1;
             boundary.remove(source);
             continue;
         }
-        image.data_mut()[source] = 0;
+        image.data_mut()[source] = outside;
 
         let c = image.coords(source);
-        // Far enough from every face, the whole ball is inside the editable region.
-        let deep = (0..d).all(|a| c[a] as i64 > m && ((c[a] + 1) as i64 + m) < shape[a] as i64);
+        let (lo, hi) = (geometry.layout.lo, geometry.layout.hi);
+        // Far enough from every face of the box, the whole ball is inside it.
+        let deep =
+            (0..d).all(|a| c[a] as i64 - m >= lo[a] as i64 && c[a] as i64 + m <= hi[a] as i64);
         candidates.clear();
         for (off, flat) in &ball {
-            let inside = deep
+            let in_box = deep
                 || (0..d).all(|a| {
                     let x = c[a] as i64 + off[a];
-                    x >= 1 && x + 1 < shape[a] as i64
+                    x >= lo[a] as i64 && x <= hi[a] as i64
                 });
-            if !inside {
+            if !in_box {
                 continue;
             }
             let z = (source as isize + flat) as usize;
-            // Targets must touch the foreground through a face: a voxel attached only by
-            // an edge or corner is often simple, but moving voxels there grows one-voxel
+            // Targets must touch the phase through a face: a voxel attached only by an
+            // edge or corner is often simple, but moving voxels there grows one-voxel
             // diagonal hairs instead of bulges.
             let data = image.data();
-            if data[z] == 0
+            if data[z] == outside
                 && geometry
                     .faces
                     .iter()
-                    .any(|&f| data[(z as isize + f) as usize] == 1)
+                    .any(|&f| data[(z as isize + f) as usize] == inside)
             {
                 let n = noise.get(z);
                 if n > source_noise {
@@ -237,7 +247,7 @@ pub(crate) fn run(
             .find(|&z| tester.is_simple(image, z));
         match target {
             Some(z) => {
-                image.data_mut()[z] = 1;
+                image.data_mut()[z] = inside;
                 applied += 1;
                 for centre in [source, z] {
                     // Un-stick the stuck voxels this move may have freed.
@@ -262,14 +272,8 @@ pub(crate) fn run(
                             continue;
                         }
                         let row = row_id * row_len;
-                        for (v, is_stuck) in stuck
-                            .iter_mut()
-                            .enumerate()
-                            .take(row + hi + 1)
-                            .skip(row + lo)
-                        {
-                            if *is_stuck {
-                                *is_stuck = false;
+                        for v in row + lo..=row + hi {
+                            if stuck.remove(v) {
                                 n_stuck -= 1;
                                 stuck_in_row[row_id] -= 1;
                                 if geometry.is_boundary(image, v) {
@@ -295,9 +299,9 @@ pub(crate) fn run(
                 }
             }
             None => {
-                image.data_mut()[source] = 1;
+                image.data_mut()[source] = inside;
                 rejected += 1;
-                stuck[source] = true;
+                stuck.insert(source);
                 n_stuck += 1;
                 stuck_in_row[source / row_len] += 1;
                 boundary.remove(source);

@@ -1,7 +1,10 @@
 //! Property tests: on random small images in 2D, 3D and 4D, every deformation keeps the
 //! exact Betti numbers, moves keep the foreground count, and the outer layer is untouched.
 
-use bettimill_deform::{deform, target_hypervolume, DeformSettings, Method};
+use bettimill_deform::{
+    deform, deform_phase, target_hypervolume, target_hypervolume_phase, DeformSettings, Method,
+    Phase,
+};
 use bettimill_grid::neighbourhood::is_interior;
 use bettimill_grid::BinaryImage;
 use bettimill_homology::topology;
@@ -23,7 +26,9 @@ fn method() -> impl Strategy<Value = Method> {
     prop_oneof![
         Just(Method::Moves),
         Just(Method::Dilate),
-        Just(Method::Erode)
+        Just(Method::Erode),
+        Just(Method::Tentacles),
+        Just(Method::Walk)
     ]
 }
 
@@ -37,6 +42,7 @@ fn check(img: BinaryImage, method: Method, steps: u32, max_distance: u32, p: f64
         growth_probability: p,
         noise_frequency: 0.19,
         octaves: 2,
+        count: 1 + (seed % 3) as u32,
     };
     let report = deform(&mut out, &settings, seed).unwrap();
     assert_eq!(topology(&out), before, "{method:?} {report:?}");
@@ -50,8 +56,74 @@ fn check(img: BinaryImage, method: Method, steps: u32, max_distance: u32, p: f64
     }
 }
 
+/// The cavity phase of `img` in the box two voxels in from every face: the deformation
+/// keeps the topology and edits nothing outside the box.
+fn check_cavities(img: BinaryImage, method: Method, steps: u32, p: f64, seed: u64) {
+    let before = topology(&img);
+    let d = img.shape().len();
+    let lo = vec![2usize; d];
+    let hi: Vec<usize> = img.shape().iter().map(|&n| n - 3).collect();
+    let phase = Phase::cavities(&img, &lo, &hi);
+    let settings = DeformSettings {
+        method,
+        steps,
+        growth_probability: p,
+        noise_frequency: 0.19,
+        octaves: 2,
+        count: 1 + (seed % 3) as u32,
+        ..DeformSettings::default()
+    };
+    let mut out = img.clone();
+    let report = deform_phase(&mut out, &settings, &phase, seed).unwrap();
+    assert_eq!(topology(&out), before, "{method:?} {report:?}");
+    let in_box = |v: usize| {
+        let c = img.coords(v);
+        (0..d).all(|a| c[a] >= lo[a] && c[a] <= hi[a])
+    };
+    for v in 0..img.len() {
+        if !in_box(v) {
+            assert_eq!(
+                out.data()[v],
+                img.data()[v],
+                "voxel {v} outside the box edited"
+            );
+        }
+    }
+    let goal = img.count_foreground() + 5;
+    let mut targeted = img.clone();
+    match target_hypervolume_phase(&mut targeted, goal, goal, &phase, seed) {
+        Ok(_) => {
+            assert_eq!(targeted.count_foreground(), goal);
+            assert_eq!(topology(&targeted), before);
+        }
+        Err(_) => assert_eq!(targeted, img),
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn cavity_deformations_keep_topology_and_their_box_3d(
+        bits in proptest::collection::vec(proptest::bool::weighted(0.7), 9 * 8 * 9),
+        method in method(),
+        steps in 1u32..20,
+        p in 0.1f64..=1.0,
+        seed in any::<u64>(),
+    ) {
+        check_cavities(image(vec![9, 8, 9], bits, false), method, steps, p, seed);
+    }
+
+    #[test]
+    fn cavity_deformations_keep_topology_and_their_box_4d(
+        bits in proptest::collection::vec(proptest::bool::weighted(0.7), 7 * 6 * 7 * 6),
+        method in method(),
+        steps in 1u32..12,
+        p in 0.1f64..=1.0,
+        seed in any::<u64>(),
+    ) {
+        check_cavities(image(vec![7, 6, 7, 6], bits, false), method, steps, p, seed);
+    }
 
     #[test]
     fn deformations_keep_topology_2d(

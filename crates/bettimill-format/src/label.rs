@@ -1,6 +1,6 @@
 //! The label stored as `KEY.json` in every sample.
 
-use bettimill_deform::DeformSettings;
+use bettimill_types::DeformSettings;
 use serde::{Deserialize, Serialize};
 
 /// The label stored as `KEY.json`. Field order is fixed by this struct, and the
@@ -49,9 +49,10 @@ pub struct Label {
     pub tool_version: String,
     /// How the sample was built.
     pub construction: serde_json::Value,
-    /// Deformation applied, if any.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub deform: Option<DeformSettings>,
+    /// The deformation steps applied to the topological phase, in order, each with the
+    /// settings this sample drew (empty when the manifest asks for none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub deform: Vec<DeformSettings>,
     /// The foreground voxel bin `[lo, hi]` the sample was brought into, if binned.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hypervolume_bin: Option<(u64, u64)>,

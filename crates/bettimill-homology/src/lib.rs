@@ -77,11 +77,10 @@ impl Topology {
     }
 }
 
-/// The largest side of a 4D cube whose Betti numbers [`try_topology`] computes: with a
-/// border of one voxel and each side rounded up to a multiple of 4, the image must have at
-/// most 2^32 voxels (32-bit places; (254 + 2)^4 = 2^32). Larger is
-/// [`TopologyError::TooLarge`]; manifests refuse larger 4D sides.
-pub const MAX_4D_SIDE: usize = 254;
+/// The largest side of a 4D cube whose Betti numbers [`try_topology`] computes (one
+/// definition, in the leaf crate the manifest also reads); larger is
+/// [`TopologyError::TooLarge`].
+pub use bettimill_types::MAX_4D_SIDE;
 
 /// Why [`try_topology`] computed no Betti numbers.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]

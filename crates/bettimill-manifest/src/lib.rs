@@ -28,9 +28,9 @@
 //! family = "handle"
 //! ```
 
-use bettimill_deform::DeformSettings;
 use bettimill_grid::{Dim, Mode};
-use bettimill_homology::MAX_4D_SIDE;
+use bettimill_types::MAX_4D_SIDE;
+use bettimill_types::{Deformation, Solid};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -107,10 +107,15 @@ pub struct Manifest {
     /// computed Betti numbers (max pooling; each must divide `side`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub resolutions: Vec<u32>,
-    /// Optional topology-preserving deformation applied to every sample (the one schema of
-    /// deformation settings, with its defaults and ranges, is `bettimill_deform`'s).
+    /// Carve mode: the solid the cavities are carved from, the full cube (default) or a
+    /// box sized for the hypervolume bin.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub deform: Option<DeformSettings>,
+    pub solid: Option<Solid>,
+    /// Optional topology-preserving deformations applied in order to the phase that
+    /// carries each sample's topology (one `[deform]` table or an array of `[[deform]]`
+    /// tables; the schema, its defaults and ranges are `bettimill_types::deform`'s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deform: Option<Deformation>,
     /// The label classes, expanded: an integer parameter written `[lo, hi]` or a list of
     /// strings becomes one class per value. The plan's canonical form serialises this field
     /// last, so it must stay the last field.
@@ -353,10 +358,26 @@ impl Origin {
 
 impl Source<'_> {
     /// The 1-based line where `field` is assigned (`field = ...`), or 0 if it is absent.
+    /// A field of the i-th entry of an array of tables (`deform[1].steps`) is searched from
+    /// that entry's `[[deform]]` header on.
     fn line_of(&self, field: &str) -> usize {
         let leaf = field.rsplit('.').next().unwrap_or(field);
+        let skip = field
+            .split_once('[')
+            .and_then(|(table, rest)| {
+                let index: usize = rest.split_once(']')?.0.parse().ok()?;
+                let header = format!("[[{table}]]");
+                self.text
+                    .lines()
+                    .enumerate()
+                    .filter(|(_, line)| line.trim() == header)
+                    .nth(index)
+                    .map(|(at, _)| at)
+            })
+            .unwrap_or(0);
         self.text
             .lines()
+            .skip(skip)
             .position(|line| {
                 let line = line.trim_start();
                 line.strip_prefix(leaf)
@@ -365,6 +386,7 @@ impl Source<'_> {
                     || line == format!("[{leaf}]")
                     || line == format!("[[{leaf}]]")
             })
+            .map(|i| skip + i)
             .or_else(|| {
                 // A quoted key with any characters, escapes too (`"v\u0000al" = 2`): the
                 // key as TOML reads it.
@@ -817,14 +839,8 @@ impl Manifest {
             ));
         }
         if let Some(deform) = &self.deform {
-            if let Err(bettimill_deform::DeformError::InvalidSetting { field, reason }) =
-                deform.validate()
-            {
-                return Err(ManifestError::invalid(
-                    source,
-                    &format!("deform.{field}"),
-                    reason,
-                ));
+            if let Err((field, err)) = deform.validate() {
+                return Err(ManifestError::invalid(source, &field, err.reason));
             }
         }
         Ok(())

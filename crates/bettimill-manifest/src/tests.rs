@@ -201,8 +201,22 @@ fn deformation_settings_out_of_range_are_refused_with_the_range() {
     let deform = parse(&text).unwrap().deform.unwrap();
     assert_eq!(
         deform,
-        bettimill_deform::DeformSettings::new(bettimill_deform::Method::Dilate, 2)
+        bettimill_types::Deformation(vec![bettimill_types::DeformStep::new(
+            bettimill_types::Method::Dilate,
+            2
+        )])
     );
+    // The step of a sequence is named, on its own line.
+    let text = format!(
+        "{GOOD}\n[[deform]]\nmethod = \"dilate\"\nsteps = 2\n\
+         [[deform]]\nmethod = \"walk\"\nsteps = [9, 3]\n"
+    );
+    match parse(&text) {
+        Err(ManifestError::Invalid { field, line, .. }) => {
+            assert_eq!((field.as_str(), line), ("deform[1].steps", 18))
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
 }
 
 #[test]

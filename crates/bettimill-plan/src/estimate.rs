@@ -8,7 +8,11 @@
 //! ```text
 //! cpu = voxels x NS_PER_VOXEL[d][mode] x (binned ? BINNED_FACTOR[d] : 1)
 //!           x (1 + COPY_WEIGHT x (components - 1))
-//!     + voxels x deformation steps x DEFORM_NS_PER_STEP_VOXEL
+//!     + deformation: per step, voxels x DEFORM_SCAN_NS (one scan for the frontier)
+//!       + the step's own work: moves x DEFORM_NS_PER_MOVE, or iterations x kept share x
+//!       side^(d-1) x DEFORM_NS_PER_FRONTIER_VOXEL (dilate, erode: the frontier follows
+//!       the phase's surface), or walkers x steps x DEFORM_NS_PER_WALK_STEP, at the
+//!       ranges' midpoints
 //!     + voxels of the downscaled copies x DOWNSCALE_NS_PER_VOXEL
 //!     + SAMPLE_FIXED_SECONDS
 //! ```
@@ -50,9 +54,19 @@ pub const BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.5];
 /// a 4D 48 carved handle with one and two copies).
 pub const COPY_WEIGHT: f64 = 0.4;
 
-/// CPU nanoseconds per voxel and deformation step (calibrated on a 3D 64 embedded ball
-/// with and without 200 `moves` steps).
-pub const DEFORM_NS_PER_STEP_VOXEL: f64 = 6.9;
+/// CPU nanoseconds per voxel of the image for one deformation step's scan of its box.
+pub const DEFORM_SCAN_NS: f64 = 1.0;
+
+/// CPU nanoseconds per move, by dimension (2D, 3D, 4D).
+pub const DEFORM_NS_PER_MOVE: [f64; 3] = [2_000.0, 4_000.0, 8_000.0];
+
+/// CPU nanoseconds per frontier voxel of one dilation or erosion iteration (its noise and
+/// its simple-point test), by dimension, with the frontier taken as `side^(d-1)` voxels.
+pub const DEFORM_NS_PER_FRONTIER_VOXEL: [f64; 3] = [300.0, 400.0, 600.0];
+
+/// CPU nanoseconds per tentacle or walker step (the simple-point tests of a ball of
+/// radius 1), by dimension.
+pub const DEFORM_NS_PER_WALK_STEP: [f64; 3] = [1_000.0, 2_000.0, 4_000.0];
 
 /// CPU nanoseconds per voxel of each downscaled copy (pooling, its homology, compressing).
 pub const DOWNSCALE_NS_PER_VOXEL: f64 = 60.0;
@@ -186,11 +200,47 @@ pub fn sample_cpu_seconds(plan: &Plan, stratum: &Stratum) -> f64 {
     }
     ns *= 1.0 + COPY_WEIGHT * (stratum.components.max(1) - 1) as f64;
     let mut seconds = volume * ns * 1e-9;
-    if let Some(deform) = &plan.deform {
-        seconds += volume * deform.steps as f64 * DEFORM_NS_PER_STEP_VOXEL * 1e-9;
-    }
+    seconds += deform_seconds(plan, volume);
     let copies: f64 = plan.resolutions.iter().map(|&r| voxels(plan, r)).sum();
     seconds + copies * DOWNSCALE_NS_PER_VOXEL * 1e-9 + SAMPLE_FIXED_SECONDS
+}
+
+/// The model's CPU seconds of one sample's deformation sequence.
+fn deform_seconds(plan: &Plan, volume: f64) -> f64 {
+    use bettimill_types::{Method, Spread};
+    let Some(deformation) = &plan.deform else {
+        return 0.0;
+    };
+    let d = plan.dimension.get() - 2;
+    let surface = (plan.side as f64).powi(plan.dimension.get() as i32 - 1);
+    let mid = |s: &Spread<u32>| {
+        let (lo, hi) = s.bounds();
+        (lo as f64 + hi as f64) / 2.0
+    };
+    let mid_real = |s: &Spread<f64>| {
+        let (lo, hi) = s.bounds();
+        (lo + hi) / 2.0
+    };
+    let ns: f64 = deformation
+        .0
+        .iter()
+        .map(|step| {
+            let work = match step.method {
+                Method::Moves => mid(&step.steps) * DEFORM_NS_PER_MOVE[d],
+                Method::Dilate | Method::Erode => {
+                    mid(&step.steps)
+                        * mid_real(&step.growth_probability)
+                        * surface
+                        * DEFORM_NS_PER_FRONTIER_VOXEL[d]
+                }
+                Method::Tentacles | Method::Walk => {
+                    mid(&step.steps) * mid(&step.count) * DEFORM_NS_PER_WALK_STEP[d]
+                }
+            };
+            volume * DEFORM_SCAN_NS + work
+        })
+        .sum();
+    ns * 1e-9
 }
 
 /// The model's bytes of one array of side `side` as stored (before its tar header).
@@ -290,7 +340,7 @@ mod tests {
             "[deform]\nmethod = \"moves\"\nsteps = 200\n",
             ball,
         ));
-        assert!(deformed > 10.0 * embed, "deformed {deformed}");
+        assert!(deformed > embed, "deformed {deformed}");
     }
 
     #[test]

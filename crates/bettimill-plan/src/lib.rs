@@ -26,13 +26,13 @@
 pub mod estimate;
 pub mod memory;
 
-use bettimill_deform::DeformSettings;
 pub use bettimill_format::{ClassTable, StratumClass, TopologyClass};
 use bettimill_grid::{Dim, Mode};
 use bettimill_manifest::{ClassKind, ClassSpec, Manifest, ManifestError};
 use bettimill_shapes::Family;
 /// The thinnest tube of a stratum's constructions ([`Stratum::tube_floor`]).
 pub use bettimill_shapes::TubeFloor;
+use bettimill_types::{Deformation, Solid};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -185,8 +185,11 @@ pub struct Plan {
     pub compression: bettimill_shard::Compression,
     /// Side lengths of the downscaled copies stored with every sample.
     pub resolutions: Vec<u32>,
-    /// The deformation applied to every sample, if any.
-    pub deform: Option<DeformSettings>,
+    /// The deformation sequence applied to every sample's topological phase, if any; each
+    /// sample draws its own settings from the ranges.
+    pub deform: Option<Deformation>,
+    /// Carve mode's solid.
+    pub solid: Solid,
     /// Upper bound of one sample's bytes in a shard, uncompressed.
     pub sample_bytes: u64,
 }
@@ -374,6 +377,7 @@ impl Plan {
             compression: member_compression(manifest),
             resolutions: manifest.resolutions.clone(),
             deform: manifest.deform.clone(),
+            solid: manifest.solid.unwrap_or_default(),
             sample_bytes,
         })
     }

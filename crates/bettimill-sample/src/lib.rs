@@ -10,6 +10,7 @@
 //! setting (deformation, resolutions), and the label a sample must carry is the plan's
 //! stratum's, decided once when the manifest was planned.
 
+use bettimill_deform::Phase;
 pub use bettimill_format::{Label, Pooling, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
 use bettimill_grid::{BinaryImage, Mode};
@@ -105,9 +106,9 @@ pub fn downscale(image: &BinaryImage, factor: usize, pooling: Pooling) -> Binary
 
 /// The pooling rule of a mode's downscaled copies. Embed mode pools the objects
 /// ([`Pooling::ForegroundAny`]). Carve mode pools the same way: on the 4D mixed 128 preset
-/// (BENCHMARKS.md, issue 17) max pooling kept more copies' topology than pooling the
-/// cavities ([`Pooling::BackgroundAny`]), because the binned constructions' cavities are
-/// thick tubes while the foreground between their parts can be a few voxels thin, and min
+/// max pooling keeps more copies' topology than pooling the cavities
+/// ([`Pooling::BackgroundAny`]), because the binned constructions' cavities are thick
+/// tubes while the foreground between their parts can be a few voxels thin, and min
 /// pooling closes those gaps. The rule is in every copy's label either way. The plan sizes
 /// carved tubes for this rule (`bettimill_plan::tube_floor_for`): change both together.
 pub fn pooling_for(mode: Mode) -> Pooling {
@@ -180,6 +181,12 @@ fn sub_seed(domain: &str, seed: &[u8; 32], attempt: u32) -> u64 {
     u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes"))
 }
 
+/// A u64 seed in the named domain for (sample seed, attempt, deformation step).
+fn step_seed(domain: &str, seed: &[u8; 32], attempt: u32, step: &[u8]) -> u64 {
+    let bytes = derive_seed(domain, &[seed, &attempt.to_le_bytes(), step]);
+    u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes"))
+}
+
 /// Why a sample could not be made.
 #[derive(Debug, thiserror::Error)]
 pub enum SampleError {
@@ -221,9 +228,8 @@ pub enum Stage {
 
 impl Stage {
     /// The part of a sample's time spent before this stage and in it, as fractions of the
-    /// whole: typical shares of a 4D 128^4 sample (BENCHMARKS.md, issue 17's stage
-    /// breakdown: generate about 1 CPU-s, targeting 0.2, homology 3.5, copies 1, encoding
-    /// under 1), rounded. An estimate of where the sample is, not a voxel count.
+    /// whole: typical shares of a 4D 128^4 sample (the stage breakdown in BENCHMARKS.md),
+    /// rounded. An estimate of where the sample is, not a voxel count.
     pub fn span(self) -> (f64, f64) {
         match self {
             Stage::Generate => (0.0, 0.2),
@@ -304,6 +310,7 @@ pub fn make_sample_observed(
             side,
             stratum.mode,
             foreground,
+            plan.solid,
             stratum.tube_floor,
             &mut rng,
         ) {
@@ -314,18 +321,40 @@ pub fn make_sample_observed(
             }
         };
         let mut image = generated.image;
-        if let Some(settings) = &plan.deform {
+        // The phase that carries the topology: the cavities inside the solid in carve
+        // mode, the objects in embed mode. Deformation and targeting edit it alone.
+        let phase = match &generated.phase_box {
+            Some((lo, hi)) => Phase::cavities(&image, lo, hi),
+            None => Phase::foreground(&image),
+        };
+        let mut applied = Vec::new();
+        if let Some(deformation) = &plan.deform {
             report(Stage::Deform, 0.0);
-            let seed = sub_seed("bettimill deform seed v1", &task.seed, attempt);
-            if let Err(err) = bettimill_deform::deform(&mut image, settings, seed) {
-                last = format!("deformation failed: {err}");
+            let mut failed = None;
+            for (i, step) in deformation.0.iter().enumerate() {
+                let at = (i as u32).to_le_bytes();
+                let draw = step_seed("bettimill deform draw v2", &task.seed, attempt, &at);
+                let settings = bettimill_deform::draw_settings(step, draw);
+                let seed = step_seed("bettimill deform seed v2", &task.seed, attempt, &at);
+                if let Err(err) =
+                    bettimill_deform::deform_phase(&mut image, &settings, &phase, seed)
+                {
+                    failed = Some(format!("deformation step {i} failed: {err}"));
+                    break;
+                }
+                applied.push(settings);
+            }
+            if let Some(failure) = failed {
+                last = failure;
                 continue;
             }
         }
         if let Some((lo, hi)) = stratum.hypervolume {
             report(Stage::Hypervolume, 0.0);
             let seed = sub_seed("bettimill hypervolume seed v1", &task.seed, attempt);
-            if let Err(err) = bettimill_deform::target_hypervolume(&mut image, lo, hi, seed) {
+            if let Err(err) =
+                bettimill_deform::target_hypervolume_phase(&mut image, lo, hi, &phase, seed)
+            {
                 last = format!("hypervolume targeting failed: {err}");
                 continue;
             }
@@ -391,7 +420,7 @@ pub fn make_sample_observed(
             manifest_hash: plan.manifest_hash.clone(),
             tool_version: TOOL_VERSION.to_string(),
             construction: generated.construction,
-            deform: plan.deform.clone(),
+            deform: applied,
             hypervolume_bin: stratum.hypervolume,
             resolutions,
         };

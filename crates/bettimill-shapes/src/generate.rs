@@ -14,7 +14,7 @@ use crate::place::{
     canonical_layout, grid_fits, place_objects, place_tunnel, PlacementArea, Region, CUBE_MARGIN,
 };
 use crate::sizing::min_extent;
-use crate::{BinaryImage, Dim, Family, Generated, KnotKind, LinkKind, Mode, ShapeError};
+use crate::{BinaryImage, Dim, Family, Generated, KnotKind, LinkKind, Mode, ShapeError, Solid};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Map, Value};
 
@@ -158,20 +158,40 @@ fn object_minima(
 }
 
 /// The smallest and largest share of the image the cavities of a sample sized for a
-/// hypervolume take (carve mode); the solid box is sized around them. The same range for
-/// every family, so neither the cavities' volume nor the box's size tells the class.
+/// hypervolume take in a boxed solid ([`Solid::Box`]); the box is sized around them. The
+/// same range for every family, so neither the cavities' volume nor the box's size tells
+/// the class.
 pub(crate) const CAVITY_SHARE: (f64, f64) = (0.002, 0.01);
+
+/// How large a construction is made.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sizing {
+    /// The foreground count to come near, if binned.
+    pub(crate) foreground: Option<u64>,
+    /// Carve mode's solid.
+    pub(crate) solid: Solid,
+    /// The thinnest tube.
+    pub(crate) floor: TubeFloor,
+}
+
+impl Sizing {
+    /// Unbinned, the full cube, the usual tubes.
+    pub(crate) const USUAL: Sizing = Sizing {
+        foreground: None,
+        solid: Solid::Cube,
+        floor: TubeFloor::USUAL,
+    };
+}
 
 /// One random instance with its label ([`crate::generate`]), with the size checks
 /// (`check`) or without them, for a request [`check_fits`] has accepted
 /// ([`crate::generate_planned`]; the checks draw nothing from `rng`, so both give the same
-/// voxels); and with `foreground` the construction sized so that its
-/// foreground count lands near that many voxels: in carve mode a solid box of nearly
-/// equal sides (instead of the full cube) sized around cavities of a random share
-/// [`CAVITY_SHARE`] of the image, the cavities sized by bisection for the rest; in embed
-/// mode the objects sized for the count. Sizes that cannot reach it come as close as
-/// the room allows.
-#[allow(clippy::too_many_arguments)] // The crate's entry points name the same request.
+/// voxels); and with a `foreground` count the construction sized so that its foreground
+/// count lands near that many voxels: in carve mode with [`Solid::Cube`] the full cube's
+/// cavities sized by bisection for the rest of its volume; with [`Solid::Box`] a solid box
+/// of nearly equal sides sized around cavities of a random share [`CAVITY_SHARE`] of the
+/// image; in embed mode the objects sized for the count. Sizes that cannot reach it come
+/// as close as the room allows.
 pub(crate) fn generate_for(
     family: &Family,
     dim: Dim,
@@ -179,13 +199,17 @@ pub(crate) fn generate_for(
     mode: Mode,
     rng: &mut ChaCha8Rng,
     check: bool,
-    foreground: Option<u64>,
-    floor: TubeFloor,
+    sizing: Sizing,
 ) -> Result<Generated, ShapeError> {
+    let Sizing {
+        foreground,
+        solid: solid_kind,
+        floor,
+    } = sizing;
     if let Family::Betti { betti } = family {
         // The realisation is generated as itself; its record says which class it serves.
         let realised = crate::betti_class::realise(betti, dim, mode)?;
-        let mut generated = generate_for(&realised, dim, side, mode, rng, check, foreground, floor)
+        let mut generated = generate_for(&realised, dim, side, mode, rng, check, sizing)
             .map_err(|err| realised_as(err, family, &realised))?;
         if let Value::Object(map) = &mut generated.construction {
             map.insert("class".into(), json!(family.label()));
@@ -203,7 +227,11 @@ pub(crate) fn generate_for(
     let full = full_box(d, side);
     // The solid (carve mode) and the objects' voxel count, when sized for a hypervolume.
     let mut axes = Vec::new();
+    let boxed = solid_kind == Solid::Box;
     let (solid, volume) = match (mode, foreground) {
+        (Mode::Carve, Some(target)) if !tunnel && !boxed => {
+            (full, Some(full.count().saturating_sub(target) as f64))
+        }
         (Mode::Carve, Some(target)) if !tunnel => {
             let (solid, order) = solid_box(d, side, target, rng);
             axes = order;
@@ -229,22 +257,19 @@ pub(crate) fn generate_for(
                     region,
                     volume,
                     floor,
+                    draw_scale: mode == Mode::Carve && boxed,
                 };
                 place_objects(family, &objects, canvas, rng)
             }
         };
     let usual = Region::for_mode(side, mode);
-    let region = if mode == Mode::Carve && volume.is_some() {
-        solid.region()
-    } else {
-        usual
-    };
+    let binned_carve = mode == Mode::Carve && volume.is_some() && boxed;
+    let region = if binned_carve { solid.region() } else { usual };
     // A box too small for the objects falls back to the usual tubes in the same box (when
     // the floor was raised for the copies: they may then not keep the topology, and their
     // labels say so), then to the full cube and the usual region, whose foreground needs
     // millions of flips to come down to the bin.
     let mut floor = floor;
-    let binned_carve = mode == Mode::Carve && volume.is_some();
     let in_box = match placement(region, volume, floor, rng) {
         Err(_) if binned_carve && floor != TubeFloor::USUAL => {
             let thin = placement(region, volume, TubeFloor::USUAL, rng);
@@ -324,8 +349,21 @@ pub(crate) fn generate_for(
             entries.push(("solid_box", solid.describe(d)));
         }
     }
+    // The cavities may be deformed up to `GAP` layers from the solid's faces, or up to the
+    // boxed solid's own wall: the solid's outside stays as built.
+    let phase_box = (mode == Mode::Carve).then(|| {
+        let inset = if binned_carve {
+            BOX_WALL as usize
+        } else {
+            crate::place::GAP as usize
+        };
+        let lo = (0..d).map(|k| solid.lo[k] + inset).collect();
+        let hi = (0..d).map(|k| solid.hi[k].saturating_sub(inset)).collect();
+        (lo, hi)
+    });
     let construction = sorted(entries);
     Ok(Generated {
+        phase_box,
         image,
         betti,
         betti_rational,
@@ -541,7 +579,6 @@ pub fn paper_scene_3d(side: usize, rng: &mut ChaCha8Rng) -> Result<Generated, Sh
         Mode::Embed,
         rng,
         true,
-        None,
-        TubeFloor::USUAL,
+        Sizing::USUAL,
     )
 }

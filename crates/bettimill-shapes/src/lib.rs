@@ -29,6 +29,7 @@ mod recipes;
 mod sizing;
 
 pub use bettimill_grid::{BinaryImage, Dim};
+pub use bettimill_types::Solid;
 pub use generate::{paper_scene_3d, paper_scene_family};
 pub use geometry::TubeFloor;
 
@@ -271,6 +272,10 @@ pub struct Generated {
     pub knot_type: String,
     /// Number of objects placed (b0 of the object in Embed mode).
     pub components: u64,
+    /// Carve mode: the box (inclusive bounds per axis) inside the solid where its cavities
+    /// may be deformed; the solid's outer layers beyond it stay as built. `None` in embed
+    /// mode, where the objects may be deformed anywhere but the outermost layer.
+    pub phase_box: Option<(Vec<usize>, Vec<usize>)>,
 }
 
 impl Family {
@@ -397,7 +402,7 @@ pub fn generate(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_for(family, dim, side, mode, rng, true, None, TubeFloor::USUAL)
+    generate::generate_for(family, dim, side, mode, rng, true, generate::Sizing::USUAL)
 }
 
 /// [`generate`] for a request that [`Family::check_fits`] has accepted, as the plan does for
@@ -411,29 +416,44 @@ pub fn generate_planned(
     mode: Mode,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_for(family, dim, side, mode, rng, false, None, TubeFloor::USUAL)
+    generate::generate_for(family, dim, side, mode, rng, false, generate::Sizing::USUAL)
 }
 
 /// [`generate_planned`] sized for a hypervolume: the construction's sizes are chosen so
-/// that its foreground count lands near `foreground` voxels (carve mode: a solid box of
-/// nearly equal sides around cavities of a random 0.2-1% of the image, the cavities' scale
-/// found by bisection on a cheap voxel count; embed mode: the objects' scale), as near as
-/// the room allows. The caller brings the count the rest of the way (the sample pipeline
+/// that its foreground count lands near `foreground` voxels (carve mode with
+/// [`Solid::Cube`]: the full cube with cavities of the rest of its volume; with
+/// [`Solid::Box`]: a solid box of nearly equal sides around cavities of a random 0.2-1% of
+/// the image; the cavities' scale found by bisection on a cheap voxel count; embed mode:
+/// the objects' scale), as near as the room allows. The caller brings the count the rest of the way (the sample pipeline
 /// does it with topology-preserving flips) and verifies the result. Tubes are at least
 /// `floor` (the plan's [`Family::check_fits_with`] accepted that floor; tentacles keep their
 /// own 2-2.5 voxels), except in a binned carve sample whose solid box cannot hold them: it
 /// gets the usual tubes in that box (the record's `tube_floor` says which). `None` and
 /// [`TubeFloor::USUAL`] are [`generate_planned`].
+#[allow(clippy::too_many_arguments)] // One request: what, where, how large, how thick.
 pub fn generate_planned_for(
     family: &Family,
     dim: Dim,
     side: usize,
     mode: Mode,
     foreground: Option<u64>,
+    solid: Solid,
     floor: TubeFloor,
     rng: &mut ChaCha8Rng,
 ) -> Result<Generated, ShapeError> {
-    generate::generate_for(family, dim, side, mode, rng, false, foreground, floor)
+    generate::generate_for(
+        family,
+        dim,
+        side,
+        mode,
+        rng,
+        false,
+        generate::Sizing {
+            foreground,
+            solid,
+            floor,
+        },
+    )
 }
 
 #[cfg(test)]

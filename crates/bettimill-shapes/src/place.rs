@@ -460,13 +460,14 @@ pub(crate) fn place_tunnel(
 
 /// Objects placed one by one at random sizes, rotations and positions, each rejected
 /// while it meets the gap-dilation of those already placed. `at_minimum` draws every
-/// object at its minimum size (the canonical layout). `None` if some object found no
-/// place within `PLACEMENT_ATTEMPTS` tries.
+/// object at its minimum size (the canonical layout). `volumes` sizes each object for a
+/// voxel count, with the flag `draw_scale` of `build_volume`. `None` if some object
+/// found no place within `PLACEMENT_ATTEMPTS` tries.
 fn place_random(
     objects: &[Family],
     minima: &[f64],
-    volumes: Option<&[f64]>,
-    (dim, side, mode, region, floor): (usize, usize, Mode, Region, TubeFloor),
+    volumes: Option<(&[f64], bool)>,
+    (dim, side, _mode, region, floor): (usize, usize, Mode, Region, TubeFloor),
     rng: &mut ChaCha8Rng,
     at_minimum: bool,
 ) -> Option<Vec<PlacedObject>> {
@@ -496,11 +497,11 @@ fn place_random(
             let upper = minimum + (share.max(minimum) - minimum) * shrink;
             let built = match volumes {
                 // Sized for a voxel count: the scale is solved for, within the room.
-                // A carved cavity may come out below its volume (the solid box around it
-                // takes up the rest), so where the room limits it its scale is drawn; an
-                // embedded object is the foreground itself and takes the largest that fits.
-                Some(volumes) if !at_minimum => {
-                    let draw_scale = mode == Mode::Carve;
+                // A cavity in a boxed solid may come out below its volume (the box around
+                // it takes up the rest), so where the room limits it its scale is drawn;
+                // an embedded object, or a cavity of the full cube, is what brings the
+                // count to its bin and takes the largest that fits.
+                Some((volumes, draw_scale)) if !at_minimum => {
                     build_volume(object, dim, upper, volumes[n], floor, draw_scale, rng)
                 }
                 _ => {
@@ -564,6 +565,9 @@ pub(crate) struct PlacementArea {
     pub(crate) volume: Option<f64>,
     /// The thinnest tube any object may have.
     pub(crate) floor: TubeFloor,
+    /// Whether an object the room keeps below its volume draws its scale (a cavity of a
+    /// boxed solid, which the box makes up for) instead of taking the largest that fits.
+    pub(crate) draw_scale: bool,
 }
 
 pub(crate) fn place_objects(
@@ -579,6 +583,7 @@ pub(crate) fn place_objects(
         region,
         volume,
         floor,
+        draw_scale,
     } = canvas;
     let count = objects.len();
     let minima: Vec<f64> = objects
@@ -603,7 +608,7 @@ pub(crate) fn place_objects(
         if let Some(out) = place_random(
             &sorted_objects,
             &sorted_minima,
-            volumes.as_deref(),
+            volumes.as_deref().map(|v| (v, draw_scale)),
             (dim, side, mode, region, floor),
             rng,
             at_minimum,

@@ -470,6 +470,7 @@ fn a_raised_tube_floor_is_kept_by_every_object_and_recorded() {
                 72,
                 Mode::Carve,
                 foreground,
+                Solid::Box,
                 floor,
                 &mut ChaCha8Rng::seed_from_u64(seed),
             )
@@ -490,6 +491,7 @@ fn a_raised_tube_floor_is_kept_by_every_object_and_recorded() {
         72,
         Mode::Carve,
         None,
+        Solid::Cube,
         TubeFloor::USUAL,
         &mut ChaCha8Rng::seed_from_u64(0),
     )

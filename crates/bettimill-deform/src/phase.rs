@@ -1,0 +1,318 @@
+//! The phase a deformation acts on, and the bookkeeping every method shares: the region
+//! it may edit, the frontier, and a bitset over the image.
+//!
+//! A sample's topology is carried by one phase: the objects (foreground) in embed mode,
+//! the cavities (background inside the solid) in carve mode. Deformations grow, shrink and
+//! move that phase and nothing else. Every edit is a simple-point flip, and simplicity is
+//! a property of the flip, not of which side is called the phase: a flip that is simple
+//! for the foreground keeps the Betti numbers of the image and, by duality, of its
+//! complement. So one set of algorithms serves both modes; a [`Phase`] says which value
+//! is "inside" and which box of voxels may change.
+//!
+//! The box is what keeps a carve-mode solid's outer boundary as built: it lies inside the
+//! solid, at least one voxel in from every face, so a voxel of value 0 in the box is a
+//! cavity voxel and a foreground voxel outside it is never touched.
+
+use bettimill_grid::BinaryImage;
+
+/// The phase to deform: voxels of `value` within the inclusive box `lo ..= hi`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Phase {
+    /// 1 for the objects of embed mode, 0 for the cavities of carve mode.
+    pub value: u8,
+    /// The box's lowest coordinate on each axis (only the first `d` are used).
+    pub lo: [usize; 4],
+    /// The box's highest coordinate on each axis, inclusive.
+    pub hi: [usize; 4],
+}
+
+impl Phase {
+    /// The foreground, anywhere but the image's outermost layer (embed mode; what
+    /// [`crate::deform`] acts on).
+    pub fn foreground(image: &BinaryImage) -> Phase {
+        let d = image.dim().get();
+        let mut hi = [0usize; 4];
+        for (h, &n) in hi.iter_mut().zip(image.shape()).take(d) {
+            *h = n.saturating_sub(2);
+        }
+        Phase {
+            value: 1,
+            lo: [1; 4],
+            hi,
+        }
+    }
+
+    /// The cavities of a carved solid, editable within `lo ..= hi` (which the caller keeps
+    /// inside the solid, away from its outer faces).
+    pub fn cavities(image: &BinaryImage, lo: &[usize], hi: &[usize]) -> Phase {
+        let mut phase = Phase::foreground(image);
+        phase.value = 0;
+        for a in 0..image.dim().get() {
+            phase.lo[a] = lo[a].max(1);
+            phase.hi[a] = hi[a].min(phase.hi[a]);
+        }
+        phase
+    }
+
+    /// The value a voxel of the other phase has.
+    pub(crate) fn other(&self) -> u8 {
+        1 - self.value
+    }
+}
+
+/// Flat-index geometry of an image and a phase's box.
+pub(crate) struct Layout {
+    pub(crate) d: usize,
+    pub(crate) strides: [usize; 4],
+    pub(crate) lo: [usize; 4],
+    pub(crate) hi: [usize; 4],
+}
+
+impl Layout {
+    pub(crate) fn new(image: &BinaryImage, phase: &Phase) -> Layout {
+        let d = image.dim().get();
+        let mut shape = [1usize; 4];
+        let mut strides = [0usize; 4];
+        shape[..d].copy_from_slice(image.shape());
+        strides[..d].copy_from_slice(image.strides());
+        let mut lo = [0usize; 4];
+        let mut hi = [0usize; 4];
+        for a in 0..d {
+            // Never the outermost layer: the simple-point test reads all 3^d neighbours.
+            lo[a] = phase.lo[a].max(1);
+            hi[a] = phase.hi[a].min(shape[a].saturating_sub(2));
+        }
+        Layout { d, strides, lo, hi }
+    }
+
+    /// Whether the box holds no voxel.
+    pub(crate) fn is_empty(&self) -> bool {
+        (0..self.d).any(|a| self.lo[a] > self.hi[a])
+    }
+
+    #[inline]
+    pub(crate) fn coords(&self, mut index: usize) -> [usize; 4] {
+        let mut out = [0usize; 4];
+        for (coordinate, &stride) in out.iter_mut().zip(&self.strides[..self.d]) {
+            *coordinate = index / stride;
+            index %= stride;
+        }
+        out
+    }
+
+    #[inline]
+    pub(crate) fn index(&self, coords: &[usize; 4]) -> usize {
+        (0..self.d).map(|a| coords[a] * self.strides[a]).sum()
+    }
+
+    /// Whether coordinates (possibly out of the image) are in the box.
+    #[inline]
+    pub(crate) fn in_box_signed(&self, coords: &[i64; 4]) -> bool {
+        (0..self.d).all(|a| coords[a] >= self.lo[a] as i64 && coords[a] <= self.hi[a] as i64)
+    }
+
+    #[inline]
+    pub(crate) fn in_box(&self, index: usize) -> bool {
+        let c = self.coords(index);
+        (0..self.d).all(|a| c[a] >= self.lo[a] && c[a] <= self.hi[a])
+    }
+
+    /// Calls `f` with every face neighbour of `v` that is in the box.
+    #[inline]
+    pub(crate) fn for_each_face_neighbour_in_box(&self, v: usize, mut f: impl FnMut(usize)) {
+        let c = self.coords(v);
+        for a in 0..self.d {
+            let s = self.strides[a];
+            if c[a] > self.lo[a] && c[a] - 1 <= self.hi[a] {
+                f(v - s);
+            }
+            if c[a] + 1 <= self.hi[a] && c[a] + 1 >= self.lo[a] {
+                f(v + s);
+            }
+        }
+    }
+
+    /// Whether `v` has a face neighbour of value `value` (anywhere in the image; `v` is in
+    /// the box, so all its neighbours exist).
+    #[inline]
+    pub(crate) fn touches(&self, data: &[u8], v: usize, value: u8) -> bool {
+        (0..self.d)
+            .any(|a| data[v - self.strides[a]] == value || data[v + self.strides[a]] == value)
+    }
+
+    /// Calls `f` with every voxel of the box, in increasing flat order, a row of the last
+    /// axis at a time.
+    pub(crate) fn for_each_row(&self, mut f: impl FnMut(usize, usize)) {
+        if self.is_empty() {
+            return;
+        }
+        let d = self.d;
+        let mut c = self.lo;
+        loop {
+            let start: usize =
+                (0..d - 1).map(|a| c[a] * self.strides[a]).sum::<usize>() + self.lo[d - 1];
+            f(start, start + (self.hi[d - 1] - self.lo[d - 1]));
+            let mut axis = d - 1;
+            loop {
+                if axis == 0 {
+                    return;
+                }
+                axis -= 1;
+                if c[axis] < self.hi[axis] {
+                    c[axis] += 1;
+                    break;
+                }
+                c[axis] = self.lo[axis];
+            }
+        }
+    }
+
+    /// The voxels of the box whose value is `flip_from` and that have a face neighbour of
+    /// the other value: what growing (`flip_from` = the other phase) or shrinking
+    /// (`flip_from` = the phase) would flip next. In increasing flat order.
+    pub(crate) fn frontier(&self, image: &BinaryImage, flip_from: u8) -> Vec<usize> {
+        let data = image.data();
+        let other = 1 - flip_from;
+        let d = self.d;
+        let row_len = image.shape()[d - 1];
+        // Which rows of the last axis hold a voxel of the other value within one voxel of
+        // the box's span of the row: a voxel of the box can only touch one there, in its
+        // own row or a face-neighbouring one, so most rows of a large image are passed
+        // over after one vectorised pass each (the image's own border, outside that
+        // span, does not count).
+        let span = self.lo[d - 1] - 1..=self.hi[d - 1] + 1;
+        let has_other: Vec<bool> = data
+            .chunks_exact(row_len)
+            .map(|row| row[span.clone()].contains(&other))
+            .collect();
+        let row_strides: Vec<usize> = (0..d - 1).map(|a| self.strides[a] / row_len).collect();
+        let mut out = Vec::new();
+        self.for_each_row(|first, last| {
+            let row_index = first / row_len;
+            let near_other = has_other[row_index]
+                || row_strides.iter().any(|&s| {
+                    has_other.get(row_index.wrapping_sub(s)) == Some(&true)
+                        || has_other.get(row_index + s) == Some(&true)
+                });
+            if !near_other {
+                return;
+            }
+            let row = &data[first..=last];
+            if !row.contains(&flip_from) {
+                return;
+            }
+            for (k, &value) in row.iter().enumerate() {
+                let v = first + k;
+                if value == flip_from && self.touches(data, v, other) {
+                    out.push(v);
+                }
+            }
+        });
+        out
+    }
+
+    /// Which of the 3^d parity subfields `v` is in.
+    #[inline]
+    pub(crate) fn subfield(&self, v: usize) -> usize {
+        let c = self.coords(v);
+        (0..self.d).fold(0, |acc, a| acc * 3 + c[a] % 3)
+    }
+}
+
+/// A fixed-size set of flat indices: one bit a voxel.
+pub(crate) struct BitSet {
+    words: Vec<u64>,
+}
+
+impl BitSet {
+    pub(crate) fn new(len: usize) -> BitSet {
+        BitSet {
+            words: vec![0; len.div_ceil(64)],
+        }
+    }
+
+    /// Inserts `i`; true if it was not there.
+    #[inline]
+    pub(crate) fn insert(&mut self, i: usize) -> bool {
+        let (w, bit) = (i / 64, 1u64 << (i % 64));
+        let fresh = self.words[w] & bit == 0;
+        self.words[w] |= bit;
+        fresh
+    }
+
+    /// Removes `i`; true if it was there.
+    #[inline]
+    pub(crate) fn remove(&mut self, i: usize) -> bool {
+        let (w, bit) = (i / 64, 1u64 << (i % 64));
+        let was = self.words[w] & bit != 0;
+        self.words[w] &= !bit;
+        was
+    }
+
+    /// Removes every index in `list` (cheaper than clearing a large set).
+    pub(crate) fn remove_all(&mut self, list: &[usize]) {
+        for &i in list {
+            self.remove(i);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_rows_visit_exactly_the_box() {
+        for shape in [vec![7usize, 6], vec![5, 6, 7], vec![6, 5, 7, 6]] {
+            let image = BinaryImage::zeros(&shape).unwrap();
+            let d = shape.len();
+            let mut phase = Phase::foreground(&image);
+            phase.lo[..d].fill(2);
+            phase.hi[d - 1] = 3;
+            let layout = Layout::new(&image, &phase);
+            let mut seen = Vec::new();
+            layout.for_each_row(|a, b| seen.extend(a..=b));
+            let expected: Vec<usize> = (0..image.len())
+                .filter(|&v| {
+                    let c = image.coords(v);
+                    (0..d).all(|a| c[a] >= phase.lo[a] && c[a] <= phase.hi[a])
+                })
+                .collect();
+            assert_eq!(seen, expected, "{shape:?}");
+            assert!(expected.iter().all(|&v| layout.in_box(v)));
+        }
+    }
+
+    #[test]
+    fn face_neighbours_in_the_box_are_those_the_definition_names() {
+        let image = BinaryImage::zeros(&[6, 7, 5, 6]).unwrap();
+        let mut phase = Phase::foreground(&image);
+        phase.lo[1] = 2;
+        phase.hi[3] = 3;
+        let layout = Layout::new(&image, &phase);
+        for v in 0..image.len() {
+            if !layout.in_box(v) {
+                continue;
+            }
+            let mut got = Vec::new();
+            layout.for_each_face_neighbour_in_box(v, |u| got.push(u));
+            got.sort_unstable();
+            let c = image.coords(v);
+            let mut want = Vec::new();
+            for a in 0..4 {
+                for delta in [-1i64, 1] {
+                    let mut n = [0i64; 4];
+                    for k in 0..4 {
+                        n[k] = c[k] as i64;
+                    }
+                    n[a] += delta;
+                    if layout.in_box_signed(&n) {
+                        want.push(layout.index(&n.map(|x| x as usize)));
+                    }
+                }
+            }
+            want.sort_unstable();
+            assert_eq!(got, want, "voxel {v}");
+        }
+    }
+}
