@@ -119,6 +119,7 @@ impl Layout {
 
     /// Calls `f` with every face neighbour of `v` that is in the box.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // Four arrays indexed by the same axis.
     pub(crate) fn for_each_face_neighbour_in_box(&self, v: usize, mut f: impl FnMut(usize)) {
         let c = self.coords(v);
         for a in 0..self.d {
@@ -126,7 +127,7 @@ impl Layout {
             if c[a] > self.lo[a] && c[a] - 1 <= self.hi[a] {
                 f(v - s);
             }
-            if c[a] + 1 <= self.hi[a] && c[a] + 1 >= self.lo[a] {
+            if c[a] < self.hi[a] && c[a] + 1 >= self.lo[a] {
                 f(v + s);
             }
         }

@@ -184,7 +184,7 @@ pub(crate) fn run(
                 }
             } else {
                 let k = crate::moves::index_below(&mut rng, 2 * d);
-                next[k / 2] += if k % 2 == 0 { -1 } else { 1 };
+                next[k / 2] += if k.is_multiple_of(2) { -1 } else { 1 };
             }
             if !painter.layout.in_box_signed(&next) {
                 if persistent {

@@ -26,6 +26,7 @@
 //! ```
 
 pub mod classes;
+pub mod diff;
 pub mod dir;
 pub mod index;
 pub mod label;

@@ -116,7 +116,7 @@ fn apply(mut bytes: Vec<u8>, damage: &[Damage]) -> Vec<u8> {
 /// A version 1.0 file with `header` (padded as NumPy does) and `data_len` bytes of ones.
 fn with_header(header: &str, data_len: usize) -> Vec<u8> {
     let mut text = header.to_string();
-    while (10 + text.len() + 1) % 64 != 0 {
+    while !(10 + text.len() + 1).is_multiple_of(64) {
         text.push(' ');
     }
     text.push('\n');

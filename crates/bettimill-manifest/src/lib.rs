@@ -793,7 +793,7 @@ impl Manifest {
             ));
         }
         for &r in &self.resolutions {
-            if r < 4 || r >= self.side || self.side % r != 0 {
+            if r < 4 || r >= self.side || !self.side.is_multiple_of(r) {
                 return Err(ManifestError::invalid(
                     source,
                     "resolutions",

@@ -185,8 +185,7 @@ pub struct Plan {
     pub compression: bettimill_shard::Compression,
     /// Side lengths of the downscaled copies stored with every sample.
     pub resolutions: Vec<u32>,
-    /// The deformation sequence applied to every sample's topological phase, if any; each
-    /// sample draws its own settings from the ranges.
+    /// The deformation steps every sample's topological phase gets, drawn per sample.
     pub deform: Option<Deformation>,
     /// Carve mode's solid.
     pub solid: Solid,

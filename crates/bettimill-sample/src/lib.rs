@@ -481,7 +481,7 @@ mod tests {
                 state ^= state << 13;
                 state ^= state >> 7;
                 state ^= state << 17;
-                *v = (state % 11 == 0) as u8;
+                *v = state.is_multiple_of(11) as u8;
             }
             for pooling in [Pooling::ForegroundAny, Pooling::BackgroundAny] {
                 assert_eq!(

@@ -86,7 +86,7 @@ impl Case {
         if let Some(components) = self.components {
             text.push_str(&format!("components = {components}\n"));
         }
-        if self.resolution && self.side % 2 == 0 {
+        if self.resolution && self.side.is_multiple_of(2) {
             text.push_str(&format!("resolutions = [{}]\n", self.side / 2));
         }
         if let Some(bins) = self.bins {

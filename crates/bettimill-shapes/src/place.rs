@@ -256,7 +256,10 @@ impl Occupancy {
             // A run of consecutive voxels along the last axis.
             let start = voxels[i];
             let mut end = start;
-            while i + 1 < voxels.len() && voxels[i + 1] == end + 1 && (end + 1) % self.side != 0 {
+            while i + 1 < voxels.len()
+                && voxels[i + 1] == end + 1
+                && !(end + 1).is_multiple_of(self.side)
+            {
                 i += 1;
                 end += 1;
             }
