@@ -3,7 +3,8 @@
 # components and resolutions unchanged; the seed chosen so that the 8 cover every family
 # and every bin), built by one worker under /usr/bin/time; one
 # extracted sample compressed by `zstd -3` in the same run; the ratio of the build's CPU
-# seconds per sample to zstd's. Bar: ratio <= 50, peak RSS <= 2 GiB. Also prints the plan's
+# seconds per sample to zstd's. Bar: ratio <= 30, peak RSS <= 2 GiB (the preset deforms
+# its cavities in five steps). Also prints the plan's
 # estimate for the reduced preset and what each built sample is (family, bin, flips are in
 # `examples/stages`). BETTIMILL=path/to/bettimill (default: a release build).
 set -euo pipefail
@@ -70,8 +71,8 @@ zcpu=$(echo "$zu + $zs" | bc -l)
 ratio=$(echo "$per_sample / $zcpu" | bc -l)
 printf 'zstd -3: %.2f cpu-s for %d bytes (%d compressed)\n' "$zcpu" \
     "$(stat -c %s "$work/sample.npy")" "$(stat -c %s "$work/sample.npy.zst")"
-printf 'ratio (cpu-s per sample / zstd cpu-s): %.1fx (bar: 50x)\n' "$ratio"
+printf 'ratio (cpu-s per sample / zstd cpu-s): %.1fx (bar: 30x)\n' "$ratio"
 ok=1
-(( $(echo "$ratio <= 50" | bc -l) )) || { echo "FAIL: ratio above 50x"; ok=0; }
+(( $(echo "$ratio <= 30" | bc -l) )) || { echo "FAIL: ratio above 30x"; ok=0; }
 (( rss_kib <= 2 * 1024 * 1024 )) || { echo "FAIL: peak RSS above 2 GiB"; ok=0; }
 [[ $ok == 1 ]] && echo "bar met"
