@@ -12,28 +12,28 @@ use std::path::Path;
 const GOLDEN: &[(&str, &str, &str)] = &[
     (
         "4d-mixed-128.toml",
-        "0a569d549084b9b4769ee989a102a41083ef0a09629eea49d34c84284f7fcff6",
-        "18a4e67205e80126bc17d1b7b9a5d3d6aaad57d119fea70a685d15c41fd68a47",
+        "8572852c10283c011f41c064ffbb3cb343d1cfbe4ae71a5d07bab84a49edd3ad",
+        "da639d8a221a0351c7b8ca0ff3351f4d689e2cb46e31d52ac8027a61a7df7496",
     ),
     (
         "demo-2d.toml",
-        "cc2354e39875e9c53d7fb5c6189489551e2077ce40d68d449fce53ccacd2d22c",
-        "c616738139d6d8d86d7bf33953ee9ecc898320a3f900bbbaddbbebe0a70b8870",
+        "4d054ea08eaf4c49b8518cad775a85a221313d7be2bf464a96008e7069deab66",
+        "a0318a52a37f9e5e2812392e4c9db0a68f1f8b5e8a49b974cbd1596347200038",
     ),
     (
         "demo-3d.toml",
-        "cd84651b630c278590e533c4446138fc8450c1a2aa8a02cc16306832a37e04a3",
-        "d1710307f8f24afae489c3c8caf466e0178f38345b32f5c6129f251ce92f733c",
+        "961e048ae115da8939a8227633826acac87c68499ca01d0a8020c211c439be6b",
+        "87f6da0fce4d30ffdd92d33723d9cdad1d73e59af5d8db0424ae254a5987fdd4",
     ),
     (
         "demo-4d.toml",
-        "7cde66fdff2b0f6b9510368e9df75b45f28d258d081e11aafdbbfeaf77d60678",
-        "cc0abbf760278291266688436f0d9b88e13ad0404c4ea6202f7b242ce56aaabb",
+        "45234cd5bb2bb89b461ccd66bf9a9d1ff06bffd50616549b4e0f508fdd08f308",
+        "3108433fbe7a22565280540f4d3894e837d1187363adea6869f642e27293bb7a",
     ),
     (
         "paper-figures.toml",
-        "d70501597856eb02a72a5b63ecd1202512bdcd3d4132e1269d3ba75f7b65eb1c",
-        "293d41b49a29fe63ebc01c040af8e1d7b7f44fb9dd2d0587d4dafbd3f41de4b6",
+        "2a7b1641b213f6aa5013a6422a291713d73708cd08abe5cb626481c898c4c8dd",
+        "49a3a1b67b0ee06d6f89bd0bfc76f247a4b7731a9a408e27f268c98104da20e1",
     ),
 ];
 
