@@ -552,6 +552,17 @@ mod tests {
             .collect()
     }
 
+    /// Even rounds deform the objects of random blobs, odd rounds the cavities of a cube.
+    fn case(shape: &[usize], round: u64, rng: &mut ChaCha8Rng) -> (BinaryImage, Phase) {
+        if round % 2 == 0 {
+            let image = blobs(shape, rng);
+            let phase = Phase::foreground(&image);
+            (image, phase)
+        } else {
+            carved(shape, rng)
+        }
+    }
+
     const SHAPES: [&[usize]; 4] = [
         &[40, 36],
         &[18, 20, 16],
@@ -565,13 +576,7 @@ mod tests {
         let pools = pools();
         for shape in SHAPES {
             for round in 0..8u64 {
-                let (image, phase) = if round % 2 == 0 {
-                    let image = blobs(shape, &mut rng);
-                    let phase = Phase::foreground(&image);
-                    (image, phase)
-                } else {
-                    carved(shape, &mut rng)
-                };
+                let (image, phase) = case(shape, round, &mut rng);
                 let start = image.count_foreground();
                 let len = image.len() as u64;
                 let (lo, hi) = match round % 4 {
@@ -605,13 +610,7 @@ mod tests {
         let pools = pools();
         for shape in SHAPES {
             for round in 0..8u64 {
-                let (image, phase) = if round % 2 == 0 {
-                    let image = blobs(shape, &mut rng);
-                    let phase = Phase::foreground(&image);
-                    (image, phase)
-                } else {
-                    carved(shape, &mut rng)
-                };
+                let (image, phase) = case(shape, round, &mut rng);
                 let job = Morphology {
                     phase: &phase,
                     grow: round % 4 < 2,
