@@ -554,7 +554,7 @@ mod tests {
 
     /// Even rounds deform the objects of random blobs, odd rounds the cavities of a cube.
     fn case(shape: &[usize], round: u64, rng: &mut ChaCha8Rng) -> (BinaryImage, Phase) {
-        if round % 2 == 0 {
+        if round.is_multiple_of(2) {
             let image = blobs(shape, rng);
             let phase = Phase::foreground(&image);
             (image, phase)
