@@ -9,6 +9,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# A full run needs several GiB for the build and the venv; a full disk shows up later as a
+# linker killed by SIGBUS, so say up front how much room there is.
+echo "== disk space for the build"
+df -h . "${CARGO_TARGET_DIR:-target}" 2>/dev/null || df -h .
+
 echo "== cargo fmt --check"
 cargo fmt --all --check
 
