@@ -185,6 +185,30 @@ pub fn deform_phase(
     Ok(report)
 }
 
+/// How far from the phase one step with `settings` can change a voxel: every voxel it
+/// flips lies within this Chebyshev distance of the phase as it was before the step. A
+/// sequence of steps reaches at most the sum of its steps' reaches, so a carved solid's
+/// voxels farther than that from every cavity are never touched.
+///
+/// Per method: an iteration of dilation adds one layer of the frontier (distance 1); an
+/// erosion only removes phase voxels (0); a move's target has a face neighbour in the
+/// phase (1 per move); a tentacle or walker starts on the frontier and paints a ball of
+/// radius 1 around each of its unit-distance steps (`steps + 2`).
+pub fn reach(settings: &DeformSettings) -> u64 {
+    let steps = u64::from(settings.steps);
+    match settings.method {
+        Method::Dilate | Method::Moves => steps,
+        Method::Erode => 0,
+        Method::Tentacles | Method::Walk => {
+            if settings.count == 0 {
+                0
+            } else {
+                steps + 2
+            }
+        }
+    }
+}
+
 /// The settings one sample applies for `step`: each range drawn uniformly from `seed`
 /// (integers inclusive; reals rounded to six decimals, so a label records them exactly).
 pub fn draw_settings(step: &DeformStep, seed: u64) -> DeformSettings {

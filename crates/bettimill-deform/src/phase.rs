@@ -54,6 +54,39 @@ impl Phase {
         phase
     }
 
+    /// The flat indices of the phase's voxels (value [`Phase::value`] inside the box), in
+    /// increasing order: what a comparison of two states of one phase (an overlap, a
+    /// changed-voxel count) walks.
+    pub fn voxels(&self, image: &BinaryImage) -> Vec<usize> {
+        let layout = Layout::new(image, self);
+        let data = image.data();
+        let mut out = Vec::new();
+        if layout.is_empty() {
+            return out;
+        }
+        let d = layout.d;
+        let mut at = layout.lo;
+        loop {
+            // One row along the last axis at a time.
+            let start = layout.index(&at);
+            let len = layout.hi[d - 1] - layout.lo[d - 1] + 1;
+            out.extend((start..start + len).filter(|&i| data[i] == self.value));
+            // The next row: odometer over the first d - 1 axes.
+            let mut a = d - 1;
+            loop {
+                if a == 0 {
+                    return out;
+                }
+                a -= 1;
+                if at[a] < layout.hi[a] {
+                    at[a] += 1;
+                    break;
+                }
+                at[a] = layout.lo[a];
+            }
+        }
+    }
+
     /// The value a voxel of the other phase has.
     pub(crate) fn other(&self) -> u8 {
         1 - self.value

@@ -15,6 +15,7 @@ pub use bettimill_format::{Label, Pooling, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
 use bettimill_grid::{BinaryImage, Mode};
 use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask};
+use bettimill_shapes::Generated;
 use serde::{Deserialize, Serialize};
 
 /// How many attempts a sample gets before the build reports it as failed.
@@ -202,6 +203,16 @@ pub enum SampleError {
         /// The last failure.
         last: String,
     },
+    /// The construction of one attempt could not be rasterised (see [`construction`]).
+    #[error("sample {key}, attempt {attempt}: the construction failed: {reason}")]
+    Construction {
+        /// The sample key.
+        key: String,
+        /// The attempt.
+        attempt: u32,
+        /// Why.
+        reason: String,
+    },
 }
 
 /// A stage of making one sample, in the order they run (see [`make_sample_observed`]).
@@ -298,35 +309,14 @@ pub fn make_sample_observed(
             })
         };
         report(Stage::Generate, 0.0);
-        let mut rng = attempt_rng(&task.seed, attempt);
-        // Binned samples are built near a foreground count drawn inside the bin, so that
-        // only a small remainder is left to topology-preserving flips.
-        let foreground = stratum
-            .hypervolume
-            .map(|(lo, hi)| position_in_bin(lo, hi, &task.seed, attempt));
-        let generated = match bettimill_shapes::generate_planned_for(
-            &stratum.family,
-            plan.dimension,
-            side,
-            stratum.mode,
-            foreground,
-            plan.solid,
-            stratum.tube_floor,
-            &mut rng,
-        ) {
-            Ok(g) => g,
+        let (generated, phase) = match generate(plan, task, attempt) {
+            Ok(made) => made,
             Err(err) => {
                 last = format!("generation failed: {err}");
                 continue;
             }
         };
         let mut image = generated.image;
-        // The phase that carries the topology: the cavities inside the solid in carve
-        // mode, the objects in embed mode. Deformation and targeting edit it alone.
-        let phase = match &generated.phase_box {
-            Some((lo, hi)) => Phase::cavities(&image, lo, hi),
-            None => Phase::foreground(&image),
-        };
         let mut applied = Vec::new();
         if let Some(deformation) = &plan.deform {
             report(Stage::Deform, 0.0);
@@ -435,6 +425,68 @@ pub fn make_sample_observed(
         class: stratum.label.clone(),
         attempts: MAX_ATTEMPTS,
         last,
+    })
+}
+
+/// Rasterises the construction of `task` at `attempt` and finds the phase that carries
+/// its topology: the cavities inside the solid in carve mode, the objects in embed mode.
+/// Deformation and targeting edit that phase alone.
+fn generate(
+    plan: &Plan,
+    task: &SampleTask,
+    attempt: u32,
+) -> Result<(Generated, Phase), bettimill_shapes::ShapeError> {
+    let stratum = &plan.strata[task.stratum];
+    let mut rng = attempt_rng(&task.seed, attempt);
+    // Binned samples are built near a foreground count drawn inside the bin, so that
+    // only a small remainder is left to topology-preserving flips.
+    let foreground = stratum
+        .hypervolume
+        .map(|(lo, hi)| position_in_bin(lo, hi, &task.seed, attempt));
+    let generated = bettimill_shapes::generate_planned_for(
+        &stratum.family,
+        plan.dimension,
+        plan.side as usize,
+        stratum.mode,
+        foreground,
+        plan.solid,
+        stratum.tube_floor,
+        &mut rng,
+    )?;
+    let phase = match &generated.phase_box {
+        Some((lo, hi)) => Phase::cavities(&generated.image, lo, hi),
+        None => Phase::foreground(&generated.image),
+    };
+    Ok((generated, phase))
+}
+
+/// A sample's undeformed construction: the voxels as rasterised, before any deformation
+/// or hypervolume targeting, and the phase those edit.
+#[derive(Clone, Debug)]
+pub struct Construction {
+    /// The rasterised voxels.
+    pub image: BinaryImage,
+    /// The phase that carries the topology (and the box deformation may edit).
+    pub phase: Phase,
+}
+
+/// The construction [`make_sample`] starts from at `attempt` (a written sample's label
+/// records its `attempt`): what a sample looked like before it was deformed, for
+/// measuring how far deformation took it. Not verified; only [`make_sample`]'s output is.
+pub fn construction(
+    plan: &Plan,
+    task: &SampleTask,
+    attempt: u32,
+) -> Result<Construction, SampleError> {
+    let (generated, phase) =
+        generate(plan, task, attempt).map_err(|err| SampleError::Construction {
+            key: task.key.clone(),
+            attempt,
+            reason: err.to_string(),
+        })?;
+    Ok(Construction {
+        image: generated.image,
+        phase,
     })
 }
 

@@ -1,0 +1,287 @@
+//! Deformation reshapes the phase that carries the topology, and only near it.
+//!
+//! - On the 4D mixed 128 preset reduced to side 32 (its families that fit there, its
+//!   components, bins and deformation sequence; one sample of every stratum), the cavities of a sample overlap
+//!   their undeformed construction ([`bettimill_sample::construction`]) with a mean voxel
+//!   IoU below 0.8: the network sees reshaped cavities, not the implicit-equation shapes.
+//! - Within one stratum, every sample draws its own deformation strengths from the
+//!   manifest's ranges.
+//! - In carve mode, a voxel of the solid farther from every cavity than the deformation's
+//!   reach (`bettimill_deform::reach`, summed over the steps a label records) is the same
+//!   as in the construction.
+//!
+//! Every sample comes from `make_sample`, so each one is also verified.
+
+use bettimill_plan::Plan;
+use bettimill_sample::{construction, make_sample, Sample};
+use std::collections::BTreeSet;
+
+fn preset(side: u32, samples: usize, classes: Option<&str>) -> String {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../manifests/4d-mixed-128.toml"
+    );
+    let text = std::fs::read_to_string(path).expect("the preset is readable");
+    let mut out = String::new();
+    let mut in_splits = false;
+    for line in text.lines() {
+        let line = match line.split_once(" = ").map(|(k, _)| k) {
+            Some("side") => format!("side = {side}"),
+            Some("samples") => format!("samples = {samples}"),
+            Some("resolutions") => String::new(),
+            Some("bins") => scaled_bins(line, side),
+            Some("train") if in_splits => format!("train = {samples}"),
+            Some("val" | "test") if in_splits => String::new(),
+            _ => line.to_string(),
+        };
+        if line.starts_with('[') {
+            in_splits = line == "[splits]";
+            if classes.is_some() && line == "[[classes]]" {
+                // Everything from the first class on is replaced.
+                break;
+            }
+        }
+        out.push_str(&line);
+        out.push('\n');
+    }
+    if let Some(classes) = classes {
+        out.push_str(classes);
+    }
+    out
+}
+
+/// The preset's bins hold the cavities to a share of the solid inside the cube's
+/// one-voxel border; at a smaller side the border takes a larger share of the cube, so the
+/// same cavity share is a smaller foreground fraction.
+fn scaled_bins(line: &str, side: u32) -> String {
+    let inside = |s: f64| ((s - 2.0) / s).powi(4);
+    let numbers: Vec<f64> = line
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse().expect("a number"))
+        .collect();
+    let scaled: Vec<String> = numbers
+        .chunks(2)
+        .map(|b| {
+            let f = |x: f64| x / inside(128.0) * inside(side as f64);
+            format!("[{:.6}, {:.6}]", f(b[0]), f(b[1]))
+        })
+        .collect();
+    format!("bins = [{}]", scaled.join(", "))
+}
+
+fn build(text: &str) -> (Plan, Vec<Sample>) {
+    let plan = Plan::parse(text, std::path::Path::new("reduced.toml")).expect("plans");
+    let samples = plan
+        .shards()
+        .flat_map(|s| plan.shard_tasks(&s))
+        .map(|task| make_sample(&plan, &task).expect("every planned sample builds"))
+        .collect();
+    (plan, samples)
+}
+
+/// The sorted flat indices of `sample`'s construction's phase and of its own phase.
+fn phases(plan: &Plan, sample: &Sample) -> (Vec<usize>, Vec<usize>) {
+    let index = plan
+        .shards()
+        .flat_map(|s| plan.shard_tasks(&s))
+        .find(|t| t.key == sample.label.key)
+        .expect("the sample's task");
+    let built = construction(plan, &index, sample.label.attempt).expect("constructs");
+    (
+        built.phase.voxels(&built.image),
+        built.phase.voxels(&sample.image),
+    )
+}
+
+fn iou(a: &[usize], b: &[usize]) -> f64 {
+    let (mut i, mut j, mut both) = (0, 0, 0usize);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => {
+                both += 1;
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    both as f64 / (a.len() + b.len() - both) as f64
+}
+
+#[test]
+fn deformed_cavities_of_the_reduced_preset_are_far_from_their_constructions() {
+    // One sample of every stratum of the preset's families that fit at side 32 (its
+    // connected sums need side 44 or more).
+    let families = "[[classes]]\nfamily = [\"ball\", \"handle\", \"s2_x_b2\", \"t2_x_b2\"]\n";
+    let strata = Plan::parse(
+        &preset(32, 9600, Some(families)),
+        std::path::Path::new("r.toml"),
+    )
+    .expect("plans")
+    .strata
+    .len();
+    // Families x components x bins, less what the plan finds cannot be built at side 32.
+    assert!(strata >= 24, "{strata} strata");
+    let (plan, samples) = build(&preset(32, strata, Some(families)));
+    assert_eq!(samples.len(), strata);
+    let mut overlaps = Vec::new();
+    for sample in &samples {
+        let (before, after) = phases(&plan, sample);
+        assert!(
+            !before.is_empty() && !after.is_empty(),
+            "{}",
+            sample.label.key
+        );
+        overlaps.push(iou(&before, &after));
+        assert_eq!(sample.label.deform.len(), 5, "{}", sample.label.key);
+    }
+    let mean = overlaps.iter().sum::<f64>() / overlaps.len() as f64;
+    let least = overlaps.iter().cloned().fold(f64::INFINITY, f64::min);
+    let most = overlaps.iter().cloned().fold(0.0, f64::max);
+    assert!(
+        mean < 0.8,
+        "mean cavity IoU with the construction {mean:.3} (min {least:.3}, max {most:.3})"
+    );
+}
+
+#[test]
+fn samples_of_one_stratum_draw_their_own_strengths() {
+    let ball = "[[classes]]\nfamily = \"ball\"\n";
+    let text = preset(24, 8, Some(ball)).replace("components = [1, 2]", "components = [1]");
+    let text = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("bins = ") {
+                scaled_bins("bins = [[0.929, 0.937]]", 24)
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let (plan, samples) = build(&text);
+    assert_eq!(plan.strata.len(), 1);
+    assert_eq!(samples.len(), 8);
+    let drawn: BTreeSet<String> = samples
+        .iter()
+        .map(|s| format!("{:?}", s.label.deform))
+        .collect();
+    assert_eq!(drawn.len(), 8, "every sample draws its own strengths");
+    for step in 0..5 {
+        let steps: BTreeSet<u32> = samples.iter().map(|s| s.label.deform[step].steps).collect();
+        assert!(steps.len() >= 3, "step {step} drew {steps:?}");
+    }
+}
+
+/// Marks every voxel within Chebyshev distance `radius` of a marked one (a box
+/// dilation, one axis at a time).
+fn dilate(mask: &mut [bool], shape: &[usize], radius: usize) {
+    let mut strides = vec![1usize; shape.len()];
+    for a in (0..shape.len() - 1).rev() {
+        strides[a] = strides[a + 1] * shape[a + 1];
+    }
+    for (a, &n) in shape.iter().enumerate() {
+        let stride = strides[a];
+        let before = mask.to_vec();
+        for (i, out) in mask.iter_mut().enumerate() {
+            let x = (i / stride) % n;
+            let lo = x.saturating_sub(radius);
+            let hi = (x + radius).min(n - 1);
+            let base = i - x * stride;
+            *out = (lo..=hi).any(|y| before[base + y * stride]);
+        }
+    }
+}
+
+fn in_box(mut i: usize, shape: &[usize], phase: &bettimill_deform::Phase) -> bool {
+    let mut inside = true;
+    for a in (0..shape.len()).rev() {
+        let x = i % shape[a];
+        i /= shape[a];
+        inside &= (phase.lo[a]..=phase.hi[a]).contains(&x);
+    }
+    inside
+}
+
+#[test]
+fn carved_solid_beyond_the_deformations_reach_is_untouched() {
+    for (dimension, side) in [(3, 40), (4, 32)] {
+        let text = format!(
+            r#"
+schema_version = 1
+name = "reach"
+dimension = {dimension}
+side = {side}
+mode = "carve"
+samples = 12
+shard_size = 12
+seed = 5
+components = [1, 2]
+
+[[deform]]
+method = "erode"
+steps = [0, 2]
+[[deform]]
+method = "dilate"
+steps = 1
+[[deform]]
+method = "tentacles"
+count = [1, 3]
+steps = [1, 3]
+[[deform]]
+method = "walk"
+count = [1, 2]
+steps = [1, 3]
+[[deform]]
+method = "moves"
+steps = [0, 2]
+
+[[classes]]
+family = ["ball", "handle"]
+"#
+        );
+        let (plan, samples) = build(&text);
+        let mut beyond = 0usize;
+        let mut changed = 0usize;
+        for sample in &samples {
+            let label = &sample.label;
+            let reach: u64 = label.deform.iter().map(bettimill_deform::reach).sum();
+            let (before, _) = phases(&plan, sample);
+            let task = plan
+                .shards()
+                .flat_map(|s| plan.shard_tasks(&s))
+                .find(|t| t.key == label.key)
+                .expect("the task");
+            let built = construction(&plan, &task, label.attempt).expect("constructs");
+            let mut near = vec![false; sample.image.len()];
+            for &i in &before {
+                near[i] = true;
+            }
+            dilate(&mut near, sample.image.shape(), reach as usize);
+            for (i, (&was, &is)) in built
+                .image
+                .data()
+                .iter()
+                .zip(sample.image.data())
+                .enumerate()
+            {
+                if was != is {
+                    changed += 1;
+                    assert!(
+                        near[i],
+                        "{}: voxel {i} changed farther than the reach {reach} from every cavity",
+                        label.key
+                    );
+                } else if !near[i] && was == 1 && in_box(i, sample.image.shape(), &built.phase) {
+                    beyond += 1;
+                }
+            }
+        }
+        // The check bites: deformation changed voxels, and solid it was allowed to edit
+        // lay beyond its reach.
+        assert!(changed > 0, "{dimension}D: nothing was deformed");
+        assert!(beyond > 0, "{dimension}D: no solid beyond the reach");
+    }
+}
