@@ -650,7 +650,7 @@ fn string_result_checker_counts_across_lines() {
 /// replace them; this list only shrinks.
 const KNOWN_STRING_RESULTS: &[(&str, usize)] = &[
     ("crates/bettimill-audit/src/lib.rs", 1),
-    ("crates/bettimill-format/src/dir.rs", 5),
+    ("crates/bettimill-format/src/dir.rs", 3),
     ("crates/bettimill-format/src/index/stream.rs", 8),
     ("crates/bettimill-format/src/verify.rs", 1),
     ("crates/bettimill-manifest/src/classes.rs", 3),
@@ -682,7 +682,7 @@ const MAX_SOURCE_LINES: usize = 1000;
 
 /// Source files over [`MAX_SOURCE_LINES`], with their lines now: they may only shrink.
 const KNOWN_LONG_FILES: &[(&str, usize)] = &[
-    ("crates/bettimill-format/src/dir.rs", 1308),
+    ("crates/bettimill-format/src/dir.rs", 1206),
     ("crates/bettimill-homology/src/simple.rs", 1072),
     ("crates/bettimill-plan/src/lib.rs", 1090),
 ];

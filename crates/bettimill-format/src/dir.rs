@@ -1,6 +1,7 @@
 //! The dataset directory: where each file lives, the identity file, completion records,
 //! and the one check of a shard against its record.
 
+use crate::tar_check::{self, Depth};
 use crate::ShardRecord;
 use crate::{FormatError, TOOL_VERSION};
 use bettimill_shard as shard;
@@ -617,9 +618,9 @@ impl DatasetDir {
     }
 
     /// Whether the tar of `shard` matches `record`: its size and, with [`TarCheck::Full`],
-    /// its blake3, streamed through a fixed buffer (a shard is never held in memory). The
-    /// error says what differs. This is the one "does this tar match its record" check:
-    /// resume, status, finalize and verify all use it.
+    /// the record's layout, every member's blake3 and the whole file's, streamed through a
+    /// fixed buffer (a shard is never held in memory). The error is the first problem, in
+    /// the words `verify` uses: both run the one tar check of this crate.
     pub fn check_tar(
         &self,
         shard: &str,
@@ -833,7 +834,10 @@ pub fn open_tar_file(
     Ok(shard::TarStream::new(reader, path, limit))
 }
 
-/// [`DatasetDir::check_tar`] for a tar at `path`.
+/// [`DatasetDir::check_tar`] for a tar at `path`: its size, then (with [`TarCheck::Full`])
+/// the one streamed check of the record and the tar ([`crate::tar_check`]), stopping at the
+/// first problem. So a record is checked whole, not only its shard hash: a damaged member
+/// hash or offset makes the shard incomplete.
 pub fn check_tar_file(path: &Path, record: &ShardRecord, check: TarCheck) -> Result<(), String> {
     let size = regular_file_len(path).map_err(|err| err.to_string())?;
     if size != record.bytes {
@@ -846,124 +850,18 @@ pub fn check_tar_file(path: &Path, record: &ShardRecord, check: TarCheck) -> Res
     if check == TarCheck::Size {
         return Ok(());
     }
-    check_members(path, record)
-}
-
-/// The full check of a tar against its record, in one pass through a fixed buffer: the
-/// record must describe the layout bettimill writes (member after member, each header the
-/// canonical one for its name and size, zero padding, the end marker, sample count and
-/// keys from the member names), every member's data must have the record's blake3, and
-/// the whole file the record's blake3. So a record is checked whole, not only its shard
-/// hash: a damaged member hash or offset makes the shard incomplete.
-fn check_members(path: &Path, record: &ShardRecord) -> Result<(), String> {
-    use std::io::Read;
-    let shown = path.display();
-    let layout_len = shard::ustar::tar_len(record.members.iter().map(|m| m.bytes));
-    if layout_len != record.bytes {
-        return Err(format!(
-            "{shown}: its record lists members that take {layout_len} bytes, but says the tar has {}",
-            record.bytes
-        ));
+    let mut problems = Vec::new();
+    if tar_check::record_problems(record, &mut problems) && problems.is_empty() {
+        std::fs::File::open(path)
+            .and_then(|mut file| {
+                tar_check::file_problems(record, &mut file, size, Depth::First, &mut problems)
+            })
+            .map_err(|err| format!("{}: {err}", path.display()))?;
     }
-    let names = record.members.iter().map(|m| m.name.as_str());
-    let samples = crate::count_samples(names);
-    let key = |member: Option<&crate::MemberRecord>| {
-        member.and_then(|m| shard::ustar::split_key(&m.name).map(|(key, _)| key.to_string()))
-    };
-    if samples != record.samples
-        || key(record.members.first()).as_deref() != Some(record.first_key.as_str())
-        || key(record.members.last()).as_deref() != Some(record.last_key.as_str())
-    {
-        return Err(format!(
-            "{shown}: its record says {} samples from {} to {}, its members say {samples} from {} to {}",
-            record.samples,
-            record.first_key,
-            record.last_key,
-            key(record.members.first()).unwrap_or_default(),
-            key(record.members.last()).unwrap_or_default()
-        ));
+    match problems.first() {
+        Some(problem) => Err(problem.to_string()),
+        None => Ok(()),
     }
-    let file = std::fs::File::open(path).map_err(|err| format!("{shown}: {err}"))?;
-    let mut reader = std::io::BufReader::with_capacity(1 << 16, file);
-    let mut whole = blake3::Hasher::new();
-    let mut buffer = vec![0u8; 1 << 16];
-    let mut read = |reader: &mut std::io::BufReader<std::fs::File>,
-                    whole: &mut blake3::Hasher,
-                    len: u64,
-                    each: &mut dyn FnMut(&[u8])|
-     -> Result<(), String> {
-        let mut left = len;
-        while left > 0 {
-            let take = left.min(buffer.len() as u64) as usize;
-            reader
-                .read_exact(&mut buffer[..take])
-                .map_err(|err| format!("{shown}: {err}"))?;
-            whole.update(&buffer[..take]);
-            each(&buffer[..take]);
-            left -= take as u64;
-        }
-        Ok(())
-    };
-    let mut position = 0u64;
-    for member in &record.members {
-        let name = &member.name;
-        if member.offset != position + shard::ustar::BLOCK {
-            return Err(format!(
-                "{shown}: its record puts member {name} at byte {}, the layout at {}",
-                member.offset,
-                position + shard::ustar::BLOCK
-            ));
-        }
-        let expected = shard::ustar::header_block(name, member.bytes)
-            .map_err(|err| format!("{shown}: its record lists member {name}: {err}"))?;
-        let mut header = Vec::with_capacity(512);
-        read(&mut reader, &mut whole, shard::ustar::BLOCK, &mut |b| {
-            header.extend_from_slice(b)
-        })?;
-        if header != expected {
-            return Err(format!(
-                "{shown}: the header at byte {position} is not that of member {name} of {} bytes, as its record says",
-                member.bytes
-            ));
-        }
-        let mut hasher = blake3::Hasher::new();
-        read(&mut reader, &mut whole, member.bytes, &mut |b| {
-            hasher.update(b);
-        })?;
-        let found = hasher.finalize().to_hex();
-        if found.as_str() != member.blake3 {
-            return Err(format!(
-                "{shown}: member {name} has blake3 {found}, its record says {}",
-                member.blake3
-            ));
-        }
-        let padding = shard::ustar::member_bytes(member.bytes) - shard::ustar::BLOCK - member.bytes;
-        let mut zero = true;
-        read(&mut reader, &mut whole, padding, &mut |b| {
-            zero &= b.iter().all(|&x| x == 0)
-        })?;
-        if !zero {
-            return Err(format!(
-                "{shown}: the padding after member {name} is not zero"
-            ));
-        }
-        position += shard::ustar::member_bytes(member.bytes);
-    }
-    let mut zero = true;
-    read(&mut reader, &mut whole, 2 * shard::ustar::BLOCK, &mut |b| {
-        zero &= b.iter().all(|&x| x == 0)
-    })?;
-    if !zero {
-        return Err(format!("{shown}: the end-of-archive marker is not zero"));
-    }
-    let found = whole.finalize().to_hex();
-    if found.as_str() != record.blake3 {
-        return Err(format!(
-            "{shown} has blake3 {found}, its record says {}",
-            record.blake3
-        ));
-    }
-    Ok(())
 }
 
 fn list_stems(dir: &Path, extension: &str) -> Result<Vec<String>, FormatError> {
@@ -1167,9 +1065,9 @@ mod tests {
         assert_eq!(layout.record_names().unwrap(), vec!["t-000000"]);
         assert_eq!(layout.shard_names().unwrap(), vec!["t-000000"]);
         for (byte, found) in [
-            (513, "member s0.json has blake3"),
-            (600, "padding after member s0.json"),
-            (3, "header at byte 0"),
+            (513, "data of member s0.json"),
+            (600, "at 600 after member s0.json"),
+            (3, "(at byte 0) is corrupt from byte 3"),
             (bytes.len() - 1, "end-of-archive marker"),
         ] {
             let mut flipped = bytes.clone();
@@ -1218,7 +1116,7 @@ mod tests {
         let edits: [(Edit, &str); 6] = [
             (
                 |r| r.members[1].blake3.replace_range(0..1, "x"),
-                "member s0.npy has blake3",
+                "data of member s0.npy",
             ),
             (
                 |r| r.members[2].offset += 512,
@@ -1226,7 +1124,7 @@ mod tests {
             ),
             (
                 |r| r.members[1].name = "s0.npz".into(),
-                "header at byte 1024",
+                "member s0.npz (at byte 1024)",
             ),
             (|r| r.samples = 3, "its record says 3 samples"),
             (|r| r.last_key = "s9".into(), "from s0 to s9"),

@@ -4,10 +4,12 @@
 //! nobody else parses its records or labels. It holds:
 //!
 //! - [`dir`]: the layout (where each file lives), the identity file [`BuildInfo`] (checked
-//!   in full on every open), the completion records ([`CompletionRecord`]) and the one
-//!   streaming "does this tar match its record" check ([`DatasetDir::check_tar`]), and the
-//!   one way to read a shard's members ([`DatasetDir::open_tar`]: checked against its
-//!   record before reading, one member at a time).
+//!   in full on every open), the completion records ([`CompletionRecord`]), the tar check
+//!   of resume, status and finalize ([`DatasetDir::check_tar`]), and the one way to read a
+//!   shard's members ([`DatasetDir::open_tar`]: checked against its record before reading,
+//!   one member at a time).
+//! - `tar_check`: the one streaming "does this tar match its record" check, which
+//!   [`DatasetDir::check_tar`] stops at the first problem of and [`verify`] reports whole.
 //! - [`label`]: the label stored as `KEY.json` ([`Label`], [`ResolutionLabel`]).
 //! - [`member`]: member names and their compression suffixes.
 //! - [`classes`]: the class table stored as `classes.json` ([`ClassTable`]): what every
@@ -32,6 +34,7 @@ pub mod index;
 pub mod label;
 pub mod lock;
 pub mod member;
+mod tar_check;
 pub mod verify;
 
 pub use classes::{ClassTable, StratumClass, TopologyClass, CLASS_TABLE_FORMAT};

@@ -13,19 +13,19 @@
 //! The index lists shards; the member records live with each shard's record (the caller
 //! resolves them, `bettimill-format` from `records/NAME.json`). Every shard is checked and
 //! every problem reported; only an unreadable or invalid `index.json` is an error. The
-//! index is read one shard at a time, and a shard is first compared with its record by
-//! size and a blake3 streamed through a fixed buffer ([`file_matches`]); a shard that
-//! differs is gone through again, part by part through the same kind of buffer and never
-//! past its record's size, to localise the damage, and anything but a regular file (a link
-//! to `/dev/zero`) is reported unreadable without reading it. Extra files under `shards/`
-//! are found by counting: the index lists each name once (in plan order, checked holding
-//! one name), so if `shards/` holds as many files as the listed shards that exist, none is
-//! extra; only when the counts differ are the names found there kept, to say which. So
-//! memory does not grow with samples, shards or the size of a damaged file.
+//! index is read one shard at a time, and each shard goes through the one tar check of
+//! this crate (`tar_check`, which resume, status and finalize use too): one pass through a
+//! fixed buffer, never past its record's size, that hashes each part and the whole; anything
+//! but a regular file (a link to `/dev/zero`) is reported unreadable without reading it.
+//! Extra files under `shards/` are found by counting: the index lists each name once (in
+//! plan order, checked holding one name), so if `shards/` holds as many files as the listed
+//! shards that exist, none is extra; only when the counts differ are the names found there
+//! kept, to say which. So memory does not grow with samples, shards or the size of a
+//! damaged file.
 
 use crate::dir::{INDEX_FILE, SHARDS_DIR};
-use crate::index::{count_samples, read_index, IndexShard, ShardRecord};
-use bettimill_shard::ustar::{self, BLOCK};
+use crate::index::{read_index, IndexShard, ShardRecord};
+use crate::tar_check::{self, Depth};
 use bettimill_shard::{file_matches, regular_len, ShardError};
 use serde::Serialize;
 use std::collections::BTreeSet;
@@ -117,7 +117,7 @@ pub enum Problem {
         offset: u64,
         /// Length of the data.
         bytes: u64,
-        /// BLAKE3 in the index.
+        /// BLAKE3 in the shard's record.
         expected_blake3: String,
         /// BLAKE3 of the bytes on disk.
         found_blake3: String,
@@ -131,12 +131,12 @@ pub enum Problem {
         /// Offset of the first non-zero byte.
         offset: u64,
     },
-    /// The whole shard's hash differs although no part could be blamed (the index's
+    /// The whole shard's hash differs although no part could be blamed (the recorded
     /// shard hash itself is probably wrong).
     HashMismatch {
         /// The shard.
         shard: String,
-        /// BLAKE3 in the index.
+        /// BLAKE3 in the shard's record.
         expected_blake3: String,
         /// BLAKE3 of the file.
         found_blake3: String,
@@ -145,7 +145,7 @@ pub enum Problem {
     SampleCount {
         /// The shard.
         shard: String,
-        /// Count in the index.
+        /// Count in the shard's record.
         expected: u64,
         /// Count of samples among the members.
         found: u64,
@@ -221,7 +221,7 @@ impl fmt::Display for Problem {
                 found_blake3,
             } => write!(
                 f,
-                "{shard}: data of member {member} (bytes {offset}..{}) has blake3 {found_blake3}, expected {expected_blake3}",
+                "{shard}: data of member {member} (bytes {offset}..{}) has blake3 {found_blake3}, its record says {expected_blake3}",
                 offset + bytes
             ),
             Problem::NonZeroPadding {
@@ -244,7 +244,7 @@ impl fmt::Display for Problem {
                 found_blake3,
             } => write!(
                 f,
-                "{shard}: blake3 {found_blake3}, expected {expected_blake3} (every member checks out: the index's shard hash is wrong)"
+                "{shard}: blake3 {found_blake3}, its record says {expected_blake3} (every member checks out: the recorded shard hash is wrong)"
             ),
             Problem::SampleCount {
                 shard,
@@ -252,7 +252,7 @@ impl fmt::Display for Problem {
                 found,
             } => write!(
                 f,
-                "{shard}: the index says {expected} samples, its members form {found}"
+                "{shard}: its record says {expected} samples, its members form {found}"
             ),
             Problem::RecordInconsistent { shard, reason } => write!(f, "{shard}: {reason}"),
             Problem::File { path, reason } => write!(f, "{path}: {reason}"),
@@ -417,7 +417,7 @@ fn check_entry(
             reason,
         });
     }
-    check_record(&record, problems);
+    let consistent = tar_check::record_problems(&record, problems);
     match std::fs::metadata(&path) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
             problems.push(Problem::MissingShard {
@@ -444,212 +444,26 @@ fn check_entry(
             return;
         }
     };
-    if file_matches(&path, record.bytes, &record.blake3).is_ok() {
-        report.bytes_checked += record.bytes;
+    if !consistent {
+        // Without a layout to follow, the file can still be checked as a whole.
+        match file_matches(&path, record.bytes, &record.blake3) {
+            Ok(()) => report.bytes_checked += record.bytes,
+            Err(reason) => problems.push(Problem::RecordInconsistent {
+                shard: entry.name.clone(),
+                reason,
+            }),
+        }
         return;
     }
-    // It differs: go through it again, part by part through a fixed buffer, to say where
-    // (never past the record's size: a shard inflated to gigabytes is cut short there).
-    let checked = std::fs::File::open(&path)
-        .and_then(|mut file| check_shard_file(&record, &mut file, len, problems));
+    let checked = std::fs::File::open(&path).and_then(|mut file| {
+        tar_check::file_problems(&record, &mut file, len, Depth::All, problems)
+    });
     match checked {
         Ok(read) => report.bytes_checked += read,
         Err(e) => problems.push(Problem::Unreadable {
             path: path.display().to_string(),
             error: e.to_string(),
         }),
-    }
-}
-
-/// Problems a record has on its own, without looking at the file.
-fn check_record(record: &ShardRecord, problems: &mut Vec<Problem>) {
-    let names = record.members.iter().map(|m| m.name.as_str());
-    let found = count_samples(names);
-    if found != record.samples {
-        problems.push(Problem::SampleCount {
-            shard: record.name.clone(),
-            expected: record.samples,
-            found,
-        });
-    }
-    let key = |name: &str| ustar::split_key(name).map_or(name.to_string(), |(k, _)| k.to_string());
-    let first = record.members.first().map(|m| key(&m.name));
-    let last = record.members.last().map(|m| key(&m.name));
-    if first.as_deref().unwrap_or("") != record.first_key
-        || last.as_deref().unwrap_or("") != record.last_key
-    {
-        problems.push(Problem::RecordInconsistent {
-            shard: record.name.clone(),
-            reason: format!(
-                "first/last key {:?}/{:?} are not those of its members ({:?}/{:?})",
-                record.first_key, record.last_key, first, last
-            ),
-        });
-    }
-}
-
-/// Compares a shard file of `len` bytes with the layout its record determines, reading
-/// each part once through a fixed buffer and nothing past the record's size; returns the
-/// bytes read.
-fn check_shard_file(
-    record: &ShardRecord,
-    file: &mut std::fs::File,
-    len: u64,
-    problems: &mut Vec<Problem>,
-) -> std::io::Result<u64> {
-    let shard = &record.name;
-    let problems_before = problems.len();
-    let mut scanner = Scanner {
-        file,
-        buffer: vec![0u8; 1 << 16],
-        read_bytes: 0,
-    };
-    let truncated = |member: Option<&str>, region| Problem::Truncated {
-        shard: shard.clone(),
-        expected_bytes: record.bytes,
-        found_bytes: len,
-        member: member.map(str::to_string),
-        region,
-    };
-    let mut cut = false;
-    for member in &record.members {
-        let header_offset = member.offset - BLOCK;
-        if header_offset + BLOCK > len {
-            problems.push(truncated(Some(&member.name), Region::Header));
-            cut = true;
-            break;
-        }
-        match ustar::header_block(&member.name, member.bytes) {
-            Ok(expected) => {
-                let mut found = Vec::with_capacity(BLOCK as usize);
-                scanner.scan(header_offset, header_offset + BLOCK, &mut |_, b| {
-                    found.extend_from_slice(b)
-                })?;
-                if let Some(i) = expected.iter().zip(&found).position(|(a, b)| a != b) {
-                    problems.push(Problem::HeaderCorrupt {
-                        shard: shard.clone(),
-                        member: member.name.clone(),
-                        header_offset,
-                        offset: header_offset + i as u64,
-                    });
-                }
-            }
-            Err(e) => problems.push(Problem::RecordInconsistent {
-                shard: shard.clone(),
-                reason: e.to_string(),
-            }),
-        }
-        let data_end = member.offset + member.bytes;
-        if data_end > len {
-            problems.push(truncated(Some(&member.name), Region::Data));
-            cut = true;
-            break;
-        }
-        let mut hasher = blake3::Hasher::new();
-        scanner.scan(member.offset, data_end, &mut |_, b| {
-            hasher.update(b);
-        })?;
-        let found_blake3 = hasher.finalize().to_hex().to_string();
-        if found_blake3 != member.blake3 {
-            problems.push(Problem::DataCorrupt {
-                shard: shard.clone(),
-                member: member.name.clone(),
-                offset: member.offset,
-                bytes: member.bytes,
-                expected_blake3: member.blake3.clone(),
-                found_blake3,
-            });
-        }
-        let padded_end = data_end.div_ceil(BLOCK) * BLOCK;
-        if padded_end > len {
-            problems.push(truncated(Some(&member.name), Region::Padding));
-            cut = true;
-            break;
-        }
-        if let Some(offset) = scanner.first_non_zero(data_end, padded_end)? {
-            problems.push(Problem::NonZeroPadding {
-                shard: shard.clone(),
-                member: Some(member.name.clone()),
-                offset,
-            });
-        }
-    }
-    if !cut {
-        let marker_start = record.bytes - 2 * BLOCK;
-        if len < record.bytes {
-            problems.push(truncated(None, Region::EndMarker));
-        }
-        if let Some(offset) =
-            scanner.first_non_zero(marker_start.min(len), record.bytes.min(len))?
-        {
-            problems.push(Problem::NonZeroPadding {
-                shard: shard.clone(),
-                member: None,
-                offset,
-            });
-        }
-        if len > record.bytes {
-            problems.push(Problem::TrailingBytes {
-                shard: shard.clone(),
-                expected_bytes: record.bytes,
-                found_bytes: len,
-            });
-        }
-    }
-    if problems.len() == problems_before {
-        let mut hasher = blake3::Hasher::new();
-        scanner.scan(0, len.min(record.bytes), &mut |_, b| {
-            hasher.update(b);
-        })?;
-        let found_blake3 = hasher.finalize().to_hex().to_string();
-        if found_blake3 != record.blake3 {
-            problems.push(Problem::HashMismatch {
-                shard: shard.clone(),
-                expected_blake3: record.blake3.clone(),
-                found_blake3,
-            });
-        }
-    }
-    Ok(scanner.read_bytes)
-}
-
-/// Reads parts of a shard file through one fixed buffer, counting the bytes read.
-struct Scanner<'a> {
-    file: &'a mut std::fs::File,
-    buffer: Vec<u8>,
-    read_bytes: u64,
-}
-
-impl Scanner<'_> {
-    /// Calls `each` with the bytes of [start, end), in order, with their offsets.
-    fn scan(
-        &mut self,
-        start: u64,
-        end: u64,
-        each: &mut dyn FnMut(u64, &[u8]),
-    ) -> std::io::Result<()> {
-        use std::io::{Read, Seek, SeekFrom};
-        self.file.seek(SeekFrom::Start(start))?;
-        let mut at = start;
-        while at < end {
-            let take = (end - at).min(self.buffer.len() as u64) as usize;
-            self.file.read_exact(&mut self.buffer[..take])?;
-            each(at, &self.buffer[..take]);
-            at += take as u64;
-            self.read_bytes += take as u64;
-        }
-        Ok(())
-    }
-
-    /// The offset of the first non-zero byte in [start, end).
-    fn first_non_zero(&mut self, start: u64, end: u64) -> std::io::Result<Option<u64>> {
-        let mut found = None;
-        self.scan(start, end, &mut |at, bytes| {
-            if found.is_none() {
-                found = bytes.iter().position(|&b| b != 0).map(|i| at + i as u64);
-            }
-        })?;
-        Ok(found)
     }
 }
 
