@@ -2,41 +2,52 @@
 //!
 //! b_0 is the number of foreground components, and by duality b_{d-1} is the number of
 //! background components of the padded image minus one (the outside). Both are counted by
-//! flood fill over flat indices on a padded image, so no neighbour ever falls outside it;
-//! the visited marks live in a one-byte-per-voxel copy and the work stack holds `u32`
-//! indices when they fit, which keeps the memory at a few bytes per voxel.
+//! flood fill: of a whole image run by run along its rows, or of a thinned remnant voxel
+//! by voxel over flat indices; the visited marks live in a one-byte-per-voxel copy.
 
-use bettimill_grid::neighbourhood::{face_offsets, flat_offsets, full_offsets};
+use bettimill_grid::neighbourhood::{face_offsets, full_offsets};
 use bettimill_grid::BinaryImage;
 
-/// The number of components of voxels with value `value` in `image`, which must have a
-/// border of background (pad it first). Foreground uses the full neighbourhood, background
-/// the face neighbourhood; border voxels of the background are never left through the
-/// image edge because the flood fill checks bounds for them.
+/// The number of components of voxels with value `value` in `image`. Foreground uses the
+/// full neighbourhood, background the face neighbourhood; nothing is joined through the
+/// image's edge (the callers pad the image, so the outside is one background component).
+///
+/// A scanline flood fill: a voxel reached fills its whole run along the last axis, and the
+/// neighbouring rows are scanned over the run's span (one voxel wider for the full
+/// neighbourhood) for runs to fill next. Every row is read in order, and a voxel's
+/// coordinates are worked out once per run, not per voxel, so no neighbour is ever looked
+/// up outside the image.
 pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
-    let offsets = if value == 1 {
+    let d = image.dim().get();
+    let shape = image.shape();
+    let row_len = shape[d - 1];
+    let leading = &shape[..d - 1];
+    // Steps between rows along each leading axis.
+    let row_strides: Vec<usize> = image.strides()[..d - 1]
+        .iter()
+        .map(|&s| s / row_len)
+        .collect();
+    // The neighbouring rows, as offsets along the leading axes: every other row of the
+    // 3^(d-1) block for the full neighbourhood, the 2(d-1) face neighbours for the face one.
+    let full = value == 1;
+    let row_offsets: Vec<[i8; 4]> = if full {
         full_offsets(image.dim())
+            .into_iter()
+            .filter(|o| o[d - 1] == 0)
+            .map(|o| {
+                let mut lead = [0i8; 4];
+                lead[..d - 1].copy_from_slice(&o[..d - 1]);
+                lead
+            })
+            .collect()
     } else {
         face_offsets(image.dim())
+            .into_iter()
+            .filter(|o| o[d - 1] == 0)
+            .collect()
     };
-    let steps = flat_offsets(image, &offsets);
+    // 0: the other value; 1: this value, not reached yet; 2: reached.
     let mut mark: Vec<u8> = image.data().iter().map(|&v| (v == value) as u8).collect();
-    let d = image.dim().get();
-    let shape = image.shape().to_vec();
-    let strides = image.strides().to_vec();
-    // Only background components can reach the border; for them every neighbour is
-    // bounds-checked per axis.
-    let interior = |index: usize| -> bool {
-        let mut rest = index;
-        for axis in 0..d {
-            let c = rest / strides[axis];
-            rest %= strides[axis];
-            if c == 0 || c + 1 == shape[axis] {
-                return false;
-            }
-        }
-        true
-    };
     let mut count = 0;
     let mut stack: Vec<usize> = Vec::new();
     for start in 0..mark.len() {
@@ -44,33 +55,56 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
             continue;
         }
         count += 1;
-        mark[start] = 2;
         stack.push(start);
-        while let Some(i) = stack.pop() {
-            if interior(i) {
-                for &s in &steps {
-                    let j = (i as isize + s) as usize;
-                    if mark[j] == 1 {
-                        mark[j] = 2;
-                        stack.push(j);
-                    }
-                }
+        while let Some(v) = stack.pop() {
+            // A run is pushed once per row that found it; the first pop fills it.
+            if mark[v] != 1 {
+                continue;
+            }
+            let row = v / row_len;
+            let base = row * row_len;
+            let x = v - base;
+            let line = &mut mark[base..base + row_len];
+            let lo = line[..x].iter().rposition(|&m| m != 1).map_or(0, |p| p + 1);
+            let hi = line[x..]
+                .iter()
+                .position(|&m| m != 1)
+                .map_or(row_len, |p| x + p);
+            line[lo..hi].fill(2);
+            // The span of neighbouring rows that touches the run [lo, hi).
+            let (from, to) = if full {
+                (lo.saturating_sub(1), (hi + 1).min(row_len))
             } else {
-                let c = image.coords(i);
-                for off in &offsets {
-                    let inside = (0..d).all(|a| {
-                        let x = c[a] as i64 + off[a] as i64;
-                        x >= 0 && (x as usize) < shape[a]
-                    });
-                    if inside {
-                        let j = (0..d)
-                            .map(|a| (c[a] as i64 + off[a] as i64) as usize * strides[a])
-                            .sum::<usize>();
-                        if mark[j] == 1 {
-                            mark[j] = 2;
-                            stack.push(j);
-                        }
+                (lo, hi)
+            };
+            let mut coords = [0usize; 4];
+            let mut rest = row;
+            for a in 0..d - 1 {
+                coords[a] = rest / row_strides[a];
+                rest %= row_strides[a];
+            }
+            'rows: for off in &row_offsets {
+                let mut next = row;
+                for a in 0..d - 1 {
+                    let c = coords[a] as isize + off[a] as isize;
+                    if c < 0 || c as usize >= leading[a] {
+                        continue 'rows;
                     }
+                    next = (next as isize + off[a] as isize * row_strides[a] as isize) as usize;
+                }
+                let next_base = next * row_len;
+                let span = &mark[next_base + from..next_base + to];
+                // Most spans are reached already or the other value: one vectorised pass.
+                if !span.contains(&1) {
+                    continue;
+                }
+                // The first voxel of every stretch of unreached voxels in the span.
+                let mut previous = 0;
+                for (k, &m) in span.iter().enumerate() {
+                    if m == 1 && previous != 1 {
+                        stack.push(next_base + from + k);
+                    }
+                    previous = m;
                 }
             }
         }
