@@ -55,6 +55,77 @@ fn two_builds_of_the_demo_are_byte_identical() {
     assert_eq!(out.status.code(), Some(0), "{}", stdout(&out));
 }
 
+/// The dataset card opens with the YAML front matter the Hugging Face Hub reads, and each
+/// split's `data_files` pattern matches exactly that split's shards in index.json (so
+/// `datasets.load_dataset(DIR)` loads every split, as python/tests checks with the real
+/// library).
+#[test]
+fn the_card_front_matter_lists_every_split_by_a_pattern_of_its_own() {
+    let tmp = Dir::new();
+    let manifest = small_manifest(tmp.path(), 2, 16, 24);
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(
+        &manifest,
+        text.replacen(
+            "\n\n[[classes]]",
+            "\n\n[splits]\ntrain = 12\nval = 6\nval_extra = 6\n\n[[classes]]",
+            1,
+        ),
+    )
+    .unwrap();
+    let out_dir = tmp.path().join("out");
+    let out = build(Some(&manifest), &out_dir);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let card = std::fs::read_to_string(out_dir.join("README.md")).unwrap();
+    let front = card
+        .strip_prefix("---\n")
+        .and_then(|rest| rest.split_once("\n---\n\n# small2d\n"))
+        .map(|(front, _)| front)
+        .unwrap_or_else(|| panic!("no front matter before the title:\n{card}"));
+    for line in [
+        "license: cc0-1.0",
+        "- image-classification",
+        "- n<1K",
+        "- 2d",
+        "pretty_name: \"small2d\"",
+        "- config_name: default",
+    ] {
+        assert!(front.lines().any(|l| l == line), "no {line:?} in\n{front}");
+    }
+    let patterns: Vec<(String, String)> = front
+        .split("  - split: ")
+        .skip(1)
+        .map(|entry| {
+            let (split, path) = entry.split_once("\n    path: ").unwrap();
+            let unquote = |s: &str| serde_json::from_str::<String>(s.trim()).unwrap();
+            (unquote(split), unquote(path))
+        })
+        .collect();
+    let splits: Vec<&str> = patterns.iter().map(|(s, _)| s.as_str()).collect();
+    assert_eq!(splits, ["train", "val", "val_extra"], "{front}");
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("index.json")).unwrap()).unwrap();
+    for (split, pattern) in &patterns {
+        let (head, tail) = pattern.split_once('*').expect("one wildcard");
+        let matched: Vec<&str> = index["shards"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["name"].as_str().unwrap())
+            .filter(|n| n.starts_with(head) && n.ends_with(tail))
+            .collect();
+        let planned: Vec<&str> = index["shards"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|s| s["split"] == split.as_str())
+            .map(|s| s["name"].as_str().unwrap())
+            .collect();
+        assert!(!planned.is_empty());
+        assert_eq!(matched, planned, "{split}: {pattern}");
+    }
+}
+
 #[test]
 fn every_stored_label_matches_the_stored_voxels() {
     let tmp = Dir::new();

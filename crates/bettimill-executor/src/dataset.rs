@@ -563,11 +563,43 @@ impl Dataset {
         Ok(files)
     }
 
+    /// The card's YAML front matter, the metadata the Hugging Face Hub reads: licence,
+    /// task, size, tags, a pretty name, and one `data_files` pattern per split, so that
+    /// `datasets.load_dataset(DIR)` with no other argument loads every split and
+    /// `hf upload-large-folder` of DIR gives a dataset page. Strings are written as JSON,
+    /// which YAML reads as double-quoted scalars whatever they hold.
+    fn card_front_matter(&self) -> String {
+        let plan = &self.plan;
+        let quoted = |text: &str| serde_json::to_string(text).expect("strings serialise");
+        let mut yaml = format!(
+            "---\nlicense: cc0-1.0\ntask_categories:\n- image-classification\n\
+             size_categories:\n- {size}\ntags:\n- bettimill\n- topology\n- betti-numbers\n\
+             - binary-images\n- {dim}d\n- synthetic\n- webdataset\npretty_name: {name}\n\
+             configs:\n- config_name: default\n  data_files:\n",
+            size = size_category(plan.samples),
+            dim = plan.dimension,
+            name = quoted(&plan.name),
+        );
+        for (split, _) in &plan.splits {
+            // Shard stems of a split share a prefix no other split's starts with (split
+            // names hold no '-'), so the pattern matches exactly this split's shards.
+            let pattern = DatasetDir::relative_tar_name(&format!("{}*", plan.shard_prefix(split)));
+            yaml.push_str(&format!(
+                "  - split: {}\n    path: {}\n",
+                quoted(split),
+                quoted(&pattern)
+            ));
+        }
+        yaml.push_str("---\n\n");
+        yaml
+    }
+
     /// The dataset card written as DIR/README.md: what the dataset is, how it was built,
     /// its label distribution, and how to load it.
     pub fn dataset_card(&self) -> String {
         let plan = &self.plan;
-        let mut card = format!(
+        let mut card = self.card_front_matter();
+        card.push_str(&format!(
             "# {name}\n\nA dataset of {samples} binary images ({dim}D, {side}^{dim} voxels, \
              uint8 0/1 in C order) with exact Betti numbers over Z/2, built by bettimill \
              {version}.\n\nEvery sample was verified: its Betti numbers were computed from its \
@@ -591,7 +623,7 @@ impl Dataset {
             bg = 2 * plan.dimension.get(),
             mh = plan.manifest_hash,
             ph = plan.hash(),
-        );
+        ));
         for (stratum, count) in plan.strata.iter().zip(plan.total_counts()) {
             card.push_str(&format!(
                 "| {} | {} | {:?} | {count} |\n",
@@ -644,6 +676,26 @@ impl Dataset {
         ));
         card
     }
+}
+
+/// The Hugging Face Hub's `size_categories` value for a number of samples.
+fn size_category(samples: u64) -> &'static str {
+    const CATEGORIES: [(u64, &str); 10] = [
+        (1_000, "n<1K"),
+        (10_000, "1K<n<10K"),
+        (100_000, "10K<n<100K"),
+        (1_000_000, "100K<n<1M"),
+        (10_000_000, "1M<n<10M"),
+        (100_000_000, "10M<n<100M"),
+        (1_000_000_000, "100M<n<1B"),
+        (10_000_000_000, "1B<n<10B"),
+        (100_000_000_000, "10B<n<100B"),
+        (1_000_000_000_000, "100B<n<1T"),
+    ];
+    CATEGORIES
+        .iter()
+        .find(|(below, _)| samples < *below)
+        .map_or("n>1T", |(_, category)| category)
 }
 
 /// [`shard::write_atomic`] for shard tars, with the `BETTIMILL_TEST_PAUSE_BEFORE_RENAME`

@@ -432,7 +432,7 @@ impl Plan {
                 return ShardPlan {
                     index,
                     split: split.clone(),
-                    name: self.shard_name(split, k),
+                    name: format!("{}{k:06}", self.shard_prefix(split)),
                     first_sample,
                     samples: self.shard_size.min(split_start + size - first_sample),
                 };
@@ -470,13 +470,11 @@ impl Plan {
         let mut first_shard = 0;
         for (split, size) in &self.splits {
             let count = size.div_ceil(self.shard_size);
-            let prefix = self.shard_name(split, 0);
-            let prefix = &prefix[..prefix.len() - 6];
             if let Some(k) = name
-                .strip_prefix(prefix)
+                .strip_prefix(&self.shard_prefix(split))
                 .and_then(|k| k.parse::<u64>().ok())
             {
-                if k < count && self.shard_name(split, k) == name {
+                if k < count && format!("{}{k:06}", self.shard_prefix(split)) == name {
                     return Some(self.shard(first_shard + k));
                 }
             }
@@ -485,13 +483,12 @@ impl Plan {
         None
     }
 
-    /// File stem of shard `k` of a split: `NAME-000000`, or `NAME-SPLIT-000000` when the
-    /// manifest names its splits.
-    fn shard_name(&self, split: &str, k: u64) -> String {
-        if self.named_splits {
-            format!("{}-{split}-{k:06}", self.name)
-        } else {
-            format!("{}-{k:06}", self.name)
+    /// The stem of every shard of a split up to its number (`NAME-`, or `NAME-SPLIT-` with
+    /// named splits); split names hold no `-`, so no split's prefix starts another's.
+    pub fn shard_prefix(&self, split: &str) -> String {
+        match self.named_splits {
+            true => format!("{}-{split}-", self.name),
+            false => format!("{}-", self.name),
         }
     }
 
