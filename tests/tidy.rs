@@ -646,18 +646,6 @@ fn string_result_checker_counts_across_lines() {
     assert_eq!(string_results(bad), 3);
 }
 
-/// Library functions that still return `Result<_, String>`: typed errors (thiserror)
-/// replace them; this list only shrinks.
-const KNOWN_STRING_RESULTS: &[(&str, usize)] = &[
-    ("crates/bettimill-audit/src/lib.rs", 1),
-    ("crates/bettimill-format/src/dir.rs", 3),
-    ("crates/bettimill-format/src/index/stream.rs", 8),
-    ("crates/bettimill-format/src/verify.rs", 1),
-    ("crates/bettimill-manifest/src/classes.rs", 3),
-    ("crates/bettimill-plan/src/memory.rs", 1),
-    ("crates/bettimill-shard/src/file.rs", 1),
-];
-
 #[test]
 fn library_crates_return_typed_errors_not_strings() {
     let mut found = BTreeMap::new();
@@ -667,7 +655,10 @@ fn library_crates_return_typed_errors_not_strings() {
             found.insert(path, count);
         }
     }
-    let wrong = ratchet(&found, KNOWN_STRING_RESULTS);
+    let wrong: Vec<String> = found
+        .iter()
+        .map(|(path, count)| format!("{path}: {count}"))
+        .collect();
     assert!(
         wrong.is_empty(),
         "Result<_, String> in library code: give it a thiserror enum (the CLI alone may \
@@ -682,7 +673,7 @@ const MAX_SOURCE_LINES: usize = 1000;
 
 /// Source files over [`MAX_SOURCE_LINES`], with their lines now: they may only shrink.
 const KNOWN_LONG_FILES: &[(&str, usize)] = &[
-    ("crates/bettimill-format/src/dir.rs", 1206),
+    ("crates/bettimill-format/src/dir.rs", 1176),
     ("crates/bettimill-homology/src/simple.rs", 1072),
     ("crates/bettimill-plan/src/lib.rs", 1087),
 ];

@@ -570,6 +570,17 @@ fn relabel_shard(
     Ok((samples, findings))
 }
 
+/// Why a stored array cannot be decoded.
+#[derive(Debug, thiserror::Error)]
+enum ArrayError {
+    #[error(transparent)]
+    Decompress(#[from] ShardError),
+    #[error("voxel {index} has value {value}; a dataset array holds only 0 and 1")]
+    NotBinary { index: usize, value: i128 },
+    #[error(transparent)]
+    Npy(bettimill_grid::npy::NpyError),
+}
+
 /// Decodes one array member (`KEY.npy`, `KEY.r10.npy.gz`, ...) into an image, and says
 /// whether its `.npy` bytes are exactly the ones the build writes for that image (uint8,
 /// C order, the writer's header): another dtype or header holding the same values is a
@@ -577,10 +588,9 @@ fn relabel_shard(
 fn decode_array(
     data: &[u8],
     parsed: &MemberName,
-) -> Result<(bettimill_grid::BinaryImage, Option<String>), String> {
+) -> Result<(bettimill_grid::BinaryImage, Option<String>), ArrayError> {
     let limit = 1 << 34;
-    let raw =
-        bettimill_shard::decompress(data, parsed.compression, limit).map_err(|e| e.to_string())?;
+    let raw = bettimill_shard::decompress(data, parsed.compression, limit)?;
     // Stored arrays are 0/1 by construction; a value other than 0 or 1 is damage.
     bettimill_grid::npy::read_bytes(&raw, true)
         .map(|npy| {
@@ -600,9 +610,9 @@ fn decode_array(
         })
         .map_err(|err| match err {
             bettimill_grid::npy::NpyError::NotBinary { index, value } => {
-                format!("voxel {index} has value {value}; a dataset array holds only 0 and 1")
+                ArrayError::NotBinary { index, value }
             }
-            other => other.to_string(),
+            other => ArrayError::Npy(other),
         })
 }
 
@@ -786,7 +796,7 @@ fn relabel_sample(
                 image
             }
             Err(reason) => {
-                out.undecodable(member, reason);
+                out.undecodable(member, reason.to_string());
                 continue;
             }
         };

@@ -285,7 +285,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
 
 /// `--max-memory`: a size such as `8G`, `512M` or a number of bytes.
 pub(crate) fn parse_memory(text: &str) -> Result<u64, String> {
-    bettimill_plan::memory::parse_bytes(text)
+    bettimill_plan::memory::parse_bytes(text).map_err(|err| err.to_string())
 }
 
 /// `--worker-timeout`: seconds, at least 3 heartbeat intervals.

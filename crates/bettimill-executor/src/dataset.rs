@@ -490,7 +490,7 @@ impl Dataset {
                 };
                 self.layout
                     .check_tar(&plan.name, &record.shard, check)
-                    .map_err(corrupt)?;
+                    .map_err(|mismatch| corrupt(mismatch.to_string()))?;
             }
             let entry = record.shard.index_entry(record_blake3);
             // The record's name, split and sample count are the plan's: a record edited to

@@ -1,7 +1,8 @@
 //! The dataset directory: where each file lives, the identity file, completion records,
 //! and the one check of a shard against its record.
 
-use crate::tar_check::{self, Depth};
+use crate::tar_check::{self, TarMismatch};
+use crate::NoRecord;
 use crate::ShardRecord;
 use crate::{FormatError, TOOL_VERSION};
 use bettimill_shard as shard;
@@ -497,21 +498,17 @@ impl DatasetDir {
                 found: self.describe_unfinished(),
             });
         }
-        let mut records = |entry: &crate::IndexShard| -> Result<ShardRecord, String> {
+        let mut records = |entry: &crate::IndexShard| -> Result<ShardRecord, NoRecord> {
             let name = DatasetDir::shard_stem(&entry.name);
             let path = self.record_path(name);
-            match self.read_record_hashed(name) {
-                Ok(Some((record, hash))) if hash == entry.record_blake3 => Ok(record.shard),
-                Ok(Some((_, hash))) => Err(format!(
-                    "{} has blake3 {hash}, index.json says {}",
-                    path.display(),
-                    entry.record_blake3
-                )),
-                Ok(None) => Err(format!(
-                    "{} is missing (it lists the shard's members)",
-                    path.display()
-                )),
-                Err(err) => Err(err.to_string()),
+            match self.read_record_hashed(name)? {
+                Some((record, hash)) if hash == entry.record_blake3 => Ok(record.shard),
+                Some((_, found)) => Err(NoRecord::HashDiffers {
+                    path,
+                    found,
+                    indexed: entry.record_blake3.clone(),
+                }),
+                None => Err(NoRecord::Missing { path }),
             }
         };
         let mut report =
@@ -605,7 +602,7 @@ impl DatasetDir {
         if !self.is_finalized() {
             return Ok(());
         }
-        crate::read_index(&self.index_path(), &mut |_, _| Ok(()))?;
+        crate::read_index(&self.index_path(), &mut |_, _| {})?;
         Ok(())
     }
 
@@ -626,16 +623,16 @@ impl DatasetDir {
         shard: &str,
         record: &ShardRecord,
         check: TarCheck,
-    ) -> Result<(), String> {
+    ) -> Result<(), TarMismatch> {
         let relative = DatasetDir::relative_tar_name(shard);
         if record.name != relative {
-            return Err(format!(
-                "{}: it names the shard {}, not {relative}",
-                self.record_path(shard).display(),
-                record.name
-            ));
+            return Err(TarMismatch::OtherShard {
+                record: self.record_path(shard),
+                named: record.name.clone(),
+                expected: relative,
+            });
         }
-        check_tar_file(&self.tar_path(shard), record, check)
+        tar_check::check_tar_file(&self.tar_path(shard), record, check)
     }
 
     /// The state of one shard, judged from the directory alone (size and streamed hash).
@@ -665,7 +662,9 @@ impl DatasetDir {
         };
         match self.check_tar(shard, &record.shard, check) {
             Ok(()) => ShardState::Complete(record),
-            Err(reason) => ShardState::Invalid { reason },
+            Err(mismatch) => ShardState::Invalid {
+                reason: mismatch.to_string(),
+            },
         }
     }
 
@@ -792,7 +791,7 @@ pub type ShardStream = shard::TarStream<std::io::Take<std::io::BufReader<std::fs
 
 /// The size of the regular file at `path`; an error naming it for anything else (a device
 /// such as `/dev/zero`, which reports no size and never ends, a directory, a FIFO).
-fn regular_file_len(path: &Path) -> Result<u64, FormatError> {
+pub(crate) fn regular_file_len(path: &Path) -> Result<u64, FormatError> {
     shard::regular_len(path).map_err(|err| match err {
         shard::RegularFileError::Io(err) => io(path)(err),
         err @ shard::RegularFileError::NotRegular => FormatError::Corrupt {
@@ -832,36 +831,6 @@ pub fn open_tar_file(
     let file = std::fs::File::open(path).map_err(io(path))?;
     let reader = std::io::Read::take(std::io::BufReader::with_capacity(1 << 16, file), expected);
     Ok(shard::TarStream::new(reader, path, limit))
-}
-
-/// [`DatasetDir::check_tar`] for a tar at `path`: its size, then (with [`TarCheck::Full`])
-/// the one streamed check of the record and the tar ([`crate::tar_check`]), stopping at the
-/// first problem. So a record is checked whole, not only its shard hash: a damaged member
-/// hash or offset makes the shard incomplete.
-pub fn check_tar_file(path: &Path, record: &ShardRecord, check: TarCheck) -> Result<(), String> {
-    let size = regular_file_len(path).map_err(|err| err.to_string())?;
-    if size != record.bytes {
-        return Err(format!(
-            "{} has {size} bytes, its record says {}",
-            path.display(),
-            record.bytes
-        ));
-    }
-    if check == TarCheck::Size {
-        return Ok(());
-    }
-    let mut problems = Vec::new();
-    if tar_check::record_problems(record, &mut problems) && problems.is_empty() {
-        std::fs::File::open(path)
-            .and_then(|mut file| {
-                tar_check::file_problems(record, &mut file, size, Depth::First, &mut problems)
-            })
-            .map_err(|err| format!("{}: {err}", path.display()))?;
-    }
-    match problems.first() {
-        Some(problem) => Err(problem.to_string()),
-        None => Ok(()),
-    }
 }
 
 fn list_stems(dir: &Path, extension: &str) -> Result<Vec<String>, FormatError> {
@@ -1084,6 +1053,7 @@ mod tests {
         assert!(layout
             .check_tar("t-000000", &record, TarCheck::Size)
             .unwrap_err()
+            .to_string()
             .contains("1024 bytes"));
     }
 

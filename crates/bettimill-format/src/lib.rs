@@ -9,7 +9,7 @@
 //!   shard's members ([`DatasetDir::open_tar`]: checked against its record before reading,
 //!   one member at a time).
 //! - `tar_check`: the one streaming "does this tar match its record" check, which
-//!   [`DatasetDir::check_tar`] stops at the first problem of and [`verify`] reports whole.
+//!   [`DatasetDir::check_tar`] stops at the first problem of and [`verify()`] reports whole.
 //! - [`label`]: the label stored as `KEY.json` ([`Label`], [`ResolutionLabel`]).
 //! - [`member`]: member names and their compression suffixes.
 //! - [`classes`]: the class table stored as `classes.json` ([`ClassTable`]): what every
@@ -39,18 +39,20 @@ pub mod verify;
 
 pub use classes::{ClassTable, StratumClass, TopologyClass, CLASS_TABLE_FORMAT};
 pub use dir::{
-    check_build_info, check_tar_file, dataset_containing, open_tar_file, BuildInfo,
-    CompletionRecord, DatasetDir, ShardState, ShardStream, ShardTiming, TarCheck, Unbound,
-    CLASSES_FILE, REQUIRED_FILES,
+    check_build_info, dataset_containing, open_tar_file, BuildInfo, CompletionRecord, DatasetDir,
+    ShardState, ShardStream, ShardTiming, TarCheck, Unbound, CLASSES_FILE, REQUIRED_FILES,
 };
 pub use index::{
-    build_shard, count_samples, read_index, read_index_from, wids_index, Index, IndexFile,
-    IndexHeader, IndexShard, IndexWriter, MemberRecord, ShardRecord, WidsWriter, INDEX_FORMAT,
-    INDEX_FORMAT_VERSION, MAX_INDEX_FILES, MAX_INDEX_SPLITS,
+    build_shard, count_samples, read_index, read_index_from, wids_index, Index, IndexError,
+    IndexFile, IndexHeader, IndexRefusal, IndexShard, IndexWriter, MemberRecord, ShardRecord,
+    WidsWriter, INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES, MAX_INDEX_SPLITS,
 };
 pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};
-pub use verify::{verify, verify_with_progress, Problem, RecordSource, Region, VerifyReport};
+pub use tar_check::{check_tar_file, TarMismatch};
+pub use verify::{
+    verify, verify_with_progress, NoRecord, Problem, RecordSource, Region, VerifyReport,
+};
 
 use std::path::PathBuf;
 
@@ -153,4 +155,7 @@ pub enum FormatError {
     /// Storage failed.
     #[error(transparent)]
     Shard(#[from] bettimill_shard::ShardError),
+    /// `index.json` could not be read.
+    #[error(transparent)]
+    Index(#[from] IndexError),
 }

@@ -16,6 +16,83 @@ use crate::index::{count_samples, MemberRecord, ShardRecord};
 use crate::verify::{Problem, Region};
 use bettimill_shard::ustar::{self, BLOCK};
 use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Why a tar does not match its record ([`crate::DatasetDir::check_tar`]).
+#[derive(Debug, thiserror::Error)]
+pub enum TarMismatch {
+    /// The record is another shard's.
+    #[error("{record}: it names the shard {named}, not {expected}")]
+    OtherShard {
+        /// The record file.
+        record: PathBuf,
+        /// The shard it names.
+        named: String,
+        /// The shard it is the record of.
+        expected: String,
+    },
+    /// The tar is not a regular file, or cannot be looked at.
+    #[error(transparent)]
+    Unreadable(#[from] Box<crate::FormatError>),
+    /// The tar has another size.
+    #[error("{path} has {found} bytes, its record says {expected}")]
+    Size {
+        /// The tar.
+        path: PathBuf,
+        /// Its size.
+        found: u64,
+        /// The record's size.
+        expected: u64,
+    },
+    /// The tar could not be read through.
+    #[error("{path}: {source}")]
+    Io {
+        /// The tar.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// The first thing that differs.
+    #[error("{0}")]
+    Differs(Problem),
+}
+
+/// [`crate::DatasetDir::check_tar`] for a tar at `path`: its size, then (with
+/// [`crate::TarCheck::Full`]) the one streamed check of the record and the tar, stopping at the
+/// first problem. So a record is checked whole, not only its shard hash: a damaged member
+/// hash or offset makes the shard incomplete.
+pub fn check_tar_file(
+    path: &Path,
+    record: &ShardRecord,
+    check: crate::TarCheck,
+) -> Result<(), TarMismatch> {
+    let size = crate::dir::regular_file_len(path).map_err(Box::new)?;
+    if size != record.bytes {
+        return Err(TarMismatch::Size {
+            path: path.to_path_buf(),
+            found: size,
+            expected: record.bytes,
+        });
+    }
+    if check == crate::TarCheck::Size {
+        return Ok(());
+    }
+    let mut problems = Vec::new();
+    if record_problems(record, &mut problems) && problems.is_empty() {
+        std::fs::File::open(path)
+            .and_then(|mut file| {
+                file_problems(record, &mut file, size, Depth::First, &mut problems)
+            })
+            .map_err(|source| TarMismatch::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+    }
+    match problems.into_iter().next() {
+        Some(problem) => Err(TarMismatch::Differs(problem)),
+        None => Ok(()),
+    }
+}
 
 /// How far a check goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

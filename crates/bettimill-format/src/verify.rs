@@ -26,7 +26,8 @@
 use crate::dir::{INDEX_FILE, SHARDS_DIR};
 use crate::index::{read_index, IndexShard, ShardRecord};
 use crate::tar_check::{self, Depth};
-use bettimill_shard::{file_matches, regular_len, ShardError};
+use crate::IndexError;
+use bettimill_shard::{file_matches, regular_len};
 use serde::Serialize;
 use std::collections::BTreeSet;
 use std::fmt;
@@ -288,12 +289,36 @@ impl VerifyReport {
 
 /// Finds the member records of an index entry (the shard's [`ShardRecord`]), or says why
 /// there are none.
-pub type RecordSource<'a> = dyn FnMut(&IndexShard) -> Result<ShardRecord, String> + 'a;
+pub type RecordSource<'a> = dyn FnMut(&IndexShard) -> Result<ShardRecord, NoRecord> + 'a;
+
+/// Why an index entry has no usable record.
+#[derive(Debug, thiserror::Error)]
+pub enum NoRecord {
+    /// The record is not the one the index covers.
+    #[error("{path} has blake3 {found}, index.json says {indexed}")]
+    HashDiffers {
+        /// The record file.
+        path: PathBuf,
+        /// Its blake3.
+        found: String,
+        /// The blake3 in the index.
+        indexed: String,
+    },
+    /// There is no record.
+    #[error("{path} is missing (it lists the shard's members)")]
+    Missing {
+        /// The record file.
+        path: PathBuf,
+    },
+    /// The record cannot be read or parsed.
+    #[error(transparent)]
+    Unreadable(#[from] crate::FormatError),
+}
 
 /// Checks every shard of `dir` against `dir/index.json` and the records `records` gives
 /// (see the module documentation). Returns `Err` only when the index itself cannot be read
 /// or is invalid.
-pub fn verify(dir: &Path, records: &mut RecordSource) -> Result<VerifyReport, ShardError> {
+pub fn verify(dir: &Path, records: &mut RecordSource) -> Result<VerifyReport, IndexError> {
     verify_with_progress(dir, &[], records, &mut |_, _| {})
 }
 
@@ -305,7 +330,7 @@ pub fn verify_with_progress(
     required: &[&str],
     records: &mut RecordSource,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<VerifyReport, ShardError> {
+) -> Result<VerifyReport, IndexError> {
     let mut report = VerifyReport::default();
     // Listed shards that are files: if `shards/` holds as many files, none is extra (the
     // index lists every name once), so no list of names is kept.
@@ -321,7 +346,6 @@ pub fn verify_with_progress(
         check_entry(dir, &entry, records, &mut report);
         listed_files += u64::from(dir.join(&entry.name).is_file());
         progress(report.shards_checked, header.shard_count);
-        Ok(())
     })?;
     if !started {
         progress(0, header.shard_count);
@@ -339,7 +363,9 @@ pub fn verify_with_progress(
         if let Err(reason) = file_matches(&dir.join(&file.name), file.bytes, &file.blake3) {
             report.problems.push(Problem::File {
                 path: file.name.clone(),
-                reason: reason.replace("its record says", "index.json says"),
+                reason: reason
+                    .to_string()
+                    .replace("its record says", "index.json says"),
             });
         }
     }
@@ -365,7 +391,6 @@ pub fn verify_with_progress(
         );
         read_index(&dir.join(INDEX_FILE), &mut |_, entry| {
             found.remove(&entry.name);
-            Ok(())
         })?;
         for path in found {
             report.problems.push(Problem::ExtraFile { path });
@@ -388,7 +413,7 @@ fn check_entry(
         Err(reason) => {
             problems.push(Problem::RecordInconsistent {
                 shard: entry.name.clone(),
-                reason,
+                reason: reason.to_string(),
             });
             // Without member records the file can still be checked as a whole.
             match std::fs::metadata(&path) {
@@ -401,7 +426,7 @@ fn check_entry(
                     if let Err(reason) = file_matches(&path, entry.bytes, &entry.blake3) {
                         problems.push(Problem::RecordInconsistent {
                             shard: entry.name.clone(),
-                            reason,
+                            reason: reason.to_string(),
                         });
                     } else {
                         report.bytes_checked += entry.bytes;
@@ -450,7 +475,7 @@ fn check_entry(
             Ok(()) => report.bytes_checked += record.bytes,
             Err(reason) => problems.push(Problem::RecordInconsistent {
                 shard: entry.name.clone(),
-                reason,
+                reason: reason.to_string(),
             }),
         }
         return;

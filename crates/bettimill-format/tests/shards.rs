@@ -3,7 +3,8 @@
 //! flipped bytes, truncation, missing and extra files.
 
 use bettimill_format::{
-    build_shard, Index, IndexShard, Problem, Region, ShardRecord, VerifyReport,
+    build_shard, Index, IndexError, IndexShard, NoRecord, Problem, Region, ShardRecord,
+    VerifyReport,
 };
 use bettimill_shard::ustar::{header_block, tar_len};
 use bettimill_shard::{
@@ -69,24 +70,32 @@ fn record_path(dir: &Path, shard: &str) -> std::path::PathBuf {
 }
 
 /// The records of an index entry, from the sidecar [`write_index`] wrote.
-fn sidecar(dir: &Path) -> impl FnMut(&IndexShard) -> Result<ShardRecord, String> + '_ {
+fn sidecar(dir: &Path) -> impl FnMut(&IndexShard) -> Result<ShardRecord, NoRecord> + '_ {
     move |entry| {
-        let json = std::fs::read(record_path(dir, &entry.name)).map_err(|e| e.to_string())?;
-        if blake3_hex(&json) != entry.record_blake3 {
-            return Err("record hash differs".into());
+        let path = record_path(dir, &entry.name);
+        let Ok(json) = std::fs::read(&path) else {
+            return Err(NoRecord::Missing { path });
+        };
+        let found = blake3_hex(&json);
+        if found != entry.record_blake3 {
+            return Err(NoRecord::HashDiffers {
+                path,
+                found,
+                indexed: entry.record_blake3.clone(),
+            });
         }
-        serde_json::from_slice(&json).map_err(|e| e.to_string())
+        Ok(serde_json::from_slice(&json).expect("the test writes valid records"))
     }
 }
 
-fn verify(dir: &Path) -> Result<VerifyReport, ShardError> {
+fn verify(dir: &Path) -> Result<VerifyReport, IndexError> {
     bettimill_format::verify(dir, &mut sidecar(dir))
 }
 
 fn verify_with_progress(
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<VerifyReport, ShardError> {
+) -> Result<VerifyReport, IndexError> {
     bettimill_format::verify_with_progress(dir, &[], &mut sidecar(dir), progress)
 }
 
@@ -455,7 +464,7 @@ fn verify_reports_a_wrong_shard_hash_when_every_member_checks_out() {
 fn verify_fails_only_on_a_bad_index() {
     let (dir, _) = dataset();
     std::fs::write(dir.path().join("index.json"), b"{\"format\": 1").unwrap();
-    assert!(matches!(verify(dir.path()), Err(ShardError::Json { .. })));
+    assert!(matches!(verify(dir.path()), Err(IndexError::Json { .. })));
     std::fs::remove_file(dir.path().join("index.json")).unwrap();
     let err = verify(dir.path()).unwrap_err();
     assert!(err.to_string().contains("index.json"), "{err}");

@@ -82,28 +82,46 @@ pub(crate) fn expand<'de, D: Deserializer<'de>>(
     Ok(out)
 }
 
+/// Why a class entry does not expand; the caller names the entry.
+#[derive(Debug, thiserror::Error)]
+enum ClassError {
+    #[error("unknown field `{0}` next to `betti` (a class is either a Betti vector or a family)")]
+    BesideBetti(String),
+    #[error("`betti` and `family = {0}` together: a class is either a Betti vector or a family")]
+    BettiAndFamily(Value),
+    #[error("`betti` must be a list of b0..b(d-1), e.g. betti = [1, 2, 1, 0]")]
+    BettiNotAList,
+    #[error("`betti` has {0} entries; give b0..b(d-1): 2 to 4 entries")]
+    BettiLength(usize),
+    #[error("betti entry b{0}: a range is [lo, hi] of integers")]
+    BettiPair(usize),
+    #[error("betti entry b{entry}: expected an integer or [lo, hi], found {found}")]
+    BettiType { entry: usize, found: &'static str },
+    #[error("betti entry b{entry}: [{lo}, {hi}] must be a non-empty range within 0..=64")]
+    BettiRange { entry: usize, lo: i64, hi: i64 },
+    #[error("expands into more than {MAX_EXPANSION} classes")]
+    TooMany,
+    #[error("range [{0}, {1}] is empty")]
+    EmptyRange(i64, i64),
+    #[error("range [{0}, {1}] is too long")]
+    LongRange(i64, i64),
+}
+
 /// The Betti vectors of a `betti = [...]` class: entries are integers or `[lo, hi]`.
-fn betti_vectors(table: &toml::Table) -> Result<Vec<Vec<u64>>, String> {
+fn betti_vectors(table: &toml::Table) -> Result<Vec<Vec<u64>>, ClassError> {
     if let Some(extra) = table.keys().find(|k| *k != "betti" && *k != "family") {
-        return Err(format!(
-            "unknown field `{extra}` next to `betti` (a class is either a Betti vector or a family)"
-        ));
+        return Err(ClassError::BesideBetti(extra.clone()));
     }
     if let Some(family) = table.get("family") {
         if family.as_str() != Some("betti") {
-            return Err(format!(
-                "`betti` and `family = {family}` together: a class is either a Betti vector or a family"
-            ));
+            return Err(ClassError::BettiAndFamily(family.clone()));
         }
     }
     let Some(Value::Array(entries)) = table.get("betti") else {
-        return Err("`betti` must be a list of b0..b(d-1), e.g. betti = [1, 2, 1, 0]".into());
+        return Err(ClassError::BettiNotAList);
     };
     if entries.is_empty() || entries.len() > 4 {
-        return Err(format!(
-            "`betti` has {} entries; give b0..b(d-1): 2 to 4 entries",
-            entries.len()
-        ));
+        return Err(ClassError::BettiLength(entries.len()));
     }
     let mut vectors = vec![Vec::new()];
     for (k, entry) in entries.iter().enumerate() {
@@ -111,22 +129,20 @@ fn betti_vectors(table: &toml::Table) -> Result<Vec<Vec<u64>>, String> {
             Value::Integer(n) => (*n, *n),
             Value::Array(pair) => match pair.as_slice() {
                 [Value::Integer(lo), Value::Integer(hi)] => (*lo, *hi),
-                _ => return Err(format!("betti entry b{k}: a range is [lo, hi] of integers")),
+                _ => return Err(ClassError::BettiPair(k)),
             },
             other => {
-                return Err(format!(
-                    "betti entry b{k}: expected an integer or [lo, hi], found {}",
-                    other.type_str()
-                ))
+                return Err(ClassError::BettiType {
+                    entry: k,
+                    found: other.type_str(),
+                })
             }
         };
         if lo < 0 || hi > 64 || lo > hi {
-            return Err(format!(
-                "betti entry b{k}: [{lo}, {hi}] must be a non-empty range within 0..=64"
-            ));
+            return Err(ClassError::BettiRange { entry: k, lo, hi });
         }
         if vectors.len().saturating_mul((hi - lo + 1) as usize) > MAX_EXPANSION {
-            return Err(format!("expands into more than {MAX_EXPANSION} classes"));
+            return Err(ClassError::TooMany);
         }
         vectors = vectors
             .into_iter()
@@ -143,7 +159,7 @@ fn betti_vectors(table: &toml::Table) -> Result<Vec<Vec<u64>>, String> {
 }
 
 /// The alternatives a value stands for.
-fn alternatives(value: &Value) -> Result<Vec<Value>, String> {
+fn alternatives(value: &Value) -> Result<Vec<Value>, ClassError> {
     let Value::Array(items) = value else {
         return Ok(vec![value.clone()]);
     };
@@ -152,22 +168,22 @@ fn alternatives(value: &Value) -> Result<Vec<Value>, String> {
     }
     if let [Value::Integer(lo), Value::Integer(hi)] = items.as_slice() {
         if lo > hi {
-            return Err(format!("range [{lo}, {hi}] is empty"));
+            return Err(ClassError::EmptyRange(*lo, *hi));
         }
         if hi - lo >= MAX_EXPANSION as i64 {
-            return Err(format!("range [{lo}, {hi}] is too long"));
+            return Err(ClassError::LongRange(*lo, *hi));
         }
         return Ok((*lo..=*hi).map(Value::Integer).collect());
     }
     Ok(vec![value.clone()])
 }
 
-fn expand_table(table: toml::Table) -> Result<Vec<toml::Table>, String> {
+fn expand_table(table: toml::Table) -> Result<Vec<toml::Table>, ClassError> {
     let mut combos = vec![toml::Table::new()];
     for (key, value) in table {
         let options = alternatives(&value)?;
         if combos.len().saturating_mul(options.len()) > MAX_EXPANSION {
-            return Err(format!("expands into more than {MAX_EXPANSION} classes"));
+            return Err(ClassError::TooMany);
         }
         combos = combos
             .into_iter()

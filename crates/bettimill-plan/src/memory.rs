@@ -254,17 +254,31 @@ pub fn human_bytes(bytes: u64) -> String {
     }
 }
 
+/// Why [`parse_bytes`] refuses a memory size.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MemorySizeError {
+    /// No number where the size starts.
+    #[error("{0:?} is not a memory size (write e.g. 8G, 512M or 1073741824)")]
+    NotANumber(String),
+    /// A unit other than K, M, G, T.
+    #[error("{0:?} has an unknown unit (use K, M, G or T, powers of 1024)")]
+    UnknownUnit(String),
+    /// Less than a byte, or more than 64 bits hold.
+    #[error("{0:?} is not a memory size of at least 1 byte")]
+    OutOfRange(String),
+}
+
 /// Parses a memory size as written on a command line: a number of bytes, or a number with a
 /// unit `K`, `M`, `G`, `T` (powers of 1024; `KiB`, `MB`, `GB` ... are read the same way).
-pub fn parse_bytes(text: &str) -> Result<u64, String> {
+pub fn parse_bytes(text: &str) -> Result<u64, MemorySizeError> {
     let trimmed = text.trim();
     let split = trimmed
         .find(|c: char| !(c.is_ascii_digit() || c == '.'))
         .unwrap_or(trimmed.len());
     let (number, unit) = trimmed.split_at(split);
-    let value: f64 = number.parse().map_err(|_| {
-        format!("{text:?} is not a memory size (write e.g. 8G, 512M or 1073741824)")
-    })?;
+    let value: f64 = number
+        .parse()
+        .map_err(|_| MemorySizeError::NotANumber(text.to_string()))?;
     let unit = unit.trim().to_ascii_uppercase();
     let unit = unit.trim_end_matches('B').trim_end_matches('I');
     let scale: u64 = match unit {
@@ -273,15 +287,11 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
         "M" => 1 << 20,
         "G" => 1 << 30,
         "T" => 1 << 40,
-        _ => {
-            return Err(format!(
-                "{text:?} has an unknown unit (use K, M, G or T, powers of 1024)"
-            ))
-        }
+        _ => return Err(MemorySizeError::UnknownUnit(text.to_string())),
     };
     let bytes = value * scale as f64;
     if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
-        return Err(format!("{text:?} is not a memory size of at least 1 byte"));
+        return Err(MemorySizeError::OutOfRange(text.to_string()));
     }
     Ok(bytes as u64)
 }

@@ -110,22 +110,6 @@ pub enum ShardError {
         /// Human name of the type.
         kind: &'static str,
     },
-    /// A JSON file could not be parsed.
-    #[error("{path}: invalid JSON: {source}")]
-    Json {
-        /// The file.
-        path: PathBuf,
-        /// The parser's reason, with line and column.
-        source: serde_json::Error,
-    },
-    /// `index.json` parsed but is not a valid bettimill index.
-    #[error("{path}: not a valid bettimill index: {reason}")]
-    IndexFormat {
-        /// The index file.
-        path: PathBuf,
-        /// What is wrong.
-        reason: String,
-    },
 }
 
 impl ShardError {

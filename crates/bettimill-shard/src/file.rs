@@ -1,7 +1,7 @@
 //! Files as storage sees them: plain files only, hashed as a stream through a fixed
 //! buffer, so that neither a device nor a huge file is read whole.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Why [`regular_len`] gives no size.
 #[derive(Debug, thiserror::Error)]
@@ -31,27 +31,66 @@ pub fn blake3_hex(bytes: &[u8]) -> String {
     blake3::hash(bytes).to_hex().to_string()
 }
 
+/// Why a file is not the one a record describes ([`file_matches`]).
+#[derive(Debug, thiserror::Error)]
+pub enum FileMismatch {
+    /// The file cannot be looked at or read, or is not a plain file.
+    #[error("{path}: {reason}")]
+    Unreadable {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: RegularFileError,
+    },
+    /// The file has another size.
+    #[error("{path} has {found} bytes, its record says {expected}")]
+    Size {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        found: u64,
+        /// The recorded size.
+        expected: u64,
+    },
+    /// The file has another blake3.
+    #[error("{path} has blake3 {found}, its record says {expected}")]
+    Hash {
+        /// The file.
+        path: PathBuf,
+        /// Its blake3.
+        found: String,
+        /// The recorded blake3.
+        expected: String,
+    },
+}
+
 /// Whether the file at `path` has `bytes` bytes and blake3 `blake3`, hashed through a fixed
 /// buffer. The error says what differs (or why the file cannot be read).
-pub fn file_matches(path: &Path, bytes: u64, blake3: &str) -> Result<(), String> {
-    let size = regular_len(path).map_err(|err| format!("{}: {err}", path.display()))?;
+pub fn file_matches(path: &Path, bytes: u64, blake3: &str) -> Result<(), FileMismatch> {
+    let unreadable = |reason| FileMismatch::Unreadable {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let size = regular_len(path).map_err(unreadable)?;
     if size != bytes {
-        return Err(format!(
-            "{} has {size} bytes, its record says {bytes}",
-            path.display()
-        ));
+        return Err(FileMismatch::Size {
+            path: path.to_path_buf(),
+            found: size,
+            expected: bytes,
+        });
     }
-    let file = std::fs::File::open(path).map_err(|err| format!("{}: {err}", path.display()))?;
+    let file = std::fs::File::open(path).map_err(|e| unreadable(e.into()))?;
     let mut hasher = blake3::Hasher::new();
     hasher
         .update_reader(std::io::Read::take(file, bytes + 1))
-        .map_err(|err| format!("{}: {err}", path.display()))?;
+        .map_err(|e| unreadable(e.into()))?;
     let found = hasher.finalize().to_hex();
     if found.as_str() != blake3 {
-        return Err(format!(
-            "{} has blake3 {found}, its record says {blake3}",
-            path.display()
-        ));
+        return Err(FileMismatch::Hash {
+            path: path.to_path_buf(),
+            found: found.to_string(),
+            expected: blake3.to_string(),
+        });
     }
     Ok(())
 }

@@ -19,7 +19,7 @@ pub mod ustar;
 pub use atomic::{write_atomic, AtomicFile};
 pub use compress::{compress, decoder, decompress, sniff, Compression};
 pub use error::ShardError;
-pub use file::{blake3_hex, file_matches, regular_len, RegularFileError};
+pub use file::{blake3_hex, file_matches, regular_len, FileMismatch, RegularFileError};
 pub use ustar::{
     read_tar, read_tar_with_limit, split_key, tar_bytes, tar_entries, Member, TarEntry, TarStream,
 };

@@ -23,7 +23,7 @@ pub fn build_shard(
         sample,
         reason,
     };
-    check_shard_name(name).map_err(|reason| ShardError::bad_name(name, reason))?;
+    check_shard_name(name).map_err(|reason| ShardError::bad_name(name, reason.to_string()))?;
     if samples.is_empty() {
         return Err(bad(0, "a shard needs at least one sample".into()));
     }

@@ -29,16 +29,17 @@
 //! distinct plain file names of the directory itself (not `index.json`).
 
 mod build;
+mod error;
 mod stream;
 #[cfg(test)]
 mod tests;
 mod wids;
 
 pub use build::{build_shard, count_samples};
+pub use error::{IndexError, IndexRefusal};
 pub use stream::{read_index, read_index_from, IndexWriter, MAX_INDEX_SPLITS};
 pub use wids::{wids_index, WidsWriter};
 
-use bettimill_shard::ShardError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -234,22 +235,16 @@ impl Index {
     }
 
     /// Reads and validates an index file (see the module documentation for the checks).
-    pub fn read(path: &Path) -> Result<Index, ShardError> {
+    pub fn read(path: &Path) -> Result<Index, IndexError> {
         let mut shards = Vec::new();
-        let header = read_index(path, &mut |_, shard| {
-            shards.push(shard);
-            Ok(())
-        })?;
+        let header = read_index(path, &mut |_, shard| shards.push(shard))?;
         Ok(Index { header, shards })
     }
 
     /// Parses and validates index bytes; `path` is only used in error messages.
-    pub fn from_json_bytes(bytes: &[u8], path: &Path) -> Result<Index, ShardError> {
+    pub fn from_json_bytes(bytes: &[u8], path: &Path) -> Result<Index, IndexError> {
         let mut shards = Vec::new();
-        let header = read_index_from(bytes, path, &mut |_, shard| {
-            shards.push(shard);
-            Ok(())
-        })?;
+        let header = read_index_from(bytes, path, &mut |_, shard| shards.push(shard))?;
         Ok(Index { header, shards })
     }
 

@@ -1,10 +1,10 @@
 //! `index.json` written and read one shard at a time, validated while it is read.
 
 use super::{
-    IndexFile, IndexHeader, IndexShard, INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES,
+    IndexError, IndexFile, IndexHeader, IndexRefusal, IndexShard, INDEX_FORMAT,
+    INDEX_FORMAT_VERSION, MAX_INDEX_FILES,
 };
 use crate::dir::{INDEX_FILE, SHARDS_DIR};
-use bettimill_shard::ShardError;
 use serde::Serialize;
 use std::collections::BTreeSet;
 use std::io::Write;
@@ -110,14 +110,16 @@ impl<W: Write> IndexWriter<W> {
 
 /// Reads `index.json` one shard at a time: checks the header (format name and version
 /// before any shard is read), then calls `each` with every shard in order, checking names
-/// and that the shards add up to the header's counts. `each` may stop the reading with a
-/// reason, returned as [`ShardError::IndexFormat`]. Holds one shard and the set of names
+/// and that the shards add up to the header's counts. Holds one shard and the set of names
 /// seen (to refuse duplicates), never the list.
 pub fn read_index(
     path: &Path,
-    each: &mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
-) -> Result<IndexHeader, ShardError> {
-    let file = std::fs::File::open(path).map_err(|e| ShardError::io("cannot read", path, e))?;
+    each: &mut dyn FnMut(&IndexHeader, IndexShard),
+) -> Result<IndexHeader, IndexError> {
+    let file = std::fs::File::open(path).map_err(|source| IndexError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     read_index_from(std::io::BufReader::new(file), path, each)
 }
 
@@ -125,8 +127,8 @@ pub fn read_index(
 pub fn read_index_from(
     reader: impl std::io::Read,
     path: &Path,
-    each: &mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
-) -> Result<IndexHeader, ShardError> {
+    each: &mut dyn FnMut(&IndexHeader, IndexShard),
+) -> Result<IndexHeader, IndexError> {
     let mut refusal = None;
     let mut deserializer = serde_json::Deserializer::from_reader(reader);
     let result = serde::Deserializer::deserialize_map(
@@ -138,12 +140,12 @@ pub fn read_index_from(
     )
     .and_then(|header| deserializer.end().map(|()| header));
     match (result, refusal) {
-        (_, Some(reason)) => Err(ShardError::IndexFormat {
+        (_, Some(reason)) => Err(IndexError::Format {
             path: path.to_path_buf(),
             reason,
         }),
         (Ok(header), None) => Ok(header),
-        (Err(source), None) => Err(ShardError::Json {
+        (Err(source), None) => Err(IndexError::Json {
             path: path.to_path_buf(),
             source,
         }),
@@ -166,10 +168,10 @@ struct PartialHeader {
 impl PartialHeader {
     /// The header, or why it cannot be one; the version is judged first, so an index of
     /// another format version gets a message about that, not about a missing field.
-    fn complete(&self) -> Result<IndexHeader, String> {
+    fn complete(&self) -> Result<IndexHeader, IndexRefusal> {
         let format = self.format.clone().unwrap_or_default();
         if format != INDEX_FORMAT {
-            return Err(format!("format is {format:?}, expected {INDEX_FORMAT:?}"));
+            return Err(IndexRefusal::OtherFormat { found: format });
         }
         let tool = self
             .tool_version
@@ -177,24 +179,16 @@ impl PartialHeader {
             .unwrap_or_else(|| "unknown".into());
         match self.format_version {
             Some(INDEX_FORMAT_VERSION) => {}
-            Some(1) => {
-                return Err(format!(
-                    "format_version 1 (written by bettimill {tool}, listing every member) is not read by this bettimill, which reads version {INDEX_FORMAT_VERSION} (shards only; member hashes are in records/NAME.json); rewrite the index with `bettimill finalize DIR`, or use bettimill {tool}"
-                ))
+            Some(1) => return Err(IndexRefusal::Version1 { tool }),
+            Some(2) => return Err(IndexRefusal::Version2 { tool }),
+            Some(version) => return Err(IndexRefusal::UnknownVersion { version, tool }),
+            None => {
+                return Err(IndexRefusal::Missing {
+                    field: "format_version",
+                })
             }
-            Some(2) => {
-                return Err(format!(
-                    "format_version 2 (written by bettimill {tool}, without the list of the directory's other files) is not read by this bettimill, which reads version {INDEX_FORMAT_VERSION}; rewrite the index with `bettimill finalize DIR` (shards and records are unchanged), or use bettimill {tool}"
-                ))
-            }
-            Some(other) => {
-                return Err(format!(
-                    "format_version {other} is not supported (this bettimill reads version {INDEX_FORMAT_VERSION}); use the bettimill version that wrote it ({tool})"
-                ))
-            }
-            None => return Err("format_version is missing".into()),
         }
-        let missing = |field: &str| format!("{field} is missing");
+        let missing = |field: &'static str| IndexRefusal::Missing { field };
         Ok(IndexHeader {
             format,
             format_version: INDEX_FORMAT_VERSION,
@@ -214,12 +208,9 @@ impl PartialHeader {
     }
 }
 
-fn check_files(files: &[IndexFile]) -> Result<(), String> {
+fn check_files(files: &[IndexFile]) -> Result<(), IndexRefusal> {
     if files.len() > MAX_INDEX_FILES {
-        return Err(format!(
-            "files lists {} entries, at most {MAX_INDEX_FILES} are allowed",
-            files.len()
-        ));
+        return Err(IndexRefusal::TooManyFiles { count: files.len() });
     }
     for (n, file) in files.iter().enumerate() {
         let name = file.name.as_str();
@@ -230,22 +221,18 @@ fn check_files(files: &[IndexFile]) -> Result<(), String> {
             || name.contains(['/', '\\'])
             || name.chars().any(char::is_control)
         {
-            return Err(format!(
-                "file name {name:?} is not a plain file name of the dataset directory"
-            ));
+            return Err(IndexRefusal::BadFileName { name: name.into() });
         }
         if n > 0 && files[n - 1].name.as_str() >= name {
-            return Err(format!(
-                "files are not sorted by name, or {name:?} is listed twice"
-            ));
+            return Err(IndexRefusal::FilesUnsorted { name: name.into() });
         }
     }
     Ok(())
 }
 
 struct IndexVisitor<'a> {
-    each: &'a mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
-    refusal: &'a mut Option<String>,
+    each: &'a mut dyn FnMut(&IndexHeader, IndexShard),
+    refusal: &'a mut Option<IndexRefusal>,
 }
 
 impl<'de> serde::de::Visitor<'de> for IndexVisitor<'_> {
@@ -259,9 +246,10 @@ impl<'de> serde::de::Visitor<'de> for IndexVisitor<'_> {
         use serde::de::Error;
         let mut partial = PartialHeader::default();
         let mut header: Option<IndexHeader> = None;
-        let refuse = |refusal: &mut Option<String>, reason: String| {
-            *refusal = Some(reason.clone());
-            A::Error::custom(reason)
+        let refuse = |refusal: &mut Option<IndexRefusal>, reason: IndexRefusal| {
+            let error = A::Error::custom(&reason);
+            *refusal = Some(reason);
+            error
         };
         while let Some(key) = map.next_key::<String>()? {
             match key.as_str() {
@@ -302,13 +290,16 @@ impl<'de> serde::de::Visitor<'de> for IndexVisitor<'_> {
                 header.files = files;
                 Ok(header)
             }
-            (Some(_), None) => Err(refuse(self.refusal, "files is missing".into())),
+            (Some(_), None) => Err(refuse(
+                self.refusal,
+                IndexRefusal::Missing { field: "files" },
+            )),
             (None, _) => Err(refuse(
                 self.refusal,
                 partial
                     .complete()
                     .err()
-                    .unwrap_or_else(|| "shards is missing".into()),
+                    .unwrap_or(IndexRefusal::Missing { field: "shards" }),
             )),
         }
     }
@@ -365,30 +356,29 @@ pub(super) struct ShardOrder {
 }
 
 impl ShardOrder {
-    pub(super) fn next(&mut self, shard: &IndexShard) -> Result<(), String> {
+    pub(super) fn next(&mut self, shard: &IndexShard) -> Result<(), IndexRefusal> {
         let name = &shard.name;
         if let Some((split, previous)) = &self.previous {
             if *split == shard.split {
                 if previous == name {
-                    return Err(format!("shard {name:?} is listed twice"));
+                    return Err(IndexRefusal::ListedTwice { name: name.clone() });
                 }
                 if (previous.len(), previous) > (name.len(), name) {
-                    return Err(format!(
-                        "shard {name:?} is listed after {previous:?}: a split's shards are listed in increasing order"
-                    ));
+                    return Err(IndexRefusal::OutOfOrder {
+                        name: name.clone(),
+                        previous: previous.clone(),
+                    });
                 }
             } else {
                 self.passed.insert(split.clone());
                 if self.passed.len() >= MAX_INDEX_SPLITS {
-                    return Err(format!(
-                        "shards of more than {MAX_INDEX_SPLITS} splits are listed"
-                    ));
+                    return Err(IndexRefusal::TooManySplits);
                 }
                 if self.passed.contains(&shard.split) {
-                    return Err(format!(
-                        "shard {name:?} of split {:?} is listed after another split's: each split's shards are listed together",
-                        shard.split
-                    ));
+                    return Err(IndexRefusal::SplitNotTogether {
+                        name: name.clone(),
+                        split: shard.split.clone(),
+                    });
                 }
             }
         }
@@ -399,8 +389,8 @@ impl ShardOrder {
 
 struct ShardsSeed<'a> {
     header: &'a IndexHeader,
-    each: &'a mut dyn FnMut(&IndexHeader, IndexShard) -> Result<(), String>,
-    refusal: &'a mut Option<String>,
+    each: &'a mut dyn FnMut(&IndexHeader, IndexShard),
+    refusal: &'a mut Option<IndexRefusal>,
 }
 
 impl<'de> serde::de::DeserializeSeed<'de> for ShardsSeed<'_> {
@@ -422,33 +412,36 @@ impl<'de> serde::de::Visitor<'de> for ShardsSeed<'_> {
         use serde::de::Error;
         let mut order = ShardOrder::default();
         let (mut shards, mut samples) = (0u64, 0u64);
-        let mut refuse = |reason: String| {
-            *self.refusal = Some(reason.clone());
-            A::Error::custom(reason)
+        let mut refuse = |reason: IndexRefusal| {
+            let error = A::Error::custom(&reason);
+            *self.refusal = Some(reason);
+            error
         };
         while let Some(shard) = seq.next_element::<IndexShard>()? {
             check_shard_name(&shard.name).map_err(&mut refuse)?;
             order.next(&shard).map_err(&mut refuse)?;
             shards += 1;
             samples = samples.saturating_add(shard.samples);
-            (self.each)(self.header, shard).map_err(&mut refuse)?;
+            (self.each)(self.header, shard);
         }
         if shards != self.header.shard_count || samples != self.header.samples {
-            return Err(refuse(format!(
-                "the index lists {shards} shards of {samples} samples, its header says {} shards of {} samples",
-                self.header.shard_count, self.header.samples
-            )));
+            return Err(refuse(IndexRefusal::Counts {
+                shards,
+                samples,
+                header_shards: self.header.shard_count,
+                header_samples: self.header.samples,
+            }));
         }
         Ok(())
     }
 }
 
-pub(super) fn check_shard_name(name: &str) -> Result<(), String> {
+pub(super) fn check_shard_name(name: &str) -> Result<(), IndexRefusal> {
     let Some(rest) = name
         .strip_prefix(SHARDS_DIR)
         .and_then(|rest| rest.strip_prefix('/'))
     else {
-        return Err(format!("shard name {name:?} is not under {SHARDS_DIR}/"));
+        return Err(IndexRefusal::NotUnderShards { name: name.into() });
     };
     if rest.is_empty()
         || rest
@@ -457,9 +450,7 @@ pub(super) fn check_shard_name(name: &str) -> Result<(), String> {
         || name.contains('\\')
         || name.chars().any(char::is_control)
     {
-        return Err(format!(
-            "shard name {name:?} is not a plain relative path under {SHARDS_DIR}/"
-        ));
+        return Err(IndexRefusal::NotAPlainPath { name: name.into() });
     }
     Ok(())
 }
