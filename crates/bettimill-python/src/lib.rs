@@ -41,6 +41,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyRange};
 use std::ffi::OsString;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 fn value_error(err: impl std::fmt::Display) -> PyErr {
@@ -294,6 +295,10 @@ struct PyPlan {
     plan: Arc<Plan>,
     text: String,
     origin: PathBuf,
+    /// The process whose memory was found to hold a sample (0: none yet). Every sample of
+    /// a plan has the same size, and reading the machine's memory costs more than making a
+    /// small sample, so each process checks once (a DataLoader worker is a new process).
+    admitted: AtomicU32,
 }
 
 impl PyPlan {
@@ -304,6 +309,7 @@ impl PyPlan {
             plan: Arc::new(plan),
             text: source.text,
             origin: source.origin,
+            admitted: AtomicU32::new(0),
         })
     }
 
@@ -471,13 +477,17 @@ impl PyPlan {
         // Refused before it is made when the machine cannot hold it (the CLI refuses such
         // a plan with the same estimate; a 4D side-254 sample used to abort the
         // interpreter).
-        let voxels = (self.plan.side as u64).saturating_pow(self.plan.dimension.get() as u32);
-        bettimill_plan::memory::admit_image(
-            &format!("sample {index}"),
-            self.plan.dimension.get(),
-            voxels,
-        )
-        .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
+        let pid = std::process::id();
+        if self.admitted.load(Ordering::Relaxed) != pid {
+            let voxels = (self.plan.side as u64).saturating_pow(self.plan.dimension.get() as u32);
+            bettimill_plan::memory::admit_image(
+                &format!("sample {index}"),
+                self.plan.dimension.get(),
+                voxels,
+            )
+            .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
+            self.admitted.store(pid, Ordering::Relaxed);
+        }
         let plan = Arc::clone(&self.plan);
         let (image, json) = detach_in_pool(py, move || {
             let task = plan.task(index).expect("the index was checked");
