@@ -361,6 +361,12 @@ fn previews_of_2d_3d_4d_samples_shards_and_images_are_deterministic_pngs() {
         let sheet = run(&["preview", out_str, "--n", "6"], "e.png");
         assert_ne!(sheet, first);
         png_size(&sheet);
+        // Without deformation a sample is its construction.
+        let undeformed = run(&["preview", out_str, "--n", "6", "--undeformed"], "u.png");
+        assert_eq!(
+            undeformed, sheet,
+            "{dimension}D: an undeformed sample drew differently"
+        );
 
         // A plain image.
         let npy = members.iter().find(|m| m.name.contains(".npy")).unwrap();
@@ -369,6 +375,55 @@ fn previews_of_2d_3d_4d_samples_shards_and_images_are_deterministic_pngs() {
             png_size(&run(&["preview", "plain.npy"], "f.png"));
         }
     }
+}
+
+#[test]
+fn undeformed_previews_draw_the_constructions_of_a_deformed_dataset() {
+    let tmp = Dir::new();
+    let dir = tmp.path();
+    let demo = repo_root().join("manifests/demo-2d.toml");
+    let out = run_in(
+        dir,
+        &["build", "--quiet", demo.to_str().unwrap(), "--out", "demo"],
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let draw = |extra: &[&str], png: &str| {
+        let mut args = vec!["preview", "demo", "--n", "4", "--out", png];
+        args.extend(extra);
+        let out = run_in(dir, &args);
+        assert!(out.status.success(), "{args:?}: {}", text(&out.stderr));
+        std::fs::read(dir.join(png)).unwrap()
+    };
+    let built = draw(&[], "built.png");
+    let before = draw(&["--undeformed"], "before.png");
+    png_size(&before);
+    assert_ne!(
+        before, built,
+        "the demo deforms, so its constructions look different"
+    );
+    assert_eq!(before, draw(&["--undeformed"], "again.png"));
+    // A shard or an image has no manifest to remake constructions from.
+    let shard = std::fs::read_dir(dir.join("demo/shards"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "tar"))
+        .unwrap();
+    let out = run_in(
+        dir,
+        &[
+            "preview",
+            shard.to_str().unwrap(),
+            "--undeformed",
+            "--out",
+            "x.png",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("--undeformed remakes samples from a dataset directory"),
+        "{}",
+        text(&out.stderr)
+    );
 }
 
 #[test]

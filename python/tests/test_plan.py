@@ -208,3 +208,17 @@ def test_verify_of_a_non_dataset_says_what_it_found(tmp_path):
     (tmp_path / "notes.txt").write_text("x")
     with pytest.raises(ValueError, match=r"not a finished bettimill dataset \(no index.json\): it holds 1 entry \(notes.txt\)"):
         bettimill.verify(tmp_path)
+
+
+def test_construction_is_the_undeformed_shape_the_sample_was_made_from():
+    plan = bettimill.Plan("demo-3d")
+    voxels, label = plan.sample(0)
+    built = plan.construction(0, label["attempt"])
+    assert built.shape == voxels.shape and built.dtype == np.uint8
+    # The demo deforms its cavities: the sample differs from its construction, but the
+    # solid's outer layers (never edited) are the same.
+    assert (built != voxels).any()
+    assert (built[0] == voxels[0]).all() and (built[-1] == voxels[-1]).all()
+    assert label["deform"], "the demo deforms"
+    with pytest.raises(ValueError, match="attempts"):
+        plan.construction(0, 99)

@@ -164,6 +164,10 @@ enum Command {
         /// Also (or instead) write the browser viewer of the sample to this HTML file.
         #[arg(long, value_name = "FILE.html", conflicts_with = "n")]
         html: Option<PathBuf>,
+        /// Draw each sample's undeformed construction (remade from the dataset's manifest),
+        /// to compare with the deformed samples.
+        #[arg(long)]
+        undeformed: bool,
     },
     /// Count a dataset's samples per Betti vector, class, split and more.
     ///
@@ -268,12 +272,14 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             n,
             out,
             html,
+            undeformed,
         } => crate::preview::run(&crate::preview::Request {
             input: &input,
             key: key.as_deref(),
             n: n.map(|n| n as usize),
             out: out.as_deref(),
             html: html.as_deref(),
+            undeformed,
             quiet: cli.quiet,
         }),
         Command::Stats { dir, json, plot } => {

@@ -22,6 +22,8 @@ pub struct Request<'a> {
     pub out: Option<&'a Path>,
     /// The viewer page to write.
     pub html: Option<&'a Path>,
+    /// Draw each sample's undeformed construction instead of its voxels.
+    pub undeformed: bool,
     /// Say nothing on success.
     pub quiet: bool,
 }
@@ -128,6 +130,37 @@ fn sample_page(sample: &SampleView) -> anyhow::Result<String> {
     )?)
 }
 
+/// Replaces each sample's voxels by its undeformed construction (`--undeformed`): the
+/// dataset's own manifest is planned again and each construction remade at the attempt its
+/// label records, so a sheet of these beside the dataset's own shows what deformation did.
+/// The caption's hypervolume becomes the construction's; the downscaled copies are dropped.
+fn undeform(dir: &Path, found: &mut [SampleView]) -> anyhow::Result<()> {
+    let path = DatasetDir::new(dir).manifest_path();
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("--undeformed needs the dataset's {}", path.display()))?;
+    let plan = bettimill_plan::Plan::parse(&text, &path)?;
+    for sample in found {
+        let task = sample
+            .key
+            .strip_prefix('s')
+            .and_then(|n| n.parse::<u64>().ok())
+            .and_then(|index| plan.task(index))
+            .filter(|task| task.key == sample.key)
+            .with_context(|| {
+                format!(
+                    "sample {} is not a sample of {}",
+                    sample.key,
+                    path.display()
+                )
+            })?;
+        let built = bettimill_sample::construction(&plan, &task, sample.label.attempt)?;
+        sample.label.hypervolume = built.image.count_foreground();
+        sample.image = built.image;
+        sample.copies.clear();
+    }
+    Ok(())
+}
+
 /// Writes `bytes` to `path` and says so unless quiet.
 fn write_output(path: &Path, bytes: &[u8], what: &str, quiet: bool) -> anyhow::Result<()> {
     std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
@@ -149,6 +182,11 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
     }
     let input = request.input;
     let is_npy = crate::image::looks_like_image(input);
+    if request.undeformed && !input.is_dir() {
+        bail!(
+            "--undeformed remakes samples from a dataset directory's manifest; give the directory"
+        );
+    }
     let (canvas, page): (Option<Canvas>, Option<String>) = if is_npy {
         if request.key.is_some() || request.n.is_some() {
             bail!("--key and --n pick samples of a dataset or shard; a .npy file is one image");
@@ -240,6 +278,9 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
             }
         }
         found.truncate(want);
+        if request.undeformed {
+            undeform(input, &mut found)?;
+        }
         if found.is_empty() {
             match request.key {
                 Some(key) => bail!(

@@ -512,6 +512,44 @@ impl PyPlan {
             json_to_py(py, &json)?,
         ))
     }
+
+    /// The undeformed construction of sample `index` at `attempt` (a sample's label records
+    /// the attempt it was made at, `label["attempt"]`): a uint8 array of the voxels as
+    /// rasterised, before deformation and hypervolume targeting. For measuring how far
+    /// deformation took a sample from the shape it was built from; it is not verified and
+    /// not part of a dataset.
+    #[pyo3(signature = (index, attempt = 0))]
+    fn construction<'py>(
+        &self,
+        py: Python<'py>,
+        index: i64,
+        attempt: u32,
+    ) -> PyResult<Bound<'py, PyArrayDyn<u8>>> {
+        let index = self.index(index)?;
+        if attempt >= bettimill_sample::MAX_ATTEMPTS {
+            return Err(PyValueError::new_err(format!(
+                "attempt {attempt}: a sample is made in at most {} attempts",
+                bettimill_sample::MAX_ATTEMPTS
+            )));
+        }
+        let voxels = (self.plan.side as u64).saturating_pow(self.plan.dimension.get() as u32);
+        bettimill_plan::memory::admit_image(
+            &format!("sample {index}"),
+            self.plan.dimension.get(),
+            voxels,
+        )
+        .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
+        let plan = Arc::clone(&self.plan);
+        let image = detach_in_pool(py, move || {
+            let task = plan.task(index).expect("the index was checked");
+            bettimill_sample::construction(&plan, &task, attempt).map(|c| c.image)
+        })?
+        .map_err(|err| pyo3::exceptions::PyRuntimeError::new_err(err.to_string()))?;
+        let shape = image.shape().to_vec();
+        let array = ArrayD::from_shape_vec(IxDyn(&shape), image.into_vec())
+            .expect("an image's data fits its shape");
+        Ok(PyArrayDyn::from_owned_array(py, array))
+    }
 }
 
 /// Unpickles a [`PyPlan`] (see `__reduce__`).
