@@ -20,6 +20,12 @@ done
 for d in 2d 3d 4d; do
   "$bin" preview "$work/demo-$d" --n 12 --out "$out/previews/demo-$d-sheet.png" --quiet
 done
+# The same samples before deformation (each one's construction, remade from the manifest):
+# the "before" of the sheets above.
+for d in 2d 3d 4d; do
+  "$bin" preview "$work/demo-$d" --n 12 --undeformed \
+    --out "$out/previews/demo-$d-undeformed-sheet.png" --quiet
+done
 "$bin" stats "$work/demo-3d" --plot "$out/previews/demo-3d-stats.png" --quiet > /dev/null
 "$bin" build "$out/families-3d.toml" --out "$work/f3" --quiet
 "$bin" preview "$work/f3" --n 31 --out "$out/families-3d.png" --quiet
