@@ -48,29 +48,34 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
     };
     // 0: the other value; 1: this value, not reached yet; 2: reached.
     let mut mark: Vec<u8> = image.data().iter().map(|&v| (v == value) as u8).collect();
+    // Fills the run of unreached voxels through flat index `v` and returns its flat span
+    // (first, one past the last).
+    let fill_run = |mark: &mut [u8], v: usize| -> (usize, usize) {
+        let row = v / row_len;
+        let base = row * row_len;
+        let x = v - base;
+        let line = &mut mark[base..base + row_len];
+        let lo = line[..x].iter().rposition(|&m| m != 1).map_or(0, |p| p + 1);
+        let hi = line[x..]
+            .iter()
+            .position(|&m| m != 1)
+            .map_or(row_len, |p| x + p);
+        line[lo..hi].fill(2);
+        (base + lo, base + hi)
+    };
     let mut count = 0;
-    let mut stack: Vec<usize> = Vec::new();
+    // Runs filled whose neighbouring rows are still to scan: each run enters once, so the
+    // stack never holds more than one entry (16 bytes) per run, 8 bytes per voxel at most.
+    let mut stack: Vec<(usize, usize)> = Vec::new();
     for start in 0..mark.len() {
         if mark[start] != 1 {
             continue;
         }
         count += 1;
-        stack.push(start);
-        while let Some(v) = stack.pop() {
-            // A run is pushed once per row that found it; the first pop fills it.
-            if mark[v] != 1 {
-                continue;
-            }
-            let row = v / row_len;
-            let base = row * row_len;
-            let x = v - base;
-            let line = &mut mark[base..base + row_len];
-            let lo = line[..x].iter().rposition(|&m| m != 1).map_or(0, |p| p + 1);
-            let hi = line[x..]
-                .iter()
-                .position(|&m| m != 1)
-                .map_or(row_len, |p| x + p);
-            line[lo..hi].fill(2);
+        stack.push(fill_run(&mut mark, start));
+        while let Some((first, end)) = stack.pop() {
+            let row = first / row_len;
+            let (lo, hi) = (first - row * row_len, end - row * row_len);
             // The span of neighbouring rows that touches the run [lo, hi).
             let (from, to) = if full {
                 (lo.saturating_sub(1), (hi + 1).min(row_len))
@@ -93,18 +98,19 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
                     next = (next as isize + off[a] as isize * row_strides[a] as isize) as usize;
                 }
                 let next_base = next * row_len;
-                let span = &mark[next_base + from..next_base + to];
                 // Most spans are reached already or the other value: one vectorised pass.
-                if !span.contains(&1) {
+                if !mark[next_base + from..next_base + to].contains(&1) {
                     continue;
                 }
-                // The first voxel of every stretch of unreached voxels in the span.
-                let mut previous = 0;
-                for (k, &m) in span.iter().enumerate() {
-                    if m == 1 && previous != 1 {
-                        stack.push(next_base + from + k);
+                let mut x = from;
+                while x < to {
+                    if mark[next_base + x] == 1 {
+                        let run = fill_run(&mut mark, next_base + x);
+                        x = run.1 - next_base;
+                        stack.push(run);
+                    } else {
+                        x += 1;
                     }
-                    previous = m;
                 }
             }
         }
