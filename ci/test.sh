@@ -3,8 +3,8 @@
 # It checks formatting and lints, runs every Rust test, then the tests that need real
 # outside parts: Python clients reading our shards and the Python package (both in the one
 # venv of ci/python-env.sh: $BETTIMILL_VENV, default .venv, made once and reused), a
-# real single-node Slurm (ci/slurm-up.sh), the HTML viewer in headless Chromium
-# (ci/browser.sh). In CI (CI=true) those parts are installed and
+# real single-node Slurm (ci/slurm-up.sh), a local S3 server (ci/s3-up.sh), the HTML viewer
+# in headless Chromium (ci/browser.sh). In CI (CI=true) those parts are installed and
 # must work; locally they are installed too, so a green run here means the same as in CI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -25,6 +25,13 @@ RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 
 echo "== headless Chromium for the HTML viewer's test (ci/browser.sh)"
 ci/browser.sh
+
+# The local S3 server (moto_server on loopback, ci/s3-up.sh) the object-storage tests use;
+# they start it too (idempotent), so this only puts its installation and start-up here, in
+# the log, before the tests. Stopped by its PID when this script ends.
+echo "== local S3 server (ci/s3-up.sh)"
+ci/s3-up.sh
+trap 'ci/s3-down.sh' EXIT
 
 # The system tests (a real Slurm started by ci/slurm-up.sh, tmpfs mounts as root, the
 # viewer in headless Chromium) run
