@@ -162,7 +162,7 @@ fn dependency_directions_hold() {
 }
 
 #[test]
-fn the_testkit_is_only_a_dev_dependency_and_anyhow_only_the_clis() {
+fn the_testkit_anyhow_and_object_storage_stay_where_they_belong() {
     for p in packages() {
         for (dep, kind) in &p.dependencies {
             if dep == "bettimill-testkit" {
@@ -170,6 +170,10 @@ fn the_testkit_is_only_a_dev_dependency_and_anyhow_only_the_clis() {
             }
             if dep == "anyhow" && kind != "dev" {
                 assert_eq!(p.name, "bettimill-cli", "{} depends on anyhow", p.name);
+            }
+            // Object storage is storage: its client and HTTP stack stay behind one crate.
+            if ["object_store", "reqwest", "rustls"].contains(&dep.as_str()) {
+                assert_eq!(p.name, "bettimill-shard", "{} depends on {dep}", p.name);
             }
         }
     }

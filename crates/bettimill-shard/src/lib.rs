@@ -6,14 +6,17 @@
 //! - [`mod@compress`]: deterministic per-member gzip and zstd (`KEY.npy.gz`, `KEY.npy.zst`).
 //! - [`atomic`]: crash-safe file replacement used for every file the build writes.
 //! - [`mod@file`]: plain files only, their size and blake3 streamed through a fixed buffer.
+//! - [`object`]: objects under an `s3://BUCKET/PREFIX` URL: create-only puts, ranged reads.
 //!
 //! Architecture invariant: the same members always give the same bytes; nothing here
-//! reads the clock, the environment, the user name or the file system order.
+//! reads the clock, the environment, the user name or the file system order (object
+//! storage gets its endpoint and credentials from its caller).
 
 pub mod atomic;
 pub mod compress;
 mod error;
 pub mod file;
+pub mod object;
 pub mod ustar;
 
 pub use atomic::{write_atomic, AtomicFile};

@@ -1,0 +1,340 @@
+//! Objects under an `s3://BUCKET/PREFIX` URL, through Apache Arrow's `object_store` (its
+//! S3 client: signing, retries, conditional and multipart puts), behind a blocking facade
+//! so that the rest of bettimill stays synchronous.
+//!
+//! The guarantees of [`crate::atomic`] carry over: an object is written by a single put,
+//! so a reader sees all of it or none, and every put here is create-only
+//! ([`PutMode::Create`]), so two writers never overwrite each other: the second is told the
+//! object exists ([`ObjectError::Exists`]) and compares instead.
+//!
+//! Nothing here reads the environment: the caller passes the endpoint and credentials
+//! ([`S3Config`]), read where every variable is read.
+
+use futures_util::TryStreamExt;
+use object_store::aws::{AmazonS3, AmazonS3Builder};
+use object_store::path::Path as ObjectPath;
+use object_store::{
+    ClientOptions, ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload, RetryConfig,
+};
+use std::ops::Range;
+use std::time::Duration;
+
+/// The scheme of an object-storage URL.
+pub const S3_SCHEME: &str = "s3://";
+
+/// Whether `location` names object storage (`s3://...`) rather than a local path.
+pub fn is_object_url(location: &str) -> bool {
+    location.starts_with(S3_SCHEME)
+}
+
+/// Where and as whom to reach an S3-compatible server. Every field is optional: unset, the
+/// server is AWS S3 in `us-east-1` and requests are signed with no key (which AWS refuses).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct S3Config {
+    /// The server's base URL (`http://127.0.0.1:9000`, `https://ACCOUNT.r2.cloudflarestorage.com`);
+    /// plain `http://` is allowed only when given here.
+    pub endpoint: Option<String>,
+    /// The access key id.
+    pub access_key_id: Option<String>,
+    /// The secret access key.
+    pub secret_access_key: Option<String>,
+    /// A session token, for temporary credentials.
+    pub session_token: Option<String>,
+    /// The region (default `us-east-1`).
+    pub region: Option<String>,
+}
+
+/// A failure to reach or use object storage; every variant names the URL.
+#[derive(Debug, thiserror::Error)]
+pub enum ObjectError {
+    /// The URL is not `s3://BUCKET/PREFIX`.
+    #[error("{url}: not an object-storage URL: {reason}")]
+    BadUrl {
+        /// The URL as given.
+        url: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The bucket does not exist.
+    #[error("{url}: the bucket {bucket} does not exist at {endpoint}")]
+    NoBucket {
+        /// The URL.
+        url: String,
+        /// The bucket.
+        bucket: String,
+        /// The server.
+        endpoint: String,
+    },
+    /// The server refused the credentials or the request's signature.
+    #[error(
+        "{url}: the server refused the credentials (check AWS_ACCESS_KEY_ID and \
+         AWS_SECRET_ACCESS_KEY): {reason}"
+    )]
+    Denied {
+        /// The URL.
+        url: String,
+        /// The server's answer.
+        reason: String,
+    },
+    /// The object exists already: a create-only put found another writer's object.
+    #[error("{url}: the object exists already (objects are never overwritten)")]
+    Exists {
+        /// The object's URL.
+        url: String,
+    },
+    /// The object does not exist.
+    #[error("{url}: no such object")]
+    NotFound {
+        /// The object's URL.
+        url: String,
+    },
+    /// Anything else: the server cannot be reached, or answered with an error.
+    #[error("{url}: {reason}")]
+    Failed {
+        /// The URL.
+        url: String,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+/// An object's name and size in a listing.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObjectEntry {
+    /// The name relative to the prefix (`shards/NAME-000000.tar`).
+    pub name: String,
+    /// Its size in bytes.
+    pub bytes: u64,
+}
+
+/// The objects under one `s3://BUCKET/PREFIX`, named relative to the prefix with `/`
+/// between parts, as files are named relative to a dataset directory.
+pub struct ObjectDir {
+    store: AmazonS3,
+    runtime: tokio::runtime::Runtime,
+    url: String,
+    bucket: String,
+    prefix: String,
+    endpoint: String,
+}
+
+impl std::fmt::Debug for ObjectDir {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ObjectDir").field("url", &self.url).finish()
+    }
+}
+
+/// `s3://BUCKET/PREFIX` split into the bucket and the prefix (without slashes at its ends;
+/// empty for the bucket's root).
+pub fn parse_s3_url(url: &str) -> Result<(String, String), ObjectError> {
+    let bad = |reason: &str| ObjectError::BadUrl {
+        url: url.to_string(),
+        reason: reason.to_string(),
+    };
+    let rest = url
+        .strip_prefix(S3_SCHEME)
+        .ok_or_else(|| bad("it does not start with s3://"))?;
+    let (bucket, prefix) = rest.split_once('/').unwrap_or((rest, ""));
+    let valid_bucket = (3..=63).contains(&bucket.len())
+        && bucket
+            .bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-' || b == b'.');
+    if !valid_bucket {
+        return Err(bad(
+            "the bucket name is 3-63 lower-case letters, digits, '-' and '.'",
+        ));
+    }
+    let prefix = prefix.trim_matches('/');
+    if prefix.split('/').any(|part| part == "." || part == "..") || prefix.contains("//") {
+        return Err(bad("the prefix has an empty, '.' or '..' part"));
+    }
+    Ok((bucket.to_string(), prefix.to_string()))
+}
+
+impl ObjectDir {
+    /// Connects to `url` (`s3://BUCKET/PREFIX`) and checks, with one listing request, that
+    /// the server answers, accepts the credentials and has the bucket: a wrong key, a
+    /// missing bucket or an unreachable server is an error here, before any work.
+    pub fn open(url: &str, config: &S3Config) -> Result<ObjectDir, ObjectError> {
+        let (bucket, prefix) = parse_s3_url(url)?;
+        let failed = |reason: String| ObjectError::Failed {
+            url: url.to_string(),
+            reason,
+        };
+        let region = config.region.clone().unwrap_or_else(|| "us-east-1".into());
+        let mut builder = AmazonS3Builder::new()
+            .with_bucket_name(&bucket)
+            .with_region(&region)
+            // A few quick retries: an unreachable server is reported in seconds, not after
+            // the client's default three minutes.
+            .with_retry(RetryConfig {
+                max_retries: 3,
+                retry_timeout: Duration::from_secs(30),
+                ..RetryConfig::default()
+            })
+            .with_client_options(
+                ClientOptions::new()
+                    .with_connect_timeout(Duration::from_secs(5))
+                    .with_timeout(Duration::from_secs(300)),
+            );
+        let endpoint = match &config.endpoint {
+            Some(endpoint) => {
+                builder = builder
+                    .with_endpoint(endpoint)
+                    .with_allow_http(endpoint.starts_with("http://"));
+                endpoint.clone()
+            }
+            None => format!("https://s3.{region}.amazonaws.com"),
+        };
+        if let Some(key) = &config.access_key_id {
+            builder = builder.with_access_key_id(key);
+        }
+        if let Some(secret) = &config.secret_access_key {
+            builder = builder.with_secret_access_key(secret);
+        }
+        if let Some(token) = &config.session_token {
+            builder = builder.with_token(token);
+        }
+        // rustls needs one process-wide crypto provider; a second install is refused and
+        // harmless. ring's is marked deprecated for lacking post-quantum key exchange; it
+        // keeps the aws-lc C library (a long build) out of the tree, and X25519 with
+        // TLS 1.3 is what S3 endpoints negotiate today.
+        #[allow(deprecated)]
+        let provider = rustls::crypto::ring::default_provider();
+        let _ = provider.install_default();
+        let store = builder.build().map_err(|err| failed(err.to_string()))?;
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .map_err(|err| failed(format!("cannot start the I/O runtime: {err}")))?;
+        let dir = ObjectDir {
+            store,
+            runtime,
+            url: url.to_string(),
+            bucket,
+            prefix,
+            endpoint,
+        };
+        let root = dir.path("");
+        dir.runtime
+            .block_on(dir.store.list_with_delimiter(Some(&root)))
+            .map_err(|err| dir.error(url, err))?;
+        Ok(dir)
+    }
+
+    /// The URL this names.
+    pub fn url(&self) -> &str {
+        &self.url
+    }
+
+    /// The URL of the object `name`.
+    pub fn object_url(&self, name: &str) -> String {
+        format!("{}/{name}", self.url.trim_end_matches('/'))
+    }
+
+    fn path(&self, name: &str) -> ObjectPath {
+        match (self.prefix.is_empty(), name.is_empty()) {
+            (true, _) => ObjectPath::from(name),
+            (false, true) => ObjectPath::from(self.prefix.as_str()),
+            (false, false) => ObjectPath::from(format!("{}/{name}", self.prefix)),
+        }
+    }
+
+    /// Classifies a client error at `url`.
+    fn error(&self, url: &str, err: object_store::Error) -> ObjectError {
+        let url = url.to_string();
+        let text = err.to_string();
+        match err {
+            object_store::Error::AlreadyExists { .. }
+            | object_store::Error::Precondition { .. } => ObjectError::Exists { url },
+            _ if text.contains("NoSuchBucket") => ObjectError::NoBucket {
+                url,
+                bucket: self.bucket.clone(),
+                endpoint: self.endpoint.clone(),
+            },
+            object_store::Error::NotFound { .. } => ObjectError::NotFound { url },
+            object_store::Error::PermissionDenied { .. }
+            | object_store::Error::Unauthenticated { .. } => {
+                ObjectError::Denied { url, reason: text }
+            }
+            _ => ObjectError::Failed { url, reason: text },
+        }
+    }
+
+    /// Writes `bytes` as the object `name` in one put, create-only: an existing object is
+    /// left as it is and reported as [`ObjectError::Exists`].
+    pub fn put_new(&self, name: &str, bytes: Vec<u8>) -> Result<(), ObjectError> {
+        let options = PutOptions {
+            mode: PutMode::Create,
+            ..PutOptions::default()
+        };
+        self.runtime
+            .block_on(
+                self.store
+                    .put_opts(&self.path(name), PutPayload::from(bytes), options),
+            )
+            .map(|_| ())
+            .map_err(|err| self.error(&self.object_url(name), err))
+    }
+
+    /// The whole object `name`, or `None` when it does not exist.
+    pub fn get(&self, name: &str) -> Result<Option<Vec<u8>>, ObjectError> {
+        let path = self.path(name);
+        let result = self.runtime.block_on(async {
+            let got = self.store.get(&path).await?;
+            got.bytes().await
+        });
+        match result {
+            Ok(bytes) => Ok(Some(bytes.to_vec())),
+            Err(object_store::Error::NotFound { .. }) => Ok(None),
+            Err(err) => Err(self.error(&self.object_url(name), err)),
+        }
+    }
+
+    /// The bytes `range` of the object `name` (one ranged request).
+    pub fn get_range(&self, name: &str, range: Range<u64>) -> Result<Vec<u8>, ObjectError> {
+        self.runtime
+            .block_on(self.store.get_range(&self.path(name), range))
+            .map(|bytes| bytes.to_vec())
+            .map_err(|err| self.error(&self.object_url(name), err))
+    }
+
+    /// The size of the object `name`, or `None` when it does not exist.
+    pub fn size(&self, name: &str) -> Result<Option<u64>, ObjectError> {
+        match self.runtime.block_on(self.store.head(&self.path(name))) {
+            Ok(meta) => Ok(Some(meta.size)),
+            Err(object_store::Error::NotFound { .. }) => Ok(None),
+            Err(err) => Err(self.error(&self.object_url(name), err)),
+        }
+    }
+
+    /// Deletes the object `name` (a missing object is no error).
+    pub fn delete(&self, name: &str) -> Result<(), ObjectError> {
+        match self.runtime.block_on(self.store.delete(&self.path(name))) {
+            Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
+            Err(err) => Err(self.error(&self.object_url(name), err)),
+        }
+    }
+
+    /// Every object under the prefix, sorted by name.
+    pub fn list(&self) -> Result<Vec<ObjectEntry>, ObjectError> {
+        let root = self.path("");
+        let skip = if self.prefix.is_empty() {
+            0
+        } else {
+            self.prefix.len() + 1
+        };
+        let mut entries: Vec<ObjectEntry> = self
+            .runtime
+            .block_on(self.store.list(Some(&root)).try_collect::<Vec<_>>())
+            .map_err(|err| self.error(&self.url, err))?
+            .into_iter()
+            .map(|meta| ObjectEntry {
+                name: meta.location.as_ref()[skip..].to_string(),
+                bytes: meta.size,
+            })
+            .collect();
+        entries.sort_by(|a, b| a.name.cmp(&b.name));
+        Ok(entries)
+    }
+}

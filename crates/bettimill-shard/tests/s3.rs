@@ -1,0 +1,186 @@
+//! Object storage against a real local S3 server (moto_server, started by ci/s3-up.sh):
+//! create-only puts, ranged reads, listings, and one clear error naming the URL for wrong
+//! credentials, a missing bucket and an unreachable server, all at open, before any work.
+//!
+//! A system test: it runs only with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it), because
+//! it installs and starts the server (idempotent; a no-op when it is up). When the server
+//! cannot be started it fails in CI (CI=true) and is skipped with a message elsewhere.
+
+use bettimill_shard::object::{ObjectDir, ObjectError, S3Config};
+use bettimill_testkit::{skip_unless_ci, system_test};
+use std::path::Path;
+use std::process::Command;
+
+/// The server's endpoint, credentials and bucket from ci/s3-up.sh's env file, after
+/// starting it; `None` (skip) only outside CI.
+fn s3_up() -> Option<(S3Config, String)> {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let script = repo.join("ci/s3-up.sh");
+    let reason = match Command::new("bash").arg(&script).output() {
+        Ok(out) if out.status.success() => None,
+        Ok(out) => Some(format!(
+            "{} exited with {}:\n{}",
+            script.display(),
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        )),
+        Err(err) => Some(format!("cannot run {}: {err}", script.display())),
+    };
+    if let Some(reason) = reason {
+        skip_unless_ci("a local S3 server", &reason);
+        return None;
+    }
+    let env = std::fs::read_to_string("/tmp/bettimill-s3/env").expect("ci/s3-up.sh wrote env");
+    let value = |key: &str| {
+        env.lines()
+            .find_map(|line| line.strip_prefix(&format!("{key}=")))
+            .map(str::to_string)
+            .unwrap_or_else(|| panic!("no {key} in /tmp/bettimill-s3/env"))
+    };
+    let config = S3Config {
+        endpoint: Some(value("AWS_ENDPOINT_URL")),
+        access_key_id: Some(value("AWS_ACCESS_KEY_ID")),
+        secret_access_key: Some(value("AWS_SECRET_ACCESS_KEY")),
+        session_token: None,
+        region: Some(value("AWS_REGION")),
+    };
+    Some((config, value("BETTIMILL_S3_CI_BUCKET")))
+}
+
+/// A prefix no earlier run used (the server keeps its objects while it runs).
+fn fresh_prefix(test: &str) -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_nanos();
+    format!("shard-tests/{test}-{}-{nanos}", std::process::id())
+}
+
+#[test]
+fn puts_are_create_only_and_reads_take_ranges() {
+    if !system_test("object storage on a local S3 server") {
+        return;
+    }
+    let Some((config, bucket)) = s3_up() else {
+        return;
+    };
+    let url = format!("s3://{bucket}/{}", fresh_prefix("puts"));
+    let dir = ObjectDir::open(&url, &config).unwrap();
+    assert_eq!(dir.list().unwrap(), vec![], "a fresh prefix is empty");
+    assert_eq!(dir.get("shards/a.tar").unwrap(), None);
+    assert_eq!(dir.size("shards/a.tar").unwrap(), None);
+
+    let bytes: Vec<u8> = (0..=255u8).cycle().take(70_000).collect();
+    dir.put_new("shards/a.tar", bytes.clone()).unwrap();
+    dir.put_new("records/a.json", b"{}\n".to_vec()).unwrap();
+    assert_eq!(
+        dir.get("shards/a.tar").unwrap().as_deref(),
+        Some(&bytes[..])
+    );
+    assert_eq!(dir.size("shards/a.tar").unwrap(), Some(70_000));
+    assert_eq!(
+        dir.get_range("shards/a.tar", 1000..1300).unwrap(),
+        bytes[1000..1300]
+    );
+
+    // A second writer of the same name is refused, and the first one's bytes stay.
+    let err = dir.put_new("shards/a.tar", vec![1, 2, 3]).unwrap_err();
+    assert!(matches!(err, ObjectError::Exists { .. }), "{err:?}");
+    assert!(
+        err.to_string()
+            .starts_with(&format!("{url}/shards/a.tar: the object exists already")),
+        "{err}"
+    );
+    assert_eq!(
+        dir.get("shards/a.tar").unwrap().as_deref(),
+        Some(&bytes[..])
+    );
+
+    let listed: Vec<(String, u64)> = dir
+        .list()
+        .unwrap()
+        .into_iter()
+        .map(|e| (e.name, e.bytes))
+        .collect();
+    assert_eq!(
+        listed,
+        vec![
+            ("records/a.json".to_string(), 3),
+            ("shards/a.tar".to_string(), 70_000)
+        ]
+    );
+    dir.delete("records/a.json").unwrap();
+    assert_eq!(dir.size("records/a.json").unwrap(), None);
+}
+
+#[test]
+fn wrong_credentials_a_missing_bucket_and_no_server_fail_at_open() {
+    if !system_test("object storage on a local S3 server") {
+        return;
+    }
+    let Some((config, bucket)) = s3_up() else {
+        return;
+    };
+    let url = format!("s3://{bucket}/{}", fresh_prefix("errors"));
+
+    let wrong = S3Config {
+        secret_access_key: Some("not-the-secret".into()),
+        ..config.clone()
+    };
+    let err = ObjectDir::open(&url, &wrong).unwrap_err();
+    assert!(matches!(err, ObjectError::Denied { .. }), "{err:?}");
+    let text = err.to_string();
+    assert!(
+        text.starts_with(&format!("{url}: the server refused the credentials")),
+        "{text}"
+    );
+    assert!(!text.contains('\n'), "one line: {text}");
+
+    let missing = "s3://no-such-bucket-here/prefix";
+    let err = ObjectDir::open(missing, &config).unwrap_err();
+    assert!(matches!(err, ObjectError::NoBucket { .. }), "{err:?}");
+    assert_eq!(
+        err.to_string(),
+        format!(
+            "{missing}: the bucket no-such-bucket-here does not exist at {}",
+            config.endpoint.as_deref().unwrap()
+        )
+    );
+
+    // Nothing listens on port 9 (discard) of loopback.
+    let nowhere = S3Config {
+        endpoint: Some("http://127.0.0.1:9".into()),
+        ..config
+    };
+    let err = ObjectDir::open(&url, &nowhere).unwrap_err();
+    assert!(matches!(err, ObjectError::Failed { .. }), "{err:?}");
+    assert!(err.to_string().starts_with(&format!("{url}: ")), "{err}");
+}
+
+#[test]
+fn urls_name_a_bucket_and_a_clean_prefix() {
+    use bettimill_shard::object::parse_s3_url;
+    assert_eq!(
+        parse_s3_url("s3://bucket/a/b/").unwrap(),
+        ("bucket".to_string(), "a/b".to_string())
+    );
+    assert_eq!(
+        parse_s3_url("s3://bucket").unwrap(),
+        ("bucket".to_string(), String::new())
+    );
+    for bad in [
+        "/tmp/x",
+        "s3://",
+        "s3://Bucket/x",
+        "s3://b/x",
+        "s3://bucket/a/../b",
+        "s3://bucket/a//b",
+    ] {
+        let err = parse_s3_url(bad).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with(&format!("{bad}: not an object-storage URL")),
+            "{err}"
+        );
+    }
+}
