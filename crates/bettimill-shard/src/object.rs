@@ -240,18 +240,41 @@ impl ObjectDir {
         }
     }
 
-    /// Classifies a client error at `url`.
+    /// Classifies a client error at `url`, in one line: the server's error code and
+    /// message when it sent one, instead of its XML.
     fn error(&self, url: &str, err: object_store::Error) -> ObjectError {
         let url = url.to_string();
-        let text = err.to_string();
+        let raw = err.to_string();
+        let tag = |name: &str| {
+            let open = format!("<{name}>");
+            let start = raw.find(&open)? + open.len();
+            let end = raw[start..].find(&format!("</{name}>"))? + start;
+            Some(raw[start..end].to_string())
+        };
+        let text = match (tag("Code"), tag("Message")) {
+            (Some(code), Some(message)) => format!("{code}: {message}"),
+            (Some(code), None) => code,
+            _ => raw.split_whitespace().collect::<Vec<_>>().join(" "),
+        };
+        const DENIED: [&str; 4] = [
+            "SignatureDoesNotMatch",
+            "InvalidAccessKeyId",
+            "AccessDenied",
+            "InvalidToken",
+        ];
+        if DENIED.iter().any(|code| text.starts_with(code)) {
+            return ObjectError::Denied { url, reason: text };
+        }
         match err {
             object_store::Error::AlreadyExists { .. }
             | object_store::Error::Precondition { .. } => ObjectError::Exists { url },
-            _ if text.contains("NoSuchBucket") => ObjectError::NoBucket {
-                url,
-                bucket: self.bucket.clone(),
-                endpoint: self.endpoint.clone(),
-            },
+            _ if text.starts_with("NoSuchBucket") || raw.contains("NoSuchBucket") => {
+                ObjectError::NoBucket {
+                    url,
+                    bucket: self.bucket.clone(),
+                    endpoint: self.endpoint.clone(),
+                }
+            }
             object_store::Error::NotFound { .. } => ObjectError::NotFound { url },
             object_store::Error::PermissionDenied { .. }
             | object_store::Error::Unauthenticated { .. } => {
