@@ -103,6 +103,14 @@ def reduced_manifest(bettimill, side, per_stratum, shard_samples, work, copies=F
         doc["resolutions"] = [r * side // doc["side"] for r in doc.get("resolutions", [])]
     else:
         doc.pop("resolutions", None)
+    if doc.get("hypervolume", {}).get("unit") == "fraction":
+        # The bins hold the cavities to a share of the solid inside the cube's one-voxel
+        # border; at a smaller side the border takes more of the cube, so the same cavity
+        # share is a smaller foreground fraction.
+        inside = lambda s: ((s - 2) / s) ** doc["dimension"]
+        scale = inside(side) / inside(doc["side"])
+        doc["hypervolume"]["bins"] = [[round(lo * scale, 6), round(hi * scale, 6)]
+                                      for lo, hi in doc["hypervolume"]["bins"]]
     doc["side"] = side
     doc.pop("splits", None)
     dropped = []
@@ -206,7 +214,19 @@ def cavities(voxels):
     return bg & ~outside
 
 
-def sample_stats(label, voxels):
+def inertia_ratios(mask):
+    """The eigenvalues of the covariance of the voxel coordinates of `mask`, each over the
+    largest, in decreasing order (1 first): all near 1 for a round phase, small for a
+    flat or thin one."""
+    coords = np.argwhere(mask).astype(float)
+    if len(coords) < 2:
+        return [float("nan")] * (mask.ndim - 1)
+    eig = np.sort(np.linalg.eigvalsh(np.cov(coords, rowvar=False)))[::-1]
+    return [float(e / eig[0]) for e in eig[1:]]
+
+
+def shape_stats(voxels):
+    """Surface-to-volume ratio, inertia ratios and voxel count of the cavities."""
     cav = cavities(voxels)
     fg = voxels != 0
     faces = 0
@@ -214,6 +234,20 @@ def sample_stats(label, voxels):
         lo, hi = shifted(fg, axis, True), shifted(fg, axis, False)
         faces += np.count_nonzero(fg[lo] & cav[hi]) + np.count_nonzero(cav[lo] & fg[hi])
     cavity_voxels = int(np.count_nonzero(cav))
+    ratios = inertia_ratios(cav)
+    return cav, {
+        "cavity_voxels": cavity_voxels,
+        "cavity_faces": int(faces),
+        "surface_to_volume": faces / cavity_voxels if cavity_voxels else float("nan"),
+        "inertia_mid": ratios[0],
+        "inertia_min": ratios[-1],
+    }
+
+
+def sample_stats(label, voxels, construction=None):
+    """The statistics of one sample; with `construction` (its undeformed voxels), also
+    those of the construction (`before`) and the voxel IoU of the two's cavities."""
+    cav, shape = shape_stats(voxels)
     objects = label["construction"].get("objects", [])
     params = {p: [] for p in SIZE_PARAMS}
     for obj in objects:
@@ -222,7 +256,7 @@ def sample_stats(label, voxels):
             if isinstance(value, (int, float)):
                 params[p].append(float(value))
     bin_lo, bin_hi = label["hypervolume_bin"]
-    return {
+    record = {
         "key": label["key"],
         "tool_version": label["tool_version"],
         "stratum": label["class_label"],
@@ -231,11 +265,15 @@ def sample_stats(label, voxels):
         "bin": [bin_lo, bin_hi],
         "betti": label["betti"],
         "hypervolume_fraction": label["hypervolume"] / voxels.size,
-        "cavity_voxels": cavity_voxels,
-        "cavity_faces": int(faces),
-        "surface_to_volume": faces / cavity_voxels if cavity_voxels else float("nan"),
+        **shape,
         "params": {p: v for p, v in params.items() if v},
     }
+    if construction is not None:
+        cav0, before = shape_stats(construction)
+        record["before"] = before
+        union = np.count_nonzero(cav | cav0)
+        record["iou"] = float(np.count_nonzero(cav & cav0) / union) if union else float("nan")
+    return record
 
 
 # ---------------------------------------------------------------- tables
@@ -271,8 +309,13 @@ def per_stratum(records):
     for name in stratum_order(records):
         rs = [r for r in records if r["stratum"] == name]
         entry = {"samples": len(rs), "first": rs[0]}
-        for stat in ("surface_to_volume", "hypervolume_fraction", "cavity_voxels"):
-            entry[stat] = summary([r[stat] for r in rs])
+        for stat in ("surface_to_volume", "hypervolume_fraction", "cavity_voxels",
+                     "inertia_mid", "inertia_min", "iou"):
+            if all(stat in r for r in rs):
+                entry[stat] = summary([r[stat] for r in rs])
+        for stat in ("surface_to_volume", "cavity_voxels", "inertia_mid", "inertia_min"):
+            if all("before" in r for r in rs):
+                entry["before_" + stat] = summary([r["before"][stat] for r in rs])
         for p in SIZE_PARAMS:
             vals = [v for r in rs for v in r["params"].get(p, [])]
             if vals:
@@ -296,7 +339,9 @@ def print_table(result):
     if result["dropped"]:
         print("left out (cannot be built at this side):", "; ".join(result["dropped"]))
     stats = ["tube_radius", "grow", "scale", "thickness", "voxels", "cavity_voxels",
-             "surface_to_volume", "hypervolume_fraction"]
+             "surface_to_volume", "hypervolume_fraction", "inertia_mid", "inertia_min",
+             "before_cavity_voxels", "before_surface_to_volume", "before_inertia_mid",
+             "before_inertia_min", "iou"]
     for name, entry in per_stratum(result["records"]).items():
         print(f"{stratum_name(entry['first'], side)}  (n={entry['samples']})")
         for stat in stats:
@@ -363,6 +408,42 @@ def compare(before, after):
               + ("; ".join(f"{k} {len(v)} ({', '.join(v)})" for k, v in zero.items()) or "none"))
 
 
+def deformation_table(result):
+    """Markdown: per stratum, the cavities' shape statistics of the undeformed
+    constructions against the built samples, and their voxel IoU."""
+    side = result["side"]
+    entries = per_stratum(result["records"])
+    print(f"bettimill {result['tool_version']}, side {side}, {result['samples']} samples; "
+          f"cells are median (coefficient of variation) over the stratum's samples; "
+          f"construction = the same sample before deformation and targeting.\n")
+    print("| stratum | n | S/V construction | S/V sample | l2/l1 construction | l2/l1 sample "
+          "| lmin/l1 construction | lmin/l1 sample | cavity IoU median (min-max) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for entry in entries.values():
+        iou = entry["iou"]
+        print(f"| {stratum_name(entry['first'], side)} | {entry['samples']} | "
+              f"{cell(entry, 'before_surface_to_volume', False)} | "
+              f"{cell(entry, 'surface_to_volume', False)} | "
+              f"{cell(entry, 'before_inertia_mid', False)} | {cell(entry, 'inertia_mid', False)} | "
+              f"{cell(entry, 'before_inertia_min', False)} | {cell(entry, 'inertia_min', False)} | "
+              f"{fmt(iou['median'])} ({fmt(iou['min'])}-{fmt(iou['max'])}) |")
+    ious = [r["iou"] for r in result["records"]]
+    spread = {}
+    for stat in ("surface_to_volume", "inertia_min"):
+        for when, get in (("construction", lambda r: r["before"][stat]),
+                          ("sample", lambda r: r[stat])):
+            # The spread within strata: the mean over strata of the coefficient of variation.
+            cvs = [summary([get(r) for r in result["records"] if r["stratum"] == name])["cv"]
+                   for name in entries]
+            spread[(stat, when)] = float(np.nanmean(cvs))
+    print(f"\nall samples: cavity IoU with the construction mean {np.mean(ious):.3f}, "
+          f"median {np.median(ious):.3f}, max {np.max(ious):.3f}; mean within-stratum cv of "
+          f"S/V {spread[('surface_to_volume', 'construction')]:.3f} -> "
+          f"{spread[('surface_to_volume', 'sample')]:.3f}, of lmin/l1 "
+          f"{spread[('inertia_min', 'construction')]:.3f} -> "
+          f"{spread[('inertia_min', 'sample')]:.3f}")
+
+
 # ---------------------------------------------------------------- main
 
 
@@ -380,6 +461,10 @@ def main():
                     help="samples a shard (default: the number of strata)")
     ap.add_argument("--no-build", action="store_true",
                     help="only read the complete shards already in --work (of a stopped build)")
+    ap.add_argument("--iou", action="store_true",
+                    help="also measure every sample's undeformed construction (needs the "
+                         "bettimill Python package of the same version) and print the "
+                         "deformation table")
     ap.add_argument("--compare", nargs=2, type=Path, metavar=("BEFORE", "AFTER"),
                     help="print before/after as Markdown from two --json files; builds nothing")
     args = ap.parse_args()
@@ -398,7 +483,16 @@ def main():
     print("$", " ".join(build), file=sys.stderr, flush=True)
     if not args.no_build:
         subprocess.run(build, check=True, stdout=subprocess.DEVNULL)
-    records = [sample_stats(label, voxels) for label, voxels in samples(out)]
+    construction = lambda label: None
+    if args.iou:
+        import bettimill
+        plan = bettimill.Plan(str(manifest))
+        index = out / "index.json"  # absent while a build is unfinished
+        if index.exists() and plan.manifest_hash != json.loads(index.read_text())["manifest_hash"]:
+            sys.exit("the dataset was built from another manifest")
+        construction = lambda label: plan.construction(int(label["key"][1:]), label["attempt"])
+    records = [sample_stats(label, voxels, construction(label))
+               for label, voxels in samples(out)]
     if not records:
         sys.exit(f"no complete shard in {out}")
     result = {"tool_version": records[0]["tool_version"], "side": args.side,
@@ -408,6 +502,8 @@ def main():
     if args.json:
         args.json.write_text(json.dumps(result, indent=1) + "\n")
     print_table(result)
+    if args.iou:
+        deformation_table(result)
 
 
 if __name__ == "__main__":
