@@ -25,6 +25,7 @@
 
 pub mod estimate;
 pub mod memory;
+pub mod reach;
 
 pub use bettimill_format::{ClassTable, StratumClass, TopologyClass};
 use bettimill_grid::{Dim, Mode};
@@ -326,6 +327,7 @@ impl Plan {
         }
         let manifest_hash = manifest_hash(manifest, &classes);
         let (strata, infeasible) = strata(manifest, &classes)?;
+        check_reach(manifest, &strata)?;
         let mut deal_order: Vec<usize> = (0..strata.len()).collect();
         let mut rng = ChaCha8Rng::from_seed(derive_seed(
             "bettimill deal order v1",
@@ -697,6 +699,92 @@ fn strata(
         }
     }
     Ok((strata, infeasible))
+}
+
+/// The foreground counts a stratum's samples can reach ([`reach::reach`]).
+pub fn stratum_reach(manifest: &Manifest, stratum: &Stratum) -> reach::Reach {
+    let dim = manifest.dimension;
+    let d = dim.get();
+    let tunnel = match stratum.family {
+        Family::Tunnel { intervals, .. } => Some(intervals),
+        _ => None,
+    };
+    // The phase's Betti numbers: the objects' in embed mode; in carve mode the cavities',
+    // which duality gives from the solid's (each cavity encloses a void of the solid, and
+    // the solid's last number counts them); a tunnel encloses none.
+    let b = &stratum.betti;
+    let phase_betti = match stratum.mode {
+        Mode::Embed => b.clone(),
+        Mode::Carve if tunnel.is_some() => vec![1],
+        Mode::Carve => (0..d)
+            .map(|k| match k {
+                0 => b[d - 1],
+                k if k == d - 1 => b[0].saturating_sub(1),
+                k => b[d - 1 - k],
+            })
+            .collect(),
+    };
+    reach::reach(&reach::Stratum {
+        dim: d,
+        side: manifest.side,
+        mode: stratum.mode,
+        solid: manifest.solid.unwrap_or_default(),
+        phase_betti,
+        tunnel,
+        smallest_radius: stratum
+            .family
+            .smallest_object_radius(dim, stratum.mode, TubeFloor::USUAL),
+    })
+}
+
+/// Refuses a manifest with a binned stratum that no sample can bring into its bin: every
+/// attempt of every shard holding it would fail, so nothing would be built.
+fn check_reach(manifest: &Manifest, strata: &[Stratum]) -> Result<(), PlanError> {
+    let voxels = manifest.voxels() as f64;
+    let share = |count: u64| count as f64 / voxels;
+    let mut refusals: Vec<String> = Vec::new();
+    for stratum in strata {
+        let Some((lo, hi)) = stratum.hypervolume else {
+            continue;
+        };
+        let r = stratum_reach(manifest, stratum);
+        let why = if hi < r.lowest {
+            format!(
+                "its samples keep at least {} foreground voxels ({:.4} of the image): {}",
+                r.lowest,
+                share(r.lowest),
+                r.lowest_why
+            )
+        } else if lo > r.highest {
+            format!(
+                "its samples have at most {} foreground voxels ({:.4} of the image): {}",
+                r.highest,
+                share(r.highest),
+                r.highest_why
+            )
+        } else {
+            continue;
+        };
+        refusals.push(format!(
+            "stratum {} cannot reach its bin of {lo}-{hi} foreground voxels \
+             ({:.4}-{:.4} of the image): {why}",
+            stratum.label,
+            share(lo),
+            share(hi + 1)
+        ));
+    }
+    if refusals.is_empty() {
+        return Ok(());
+    }
+    let shown = 3;
+    let mut reason = refusals[..refusals.len().min(shown)].join("; ");
+    if refusals.len() > shown {
+        reason.push_str(&format!(
+            "; and {} more unreachable strata",
+            refusals.len() - shown
+        ));
+    }
+    Err(manifest.error("bins", reason).into())
 }
 
 /// The tube floor a manifest's constructions in `mode` aim for: carve mode with

@@ -97,6 +97,51 @@ fn class_errors_point_at_their_entry() {
 }
 
 #[test]
+fn a_carve_bin_below_the_solid_s_outer_layers_is_refused_by_name() {
+    // A 3D side-24 ball cavity: 22^3 - 18^3 = 4816 voxels of the full cube never
+    // change, 35% of the image, so a bin at 3% fails every attempt of every shard.
+    let text = GOOD.replace("mode = \"embed\"", "mode = [\"embed\", \"carve\"]")
+        + "\n[hypervolume]\nbins = [[0.030, 0.031], [0.4, 0.5]]\n";
+    check_refused(
+        &text,
+        "bins",
+        14,
+        "stratum ball/carve/hv415-428 cannot reach",
+    );
+    check_refused(&text, "bins", 14, "at least 4816 foreground voxels");
+    // Embed mode reaches it, and so do carved bins from the outer layers up.
+    let fine = text.replace("[0.030, 0.031]", "[0.349, 0.36]");
+    assert_eq!(plan(&fine).unwrap().strata.len(), 4);
+    let embed = text.replace("mode = [\"embed\", \"carve\"]", "mode = \"embed\"");
+    assert_eq!(plan(&embed).unwrap().strata.len(), 2);
+}
+
+#[test]
+fn every_unreachable_stratum_of_a_4d_carve_manifest_is_named() {
+    // The audit's 4D side-24 manifest: its lowest bin (1-3%) sat in every shard.
+    let text = "schema_version = 1\nname = \"c4\"\ndimension = 4\nside = 24\n\
+                mode = \"carve\"\nsamples = 8\nshard_size = 1\nseed = 5\n\
+                components = [1, 2]\n\n[hypervolume]\n\
+                bins = [[0.01, 0.03], [0.5, 0.6]]\n\n[[classes]]\nfamily = \"ball\"\n";
+    check_refused(text, "bins", 12, "ball/carve/x1/hv3318-9953");
+    check_refused(text, "bins", 12, "ball/carve/x2/hv3318-9953");
+    let reachable = text.replace("[0.01, 0.03], ", "");
+    assert_eq!(plan(&reachable).unwrap().strata.len(), 2);
+}
+
+#[test]
+fn reach_bounds_every_preset_bin_and_stays_cheap() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../manifests");
+    let manifest = Manifest::from_path(&dir.join("4d-mixed-128.toml")).unwrap();
+    let plan = Plan::new(&manifest).unwrap();
+    for stratum in &plan.strata {
+        let (lo, hi) = stratum.hypervolume.unwrap();
+        let r = stratum_reach(&manifest, stratum);
+        assert!(r.lowest < lo && hi < r.highest, "{}: {r:?}", stratum.label);
+    }
+}
+
+#[test]
 fn shard_bytes_too_small_for_a_sample_is_refused() {
     let text = GOOD.replace("shard_size = 4", "shard_bytes = 1000");
     check_refused(&text, "shard_bytes", 7, "cannot hold one sample");

@@ -353,9 +353,9 @@ pub(crate) fn generate_for(
     // boxed solid's own wall: the solid's outside stays as built.
     let phase_box = (mode == Mode::Carve).then(|| {
         let inset = if binned_carve {
-            BOX_WALL as usize
+            crate::BOX_WALL
         } else {
-            crate::place::GAP as usize
+            crate::CAVITY_INSET
         };
         let lo = (0..d).map(|k| solid.lo[k] + inset).collect();
         let hi = (0..d).map(|k| solid.hi[k].saturating_sub(inset)).collect();
@@ -414,7 +414,7 @@ struct SolidBox {
 /// The least wall between a cavity and the outside of a solid box: 7 layers keep a
 /// whole block of foreground in the wall when the image is pooled by 4 (a 128-side sample's
 /// 32-side copy), one more for the rounding of the cavity's surface.
-const BOX_WALL: i64 = 8;
+pub(crate) const BOX_WALL: i64 = 8;
 
 /// The full cube: `CUBE_MARGIN` background layers on every face.
 fn full_box(dim: usize, side: usize) -> SolidBox {

@@ -39,6 +39,13 @@ use std::fmt;
 
 pub use bettimill_grid::Mode;
 
+/// Layers of a carved full cube, inside the image's empty border, that its cavities never
+/// reach: they are placed and deformed only inside them, so the solid's faces stay as built.
+pub const CAVITY_INSET: usize = place::GAP as usize;
+
+/// Layers of a boxed solid ([`Solid::Box`]) around its cavities that stay as built.
+pub const BOX_WALL: usize = generate::BOX_WALL as usize;
+
 /// A knot: the core curve of a knotted solid torus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -316,6 +323,24 @@ impl Family {
         floor: TubeFloor,
     ) -> Result<(), ShapeError> {
         generate::check_fits(self, dim, side, mode, floor)
+    }
+
+    /// The smallest bounding radius, in voxels, that one object of this family (the
+    /// smallest of a scene's) has with tubes at least `floor`; `None` where the family has
+    /// no instance in `dim` and `mode`.
+    pub fn smallest_object_radius(&self, dim: Dim, mode: Mode, floor: TubeFloor) -> Option<f64> {
+        if let Family::Betti { betti } = self {
+            let realised = betti_class::realise(betti, dim, mode).ok()?;
+            return realised.smallest_object_radius(dim, mode, floor);
+        }
+        let objects = match self {
+            Family::Scene { objects } => objects.clone(),
+            other => vec![other.clone()],
+        };
+        objects
+            .iter()
+            .filter_map(|o| sizing::min_extent(o, dim.get(), floor))
+            .reduce(f64::min)
     }
 
     /// The smallest side length at which [`Family::check_fits`] succeeds (up to 1024).
