@@ -1,17 +1,17 @@
 //! Fuzzing the manifest parser with proptest (cargo-fuzz needs a nightly toolchain).
 //!
-//! Inputs are the presets in `manifests/` mutated at three levels: whole lines (deleted,
-//! duplicated, swapped), values (replaced by hostile ones: negative, zero, 2^64 - 1, huge
-//! floats, NaN, strings, arrays, tables), and bytes (inserted, replaced); plus random text.
+//! Inputs are the presets in `manifests/` mutated by the hostile-manifest generator
+//! (`bettimill_testkit::hostile`: lines, values and bytes), plus random text.
 //! Properties: `Manifest::parse` never panics; an error names a line within the file; an
 //! accepted manifest's splits and hypervolume bins can be computed without panicking. (What
 //! the plan makes of an accepted manifest is fuzzed in `bettimill-sample`'s
-//! `plan_then_build` test: a manifest that plans builds.)
+//! `plan_then_build` test: a manifest that plans builds, this generator's included.)
 //!
 //! Each test prints how many inputs it ran; `BETTIMILL_FUZZ_CASES=N` multiplies them.
 
 use bettimill_manifest::{Manifest, ManifestError};
 use bettimill_testkit::fuzz;
+use bettimill_testkit::hostile::{mutate, mutations, HOSTILE_VALUES};
 use proptest::prelude::*;
 use std::path::Path;
 
@@ -27,33 +27,6 @@ const FAST_PRESETS: [&str; 3] = [
 const SLOW_PRESETS: [&str; 2] = [
     include_str!("../../../manifests/paper-figures.toml"),
     include_str!("../../../manifests/4d-mixed-128.toml"),
-];
-
-const HOSTILE_VALUES: [&str; 24] = [
-    "-1",
-    "0",
-    "1",
-    "8",
-    "1024",
-    "1025",
-    "4294967296",
-    "18446744073709551615",
-    "18446744073709551616",
-    "9223372036854775807",
-    "-9223372036854775808",
-    "1e400",
-    "nan",
-    "-inf",
-    "0.5",
-    "\"\"",
-    "\"../../etc/passwd\"",
-    "\"a\\u0000b\"",
-    "[]",
-    "[[]]",
-    "{}",
-    "true",
-    "1979-05-27T07:32:00Z",
-    "[\"ball\", \"ball\", \"ball\", \"ball\", \"ball\", \"ball\", \"ball\", \"ball\"]",
 ];
 
 fn check(text: &str) -> Result<(), TestCaseError> {
@@ -81,79 +54,6 @@ fn check(text: &str) -> Result<(), TestCaseError> {
     Ok(())
 }
 
-#[derive(Clone, Debug)]
-enum Mutation {
-    DeleteLine(usize),
-    DuplicateLine(usize),
-    SwapLines(usize, usize),
-    ReplaceValue(usize, &'static str),
-    InsertByte(usize, u8),
-    ReplaceByte(usize, u8),
-}
-
-fn mutation() -> impl Strategy<Value = Mutation> {
-    prop_oneof![
-        1 => any::<usize>().prop_map(Mutation::DeleteLine),
-        1 => any::<usize>().prop_map(Mutation::DuplicateLine),
-        1 => (any::<usize>(), any::<usize>()).prop_map(|(a, b)| Mutation::SwapLines(a, b)),
-        3 => (any::<usize>(), prop::sample::select(HOSTILE_VALUES.to_vec()))
-            .prop_map(|(l, v)| Mutation::ReplaceValue(l, v)),
-        1 => (any::<usize>(), prop::sample::select(b"=[]{}\"'#\n,.-0123456789 \\".to_vec()))
-            .prop_map(|(at, b)| Mutation::InsertByte(at, b)),
-        1 => (any::<usize>(), any::<u8>()).prop_map(|(at, b)| Mutation::ReplaceByte(at, b)),
-    ]
-}
-
-fn mutate(text: &str, mutations: &[Mutation]) -> String {
-    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
-    for m in mutations {
-        let n = lines.len().max(1);
-        match m {
-            Mutation::DeleteLine(i) if !lines.is_empty() => {
-                lines.remove(i % n);
-            }
-            Mutation::DuplicateLine(i) if !lines.is_empty() => {
-                let line = lines[i % n].clone();
-                lines.insert(i % n, line);
-            }
-            Mutation::SwapLines(a, b) if !lines.is_empty() => lines.swap(a % n, b % n),
-            Mutation::ReplaceValue(i, value) => {
-                // The i-th `key = value` line (counting only such lines).
-                let assignments: Vec<usize> = (0..lines.len())
-                    .filter(|&k| lines[k].contains('=') && !lines[k].trim_start().starts_with('#'))
-                    .collect();
-                if !assignments.is_empty() {
-                    let k = assignments[i % assignments.len()];
-                    let key = lines[k].split('=').next().unwrap_or("").to_string();
-                    lines[k] = format!("{key}= {value}");
-                }
-            }
-            Mutation::InsertByte(at, byte) => {
-                let mut bytes = lines.join("\n").into_bytes();
-                let i = at % (bytes.len() + 1);
-                bytes.insert(i, *byte);
-                lines = String::from_utf8_lossy(&bytes)
-                    .lines()
-                    .map(str::to_string)
-                    .collect();
-            }
-            Mutation::ReplaceByte(at, byte) => {
-                let mut bytes = lines.join("\n").into_bytes();
-                if !bytes.is_empty() {
-                    let i = at % bytes.len();
-                    bytes[i] = *byte;
-                }
-                lines = String::from_utf8_lossy(&bytes)
-                    .lines()
-                    .map(str::to_string)
-                    .collect();
-            }
-            _ => {}
-        }
-    }
-    lines.join("\n")
-}
-
 #[test]
 fn every_preset_parses_unchanged() {
     for preset in FAST_PRESETS.iter().chain(&SLOW_PRESETS) {
@@ -166,10 +66,7 @@ fn mutated_presets_never_panic() {
     fuzz(
         "manifest mutated demo preset",
         4000,
-        (
-            prop::sample::select(FAST_PRESETS.to_vec()),
-            prop::collection::vec(mutation(), 1..5),
-        ),
+        (prop::sample::select(FAST_PRESETS.to_vec()), mutations()),
         |(preset, mutations)| check(&mutate(preset, &mutations)),
     );
 }
@@ -179,10 +76,7 @@ fn mutated_large_presets_never_panic() {
     fuzz(
         "manifest mutated large preset",
         24,
-        (
-            prop::sample::select(SLOW_PRESETS.to_vec()),
-            prop::collection::vec(mutation(), 1..5),
-        ),
+        (prop::sample::select(SLOW_PRESETS.to_vec()), mutations()),
         |(preset, mutations)| check(&mutate(preset, &mutations)),
     );
 }

@@ -16,7 +16,7 @@
 use bettimill_plan::Plan;
 use bettimill_sample::make_sample;
 use proptest::prelude::*;
-use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
 
 /// Class tables for each dimension (2D, 3D, 4D); sizes and combinations the plan cannot
 /// build are still drawn, and it drops or refuses them.
@@ -155,6 +155,42 @@ fn cases() -> impl Strategy<Value = Case> {
         )
 }
 
+/// Plans `text` and, when the plan accepts it, makes the first sample of every stratum:
+/// `Some(samples made)`, or `None` when the plan refuses it. A sample that fails is the
+/// property's failure.
+#[allow(clippy::print_stderr)] // The refusals, asked for with SHOW_REFUSALS, are the test's own report.
+fn build_every_stratum(text: &str) -> Result<Option<u32>, TestCaseError> {
+    let plan = match Plan::parse(text, std::path::Path::new("case.toml")) {
+        Ok(plan) => plan,
+        Err(err) => {
+            if std::env::var_os("SHOW_REFUSALS").is_some() {
+                eprintln!("refused: {err}");
+            }
+            return Ok(None);
+        }
+    };
+    let mut seen = vec![false; plan.strata.len()];
+    let mut built = 0;
+    'shards: for shard in plan.shards() {
+        for task in plan.shard_tasks(&shard) {
+            if std::mem::replace(&mut seen[task.stratum], true) {
+                continue;
+            }
+            let sample = make_sample(&plan, &task);
+            prop_assert!(
+                sample.is_ok(),
+                "planned but did not build: {}\n{text}",
+                sample.unwrap_err()
+            );
+            built += 1;
+            if seen.iter().all(|&s| s) {
+                break 'shards;
+            }
+        }
+    }
+    Ok(Some(built))
+}
+
 #[test]
 fn every_manifest_that_plans_builds_the_first_sample_of_every_stratum() {
     let scale: u32 = std::env::var("BETTIMILL_FUZZ_CASES")
@@ -173,33 +209,9 @@ fn every_manifest_that_plans_builds_the_first_sample_of_every_stratum() {
     let built = std::sync::atomic::AtomicU32::new(0);
     let result = runner.run(&cases(), |case| {
         let text = case.text();
-        let plan = match Plan::parse(&text, std::path::Path::new("case.toml")) {
-            Ok(plan) => plan,
-            Err(err) => {
-                if std::env::var_os("SHOW_REFUSALS").is_some() {
-                    eprintln!("refused: {err}");
-                }
-                return Ok(());
-            }
-        };
-        planned.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let mut seen = vec![false; plan.strata.len()];
-        'shards: for shard in plan.shards() {
-            for task in plan.shard_tasks(&shard) {
-                if std::mem::replace(&mut seen[task.stratum], true) {
-                    continue;
-                }
-                let sample = make_sample(&plan, &task);
-                prop_assert!(
-                    sample.is_ok(),
-                    "planned but did not build: {}\n{text}",
-                    sample.unwrap_err()
-                );
-                built.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if seen.iter().all(|&s| s) {
-                    break 'shards;
-                }
-            }
+        if let Some(samples) = build_every_stratum(&text)? {
+            planned.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            built.fetch_add(samples, std::sync::atomic::Ordering::Relaxed);
         }
         Ok(())
     });
@@ -212,4 +224,101 @@ fn every_manifest_that_plans_builds_the_first_sample_of_every_stratum() {
         planned >= 10 && built >= 20,
         "only {planned} manifests planned and {built} samples built"
     );
+}
+
+/// The presets the hostile-manifest generator mutates here: the small demos as they are,
+/// the 4D demo at side 16 with the classes that fit there, and the mixed 128 preset's
+/// layout (carve mode, copies, hypervolume bins, the deformation sequence) at 4D side 18
+/// and 3D side 24, so that bins and their reach are mutated too.
+fn small_presets() -> Vec<String> {
+    let demo_4d = include_str!("../../../manifests/demo-4d.toml")
+        .replace("side = 32", "side = 16")
+        .replace(
+            r#"family = ["ball", "handle", "s2_x_b2", "t2_x_b2"]"#,
+            r#"family = ["ball", "handle"]"#,
+        );
+    let mixed = include_str!("../../../manifests/4d-mixed-128.toml");
+    let classes = mixed.find("[[classes]]").expect("the preset has classes");
+    let mixed = mixed[..classes]
+        .replace("side = 128", "side = 18")
+        .replace("resolutions = [64, 32]", "resolutions = [9]")
+        .replace("steps = [0, 20000]", "steps = [0, 200]")
+        .replace(
+            "bins = [[0.929, 0.931], [0.931, 0.933], [0.933, 0.935], [0.935, 0.937]]",
+            "bins = [[0.45, 0.47], [0.55, 0.57]]",
+        )
+        + "[[classes]]\nfamily = [\"ball\", \"handle\"]\n";
+    let mixed_3d = mixed
+        .replace("dimension = 4", "dimension = 3")
+        .replace("side = 18", "side = 24")
+        .replace("resolutions = [9]", "resolutions = [12]")
+        .replace("mode = \"carve\"", "mode = [\"embed\", \"carve\"]");
+    vec![
+        include_str!("../../../manifests/demo-2d.toml").to_string(),
+        include_str!("../../../manifests/demo-3d.toml").to_string(),
+        demo_4d,
+        mixed,
+        mixed_3d,
+    ]
+}
+
+/// The largest sample the hostile cases build (a mutated side can ask for 1024^3).
+const MAX_BUILT_VOXELS: u64 = 1 << 17;
+
+#[test]
+fn every_hostile_manifest_that_plans_builds_the_first_sample_of_every_stratum() {
+    let presets = small_presets();
+    for preset in &presets {
+        let plan = Plan::parse(preset, std::path::Path::new("preset.toml"));
+        assert!(plan.is_ok(), "{}\n{preset}", plan.unwrap_err());
+    }
+    let mut runner = TestRunner::new_with_rng(
+        Config {
+            cases: 200 * bettimill_testkit::fuzz_scale(),
+            failure_persistence: None,
+            ..Config::default()
+        },
+        TestRng::deterministic_rng(RngAlgorithm::ChaCha),
+    );
+    let counts = std::sync::Mutex::new((0u32, 0u32, 0u32));
+    // Half of the cases also write hostile bins, so that bins out of reach meet manifests
+    // that otherwise plan.
+    use bettimill_testkit::hostile::{mutate, mutations, Mutation, HOSTILE_BINS};
+    let bins = prop::option::of(prop::sample::select(HOSTILE_BINS.to_vec()));
+    let strategy = (0..presets.len(), mutations(), bins);
+    let result = runner.run(&strategy, |(preset, mut mutations, bins)| {
+        mutations.extend(bins.map(Mutation::ReplaceBins));
+        let text = mutate(&presets[preset], &mutations);
+        // Only small samples are built; a larger one is planned and left.
+        let small = bettimill_manifest_voxels(&text).is_some_and(|v| v <= MAX_BUILT_VOXELS);
+        if !small {
+            return Ok(());
+        }
+        if let Some(samples) = build_every_stratum(&text)? {
+            let mut counts = counts.lock().unwrap();
+            counts.0 += 1;
+            counts.1 += samples;
+            counts.2 += u32::from(text.contains("[hypervolume]"));
+        }
+        Ok(())
+    });
+    if let Err(err) = result {
+        panic!("{err}");
+    }
+    let (planned, built, binned) = counts.into_inner().unwrap();
+    eprintln!("hostile manifests: {planned} planned (binned {binned}), {built} samples built");
+    // The generator must reach the building half of the property, binned manifests too.
+    assert!(
+        planned >= 15 && built >= 40 && binned >= 5,
+        "only {planned} hostile manifests planned ({binned} binned) and {built} samples built"
+    );
+}
+
+/// The voxels of one sample of the manifest `text` (`side ^ dimension`), if both parse.
+fn bettimill_manifest_voxels(text: &str) -> Option<u64> {
+    let table: toml::Table = text.parse().ok()?;
+    let side = table.get("side")?.as_integer()?;
+    let dimension = table.get("dimension")?.as_integer()?;
+    let (side, dimension) = (u64::try_from(side).ok()?, u32::try_from(dimension).ok()?);
+    side.checked_pow(dimension)
 }

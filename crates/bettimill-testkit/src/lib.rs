@@ -3,6 +3,8 @@
 //!
 //! - [`fuzz`]: the one proptest runner of the fuzz tests (`*_fuzz.rs`), scaled by
 //!   `BETTIMILL_FUZZ_CASES`, counting and reporting its executions;
+//! - [`hostile`]: the hostile-manifest generator (presets with lines, values and bytes
+//!   mutated), shared by the parser's fuzz test and the plan-then-build property;
 //! - [`Xorshift`]: the seeded generator of the tests that do without proptest;
 //! - [`in_ci`] and [`skip_unless_ci`]: a test that needs an outside tool (GNU tar, Slurm,
 //!   root) fails in CI when the tool is missing, and skips with a message elsewhere.
@@ -10,6 +12,8 @@
 // A test helper: its reports go to the (captured) stderr of the test that calls it, like
 // a test's own messages. Library crates of the product never print.
 #![allow(clippy::print_stderr)]
+
+pub mod hostile;
 
 use proptest::strategy::Strategy;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
