@@ -7,6 +7,7 @@
 //!
 //! ```text
 //! cpu = voxels x NS_PER_VOXEL[d][mode] x (binned ? BINNED_FACTOR[d] : 1)
+//!           (binned carve in the full cube: CUBE_BINNED_FACTOR[d] instead)
 //!           x (1 + COPY_WEIGHT x (components - 1))
 //!     + deformation: per step, voxels x DEFORM_SCAN_NS (one scan for the frontier)
 //!       + the step's own work: moves x DEFORM_NS_PER_MOVE, or iterations x kept share x
@@ -50,6 +51,13 @@ pub const NS_PER_VOXEL: [[f64; 2]; 3] = [[51.0, 81.0], [34.0, 105.0], [39.0, 46.
 /// the reduced 4D mixed 128 preset). 2D is not calibrated: the 3D factor is used.
 pub const BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.5];
 
+/// Factor on [`NS_PER_VOXEL`] for a binned carve stratum in the full cube (the default
+/// solid): the cavities take about 1% of the image, so the homology of the mostly solid
+/// cube and the targeting cost far less than in a box sized for the bin. Calibrated on
+/// the deformed 4D mixed 128 preset reduced to 8 samples (`ci/bench-4d-mixed-128.sh`);
+/// 2D and 3D are not calibrated and use [`BINNED_FACTOR`].
+pub const CUBE_BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.2];
+
 /// Extra cost of each copy past the first in a scene of `components` copies (calibrated on
 /// a 4D 48 carved handle with one and two copies).
 pub const COPY_WEIGHT: f64 = 0.4;
@@ -62,7 +70,7 @@ pub const DEFORM_NS_PER_MOVE: [f64; 3] = [2_000.0, 4_000.0, 8_000.0];
 
 /// CPU nanoseconds per frontier voxel of one dilation or erosion iteration (its noise and
 /// its simple-point test), by dimension, with the frontier taken as `side^(d-1)` voxels.
-pub const DEFORM_NS_PER_FRONTIER_VOXEL: [f64; 3] = [300.0, 400.0, 600.0];
+pub const DEFORM_NS_PER_FRONTIER_VOXEL: [f64; 3] = [300.0, 400.0, 300.0];
 
 /// CPU nanoseconds per tentacle or walker step (the simple-point tests of a ball of
 /// radius 1), by dimension.
@@ -196,7 +204,11 @@ pub fn sample_cpu_seconds(plan: &Plan, stratum: &Stratum) -> f64 {
     let volume = voxels(plan, plan.side);
     let mut ns = NS_PER_VOXEL[d][mode_index(stratum.mode)];
     if stratum.hypervolume.is_some() {
-        ns *= BINNED_FACTOR[d];
+        ns *= if stratum.mode == Mode::Carve && plan.solid == bettimill_types::Solid::Cube {
+            CUBE_BINNED_FACTOR[d]
+        } else {
+            BINNED_FACTOR[d]
+        };
     }
     ns *= 1.0 + COPY_WEIGHT * (stratum.components.max(1) - 1) as f64;
     let mut seconds = volume * ns * 1e-9;
