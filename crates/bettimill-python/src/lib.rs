@@ -313,6 +313,25 @@ impl PyPlan {
         })
     }
 
+    /// Refuses a sample the machine cannot hold, before it is made (the CLI refuses such a
+    /// plan with the same estimate; a 4D side-254 sample used to abort the interpreter).
+    /// The answer depends only on the plan and the machine, so it is checked once per
+    /// process: a forked worker checks again.
+    fn admit(&self, index: u64) -> PyResult<()> {
+        let pid = std::process::id();
+        if self.admitted.load(Ordering::Relaxed) != pid {
+            let voxels = (self.plan.side as u64).saturating_pow(self.plan.dimension.get() as u32);
+            bettimill_plan::memory::admit_image(
+                &format!("sample {index}"),
+                self.plan.dimension.get(),
+                voxels,
+            )
+            .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
+            self.admitted.store(pid, Ordering::Relaxed);
+        }
+        Ok(())
+    }
+
     fn index(&self, index: i64) -> PyResult<u64> {
         let n = self.plan.samples as i64;
         let i = if index < 0 { index + n } else { index };
@@ -474,20 +493,7 @@ impl PyPlan {
                 )));
             }
         }
-        // Refused before it is made when the machine cannot hold it (the CLI refuses such
-        // a plan with the same estimate; a 4D side-254 sample used to abort the
-        // interpreter).
-        let pid = std::process::id();
-        if self.admitted.load(Ordering::Relaxed) != pid {
-            let voxels = (self.plan.side as u64).saturating_pow(self.plan.dimension.get() as u32);
-            bettimill_plan::memory::admit_image(
-                &format!("sample {index}"),
-                self.plan.dimension.get(),
-                voxels,
-            )
-            .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
-            self.admitted.store(pid, Ordering::Relaxed);
-        }
+        self.admit(index)?;
         let plan = Arc::clone(&self.plan);
         let (image, json) = detach_in_pool(py, move || {
             let task = plan.task(index).expect("the index was checked");
@@ -504,13 +510,7 @@ impl PyPlan {
             Ok::<_, bettimill_sample::SampleError>((image, json))
         })?
         .map_err(|err| pyo3::exceptions::PyRuntimeError::new_err(err.to_string()))?;
-        let shape = image.shape().to_vec();
-        let array = ArrayD::from_shape_vec(IxDyn(&shape), image.into_vec())
-            .expect("an image's data fits its shape");
-        Ok((
-            PyArrayDyn::from_owned_array(py, array),
-            json_to_py(py, &json)?,
-        ))
+        Ok((to_array(py, image), json_to_py(py, &json)?))
     }
 
     /// The undeformed construction of sample `index` at `attempt` (a sample's label records
@@ -532,24 +532,23 @@ impl PyPlan {
                 bettimill_sample::MAX_ATTEMPTS
             )));
         }
-        let voxels = (self.plan.side as u64).saturating_pow(self.plan.dimension.get() as u32);
-        bettimill_plan::memory::admit_image(
-            &format!("sample {index}"),
-            self.plan.dimension.get(),
-            voxels,
-        )
-        .map_err(|refusal| PyMemoryError::new_err(refusal.to_string()))?;
+        self.admit(index)?;
         let plan = Arc::clone(&self.plan);
         let image = detach_in_pool(py, move || {
             let task = plan.task(index).expect("the index was checked");
             bettimill_sample::construction(&plan, &task, attempt).map(|c| c.image)
         })?
         .map_err(|err| pyo3::exceptions::PyRuntimeError::new_err(err.to_string()))?;
-        let shape = image.shape().to_vec();
-        let array = ArrayD::from_shape_vec(IxDyn(&shape), image.into_vec())
-            .expect("an image's data fits its shape");
-        Ok(PyArrayDyn::from_owned_array(py, array))
+        Ok(to_array(py, image))
     }
+}
+
+/// An image as a numpy uint8 array of its shape, moved without a copy.
+fn to_array(py: Python<'_>, image: BinaryImage) -> Bound<'_, PyArrayDyn<u8>> {
+    let shape = image.shape().to_vec();
+    let array = ArrayD::from_shape_vec(IxDyn(&shape), image.into_vec())
+        .expect("an image's data fits its shape");
+    PyArrayDyn::from_owned_array(py, array)
 }
 
 /// Unpickles a [`PyPlan`] (see `__reduce__`).
