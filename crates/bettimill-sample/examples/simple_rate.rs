@@ -9,6 +9,8 @@
 
 // An example for people: printing is its purpose (only library code must not print).
 #![allow(clippy::print_stdout, clippy::print_stderr)]
+#[path = "common/cpu.rs"]
+mod cpu;
 use bettimill_grid::neighbourhood::is_interior;
 use bettimill_homology::simple::{SimpleCache, SimpleTester};
 use bettimill_plan::Plan;
@@ -19,20 +21,7 @@ use std::time::Instant;
 
 /// Per-thread CPU time, so that other processes on the machine do not count.
 fn thread_cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/thread-self/stat").unwrap_or_default();
-    let fields: Vec<&str> = stat
-        .rsplit(')')
-        .next()
-        .unwrap_or("")
-        .split_whitespace()
-        .collect();
-    let ticks = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|f| f.parse::<f64>().ok())
-            .unwrap_or(0.0)
-    };
-    (ticks(11) + ticks(12)) / 100.0
+    cpu::cpu_seconds("/proc/thread-self/stat")
 }
 
 /// Runs `work` until it has used at least a CPU-second; returns CPU seconds per run.

@@ -5,6 +5,8 @@
 
 // An example for people: printing is its purpose (only library code must not print).
 #![allow(clippy::print_stdout, clippy::print_stderr)]
+#[path = "common/cpu.rs"]
+mod cpu;
 use bettimill_plan::Plan;
 use bettimill_sample::{make_sample_observed, Stage};
 use std::path::Path;
@@ -21,20 +23,7 @@ fn peak_rss_mib() -> u64 {
 
 /// CPU seconds (user + system, all threads) of this process so far.
 fn cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let fields: Vec<&str> = stat
-        .rsplit(')')
-        .next()
-        .unwrap_or("")
-        .split_whitespace()
-        .collect();
-    let ticks = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|f| f.parse::<f64>().ok())
-            .unwrap_or(0.0)
-    };
-    (ticks(11) + ticks(12)) / 100.0
+    cpu::cpu_seconds("/proc/self/stat")
 }
 
 fn main() {
