@@ -2,6 +2,8 @@
 //! shard states, leftovers of a stopped creation and links.
 
 use super::*;
+use crate::{FormatError, ShardRecord, TOOL_VERSION};
+use std::path::Path;
 
 fn bound(dir: &Path) -> (DatasetDir, BuildInfo) {
     let layout = DatasetDir::new(dir.join("ds"));
