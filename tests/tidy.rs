@@ -10,6 +10,8 @@
 //!   driven from one place (the executor's `build`): the CLI and the Python binding neither
 //!   make build options nor read scheduler variables.
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
+//! - A check shared by several commands (a plain file, a file against its record, a tar
+//!   against its record) is defined once, by the file that owns it.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -820,4 +822,91 @@ fn code_and_docs_name_no_tracker_issues() {
         "say why in the text instead of pointing to a tracker users do not have:\n{}",
         wrong.join("\n")
     );
+}
+
+// ------------------------------------------------------------------ one owner per check
+//
+// A check written twice drifts: the copies come to refuse different files, or to say it in
+// different words. Each of these has one owner, the only file that defines it; everyone
+// else calls it (or, in bettimill-format, wraps its error without repeating the check).
+
+/// Definitions that exist once, with the file that owns each.
+const ONE_OWNER: &[(&str, &str)] = &[
+    // The refusal of anything but a plain file (a device, a directory, a link to one).
+    ("fn regular_len(", "crates/bettimill-shard/src/file.rs"),
+    // Whether a file has a recorded size and blake3, streamed.
+    ("fn file_matches(", "crates/bettimill-shard/src/file.rs"),
+    // Whether a tar matches its record: verify, resume, status and finalize.
+    (
+        "fn check_tar_file(",
+        "crates/bettimill-format/src/tar_check.rs",
+    ),
+];
+
+/// Whether `line` asks file metadata whether it is a plain file, the test a copy of
+/// `regular_len` makes (`meta.is_file()`, `metadata(path)?.is_file()`); a path's own
+/// `is_file()` and a directory entry's file type are other questions.
+fn asks_metadata_is_file(line: &str) -> bool {
+    line.match_indices(".is_file()").any(|(at, _)| {
+        let before = line[..at].trim_end_matches('?');
+        before.ends_with(')') && before.contains("metadata(")
+            || before
+                .rsplit(|c: char| !(c.is_alphanumeric() || c == '_'))
+                .next()
+                .is_some_and(|name| name == "meta" || name == "metadata")
+    })
+}
+
+/// The files of `sources` (path, code) with a code line that passes `test`.
+fn files_with(sources: &[(String, String)], test: &dyn Fn(&str) -> bool) -> Vec<String> {
+    sources
+        .iter()
+        .filter(|(_, code)| code_lines(code).any(|(_, line)| test(line)))
+        .map(|(path, _)| path.clone())
+        .collect()
+}
+
+#[test]
+fn metadata_is_file_checker_finds_a_copy_of_regular_len() {
+    for copy in [
+        "    if !meta.is_file() {",
+        "let plain = std::fs::metadata(path)?.is_file();",
+        "if fs::metadata(&p).map_err(io)?.is_file() {",
+        "    metadata.is_file()",
+    ] {
+        assert!(asks_metadata_is_file(copy), "{copy}");
+    }
+    for other in [
+        ".find(|name| root.join(name).join(INDEX_FILE).is_file())",
+        "let is_file = entry.file_type().map_err(io(dir))?.is_file();",
+        "if path.is_file() {",
+        "// meta.is_file() in a comment",
+    ] {
+        let code: Vec<_> = code_lines(other).map(|(_, line)| line).collect();
+        assert!(!code.iter().any(|l| asks_metadata_is_file(l)), "{other}");
+    }
+}
+
+#[test]
+fn each_shared_check_is_defined_once_by_its_owner() {
+    let sources = crate_sources(&[]);
+    assert!(sources.len() > 50, "only {} sources", sources.len());
+    let mut wrong = Vec::new();
+    for &(definition, owner) in ONE_OWNER {
+        let found = files_with(&sources, &|line| line.contains(definition));
+        if found != [owner] {
+            wrong.push(format!(
+                "{definition}..) defined in {found:?}, owned by {owner}"
+            ));
+        }
+    }
+    let owner = "crates/bettimill-shard/src/file.rs";
+    let found = files_with(&sources, &asks_metadata_is_file);
+    if found != [owner] {
+        wrong.push(format!(
+            "metadata asked whether it is a plain file in {found:?}: call \
+             bettimill_shard::regular_len ({owner})"
+        ));
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }

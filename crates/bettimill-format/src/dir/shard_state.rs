@@ -128,7 +128,8 @@ impl DatasetDir {
 pub type ShardStream = shard::TarStream<std::io::Take<std::io::BufReader<std::fs::File>>>;
 
 /// The size of the regular file at `path`; an error naming it for anything else (a device
-/// such as `/dev/zero`, which reports no size and never ends, a directory, a FIFO).
+/// such as `/dev/zero`, which reports no size and never ends, a directory, a FIFO). The
+/// check is storage's [`shard::regular_len`]; only its error is put in this crate's terms.
 pub(crate) fn regular_file_len(path: &Path) -> Result<u64, FormatError> {
     shard::regular_len(path).map_err(|err| match err {
         shard::RegularFileError::Io(err) => io(path)(err),
