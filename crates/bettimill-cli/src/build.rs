@@ -15,6 +15,8 @@ pub struct Limits {
     pub worker_timeout: std::time::Duration,
     /// Memory per worker (default: a share of MemAvailable divided by the workers).
     pub max_memory: Option<u64>,
+    /// The endpoint and uploads of an s3:// output.
+    pub object: bettimill_executor::remote::ObjectOptions,
 }
 
 /// `bettimill build`.
@@ -60,6 +62,7 @@ pub fn build(
         max_memory: limits.max_memory,
         max_shard_failures,
         worker_timeout: limits.worker_timeout,
+        object: limits.object,
     };
     let mut started = std::time::Instant::now();
     let mut display = None;

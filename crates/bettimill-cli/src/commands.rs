@@ -22,15 +22,26 @@ enum Command {
     /// Build a dataset from a manifest (or the embedded 3D demo).
     ///
     /// Example: bettimill build --out demo-out
+    ///
+    /// Example: bettimill build manifests/demo-3d.toml --out s3://my-bucket/demo-3d
     Build {
         /// The manifest (TOML). Without it, the embedded demo manifest is built.
         manifest: Option<PathBuf>,
-        /// Output directory: new, empty, or a partial build of the same manifest to resume.
+        /// Output directory: new, empty, or a partial build of the same manifest to resume;
+        /// or s3://BUCKET/PREFIX (credentials from the AWS_* variables, see --endpoint).
         #[arg(long)]
         out: PathBuf,
-        /// Worker processes (default: the number of cores).
+        /// Worker processes (default: the number of cores). An s3:// build makes its
+        /// shards in this process, on all cores, and ignores it.
         #[arg(long)]
         workers: Option<usize>,
+        /// The S3-compatible server of an s3:// --out (MinIO, R2, Garage, ...), e.g.
+        /// http://127.0.0.1:9000 (default: AWS_ENDPOINT_URL, else AWS S3).
+        #[arg(long, value_name = "URL")]
+        endpoint: Option<String>,
+        /// Shards of an s3:// build uploaded at once; local disk holds at most one more.
+        #[arg(long, value_name = "N", default_value_t = bettimill_executor::remote::DEFAULT_MAX_UPLOADS, value_parser = clap::builder::TypedValueParser::map(clap::value_parser!(u16).range(1..), usize::from))]
+        max_uploads: usize,
         /// Give a shard up after this many failed attempts (worker deaths included).
         #[arg(long, default_value_t = bettimill_executor::coordinator::DEFAULT_MAX_SHARD_FAILURES)]
         max_shard_failures: u32,
@@ -230,6 +241,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             progress_interval,
             worker_timeout,
             max_memory,
+            endpoint,
+            max_uploads,
         } => crate::build::build(
             manifest.as_deref(),
             &out,
@@ -239,6 +252,10 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             crate::build::Limits {
                 worker_timeout: std::time::Duration::from_secs_f64(worker_timeout),
                 max_memory,
+                object: bettimill_executor::remote::ObjectOptions {
+                    endpoint,
+                    max_uploads,
+                },
             },
             cli.quiet,
         ),

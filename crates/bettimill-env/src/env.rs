@@ -38,6 +38,26 @@ impl EnvVars {
     /// Slurm: the job's CPUs on this node (multiplies [`EnvVars::SLURM_MEM_PER_CPU`]).
     pub const SLURM_CPUS_ON_NODE: &'static str = "SLURM_CPUS_ON_NODE";
 
+    /// Object storage (`s3://` outputs and datasets): the access key id.
+    pub const AWS_ACCESS_KEY_ID: &'static str = "AWS_ACCESS_KEY_ID";
+
+    /// Object storage: the secret access key.
+    pub const AWS_SECRET_ACCESS_KEY: &'static str = "AWS_SECRET_ACCESS_KEY";
+
+    /// Object storage: the session token of temporary credentials.
+    pub const AWS_SESSION_TOKEN: &'static str = "AWS_SESSION_TOKEN";
+
+    /// Object storage: the region (default [`EnvVars::AWS_DEFAULT_REGION`], then
+    /// `us-east-1`).
+    pub const AWS_REGION: &'static str = "AWS_REGION";
+
+    /// Object storage: the region when [`EnvVars::AWS_REGION`] is unset.
+    pub const AWS_DEFAULT_REGION: &'static str = "AWS_DEFAULT_REGION";
+
+    /// Object storage: the server's base URL, for S3-compatible servers (MinIO, R2, Garage,
+    /// Hugging Face Buckets); `--endpoint` overrides it. Unset: AWS S3.
+    pub const AWS_ENDPOINT_URL: &'static str = "AWS_ENDPOINT_URL";
+
     /// Internal test hook: the array task with this index fails before doing any work (exit
     /// code 2, as any failed task).
     #[doc(hidden)]

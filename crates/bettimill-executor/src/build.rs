@@ -1,5 +1,5 @@
-//! The one entry point of a local build: [`build`] takes a [`BuildRequest`] and returns a
-//! [`BuildReport`]. It owns what every caller of a build must do the same way: the plan
+//! The one entry point of a build, into a directory or `s3://BUCKET/PREFIX`: [`build`]
+//! takes a [`BuildRequest`] and returns a [`BuildReport`]. It owns what every caller of a build must do the same way: the plan
 //! refused before anything is written when one sample cannot fit the memory limit (see
 //! [`crate::memory`]), the directory bound, the choice between this process and worker
 //! processes ([`Runner`]), the workers' command line (`worker --dir DIR`, with the same
@@ -50,6 +50,8 @@ pub struct BuildRequest {
     pub max_shard_failures: u32,
     /// A silent worker is killed after this long (worker processes only).
     pub worker_timeout: Duration,
+    /// The endpoint and uploads of an `s3://BUCKET/PREFIX` output (unused for a directory).
+    pub object: crate::remote::ObjectOptions,
 }
 
 /// Progress of a [`build`], in the order it happens.
@@ -112,6 +114,7 @@ pub fn build(
         max_memory,
         max_shard_failures,
         worker_timeout,
+        object,
     } = request;
     // Refused before anything is written or any worker starts: a sample that cannot fit
     // would otherwise kill every worker attempt after minutes.
@@ -126,6 +129,12 @@ pub fn build(
         bettimill_plan::memory::check(&plan, 1, *limit, origin)?;
     }
     drop(plan);
+    if let Some(url) = out
+        .to_str()
+        .filter(|o| bettimill_shard::object::is_object_url(o))
+    {
+        return build_to_bucket(url, &manifest_text, manifest, &object, progress);
+    }
     let dataset = Dataset::bind(&out, &manifest_text, manifest).map_err(BuildFailure::Dataset)?;
     // Test hook: a test signals the build while it waits here, in the middle of start-up.
     if let Some(pause) = bettimill_env::seconds(EnvVars::BETTIMILL_TEST_PAUSE_AT_STARTUP) {
@@ -167,6 +176,43 @@ pub fn build(
         totals,
         samples: dataset.plan.samples,
         index: dataset.layout().index_path(),
+    })
+}
+
+/// A build into object storage (see [`crate::remote`]): the bucket is checked and its lease
+/// taken before any work; shards are made in this process, on all its threads.
+fn build_to_bucket(
+    url: &str,
+    manifest_text: &str,
+    manifest: Manifest,
+    object: &crate::remote::ObjectOptions,
+    mut progress: impl FnMut(BuildProgress<'_>),
+) -> Result<BuildReport, BuildFailure> {
+    let build = crate::remote::BucketBuild::bind(url, manifest_text, manifest, object)
+        .map_err(BuildFailure::Dataset)?;
+    if let Some(pause) = bettimill_env::seconds(EnvVars::BETTIMILL_TEST_PAUSE_AT_STARTUP) {
+        std::thread::sleep(pause);
+    }
+    progress(BuildProgress::Bound(&build.dataset));
+    let shards = build.dataset.plan.shard_count();
+    let samples = build.dataset.plan.samples;
+    let index = PathBuf::from(build.index_url());
+    let summary = build
+        .run(|done, total| progress(BuildProgress::Shard(done, total)))
+        .map_err(BuildFailure::InProcess)?;
+    Ok(BuildReport {
+        totals: coordinator::BuildReport {
+            built: summary.built,
+            skipped: summary.skipped,
+            samples_built: summary.samples_built,
+            regenerations: summary.regenerations,
+            complete: shards,
+            shards,
+            finalized: true,
+            ..coordinator::BuildReport::default()
+        },
+        samples,
+        index,
     })
 }
 

@@ -24,6 +24,8 @@
 //!
 //! - [`coordinator`]: `bettimill build --workers N` on one machine; worker processes speak
 //!   the [`protocol`] on their stdin/stdout; DIR/.lock ([`lock`]) keeps a second build out.
+//! - [`remote`]: `--out s3://BUCKET/PREFIX`: shards made here, staged locally only while
+//!   they upload, with a lease object as the lock.
 //! - [`cluster`]: Slurm array jobs and Kubernetes Indexed Jobs whose tasks run
 //!   [`worker::run_task`] on a shared file system, then `bettimill finalize DIR`.
 
@@ -35,6 +37,7 @@ pub mod memory;
 /// The directory lock (owned by `bettimill-format`, which takes it to create a directory).
 pub use bettimill_format::lock;
 pub mod protocol;
+pub mod remote;
 pub mod worker;
 
 pub use build::{build, BuildFailure, BuildProgress, BuildReport, BuildRequest, Runner};

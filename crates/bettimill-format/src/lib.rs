@@ -8,6 +8,8 @@
 //!   of resume, status and finalize ([`DatasetDir::check_tar`]), and the one way to read a
 //!   shard's members ([`DatasetDir::open_tar`]: checked against its record before reading,
 //!   one member at a time).
+//! - [`bucket`]: a dataset under `s3://BUCKET/PREFIX`, the same names as objects, and
+//!   [`lease`], its lock: create-only writes, the identity checked as on disk.
 //! - `tar_check`: the one streaming "does this tar match its record" check, which
 //!   [`DatasetDir::check_tar`] stops at the first problem of and [`verify()`] reports whole.
 //! - [`label`]: the label stored as `KEY.json` ([`Label`], [`ResolutionLabel`]).
@@ -27,11 +29,13 @@
 //! DIR/shardindex-SPLIT.json     wids indexes, DIR/README.md the dataset card
 //! ```
 
+pub mod bucket;
 pub mod classes;
 pub mod diff;
 pub mod dir;
 pub mod index;
 pub mod label;
+pub mod lease;
 pub mod lock;
 pub mod member;
 mod tar_check;
@@ -158,4 +162,7 @@ pub enum FormatError {
     /// `index.json` could not be read.
     #[error(transparent)]
     Index(#[from] IndexError),
+    /// Object storage failed (`s3://` datasets).
+    #[error(transparent)]
+    Object(#[from] bettimill_shard::object::ObjectError),
 }

@@ -591,6 +591,7 @@ fn build<'py>(
         max_memory: None,
         max_shard_failures: coordinator::DEFAULT_MAX_SHARD_FAILURES,
         worker_timeout: coordinator::DEFAULT_WORKER_TIMEOUT,
+        object: bettimill_executor::remote::ObjectOptions::default(),
     };
     // Ctrl-C in Python: the interpreter's handler only sets a flag, so a build by worker
     // processes asks for it every 100 ms and stops its workers (resumable, like the CLI's).

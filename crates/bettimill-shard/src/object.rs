@@ -203,7 +203,11 @@ impl ObjectDir {
         let provider = rustls::crypto::ring::default_provider();
         let _ = provider.install_default();
         let store = builder.build().map_err(|err| failed(err.to_string()))?;
-        let runtime = tokio::runtime::Builder::new_current_thread()
+        // Two I/O threads drive every connection; any thread may block on a request, so a
+        // writer can upload several objects at once from threads of its own.
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .thread_name("bettimill-object-io")
             .enable_all()
             .build()
             .map_err(|err| failed(format!("cannot start the I/O runtime: {err}")))?;
@@ -341,7 +345,13 @@ impl ObjectDir {
 
     /// Every object under the prefix, sorted by name.
     pub fn list(&self) -> Result<Vec<ObjectEntry>, ObjectError> {
-        let root = self.path("");
+        self.list_under("")
+    }
+
+    /// Every object under `PREFIX/under/` (`under` empty: the whole prefix), sorted by name
+    /// and named relative to the prefix.
+    pub fn list_under(&self, under: &str) -> Result<Vec<ObjectEntry>, ObjectError> {
+        let root = self.path(under);
         let skip = if self.prefix.is_empty() {
             0
         } else {
@@ -359,5 +369,65 @@ impl ObjectDir {
             .collect();
         entries.sort_by(|a, b| a.name.cmp(&b.name));
         Ok(entries)
+    }
+}
+
+/// A reader of one object that fetches it by ranges of at most [`RANGE_BYTES`]: memory stays
+/// at one range whatever the object's size.
+pub struct RangeReader<'a> {
+    dir: &'a ObjectDir,
+    name: String,
+    size: u64,
+    at: u64,
+    buffer: Vec<u8>,
+    used: usize,
+}
+
+/// The largest range a [`RangeReader`] fetches at once.
+pub const RANGE_BYTES: u64 = 8 << 20;
+
+impl ObjectDir {
+    /// A reader of the object `name`, whose size is `size` (from a listing or
+    /// [`ObjectDir::size`]): ranged requests of [`RANGE_BYTES`] at most, one at a time.
+    pub fn reader(&self, name: &str, size: u64) -> RangeReader<'_> {
+        RangeReader {
+            dir: self,
+            name: name.to_string(),
+            size,
+            at: 0,
+            buffer: Vec::new(),
+            used: 0,
+        }
+    }
+}
+
+impl std::io::Read for RangeReader<'_> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        if self.used == self.buffer.len() {
+            if self.at >= self.size || out.is_empty() {
+                return Ok(0);
+            }
+            let end = (self.at + RANGE_BYTES).min(self.size);
+            self.buffer = self
+                .dir
+                .get_range(&self.name, self.at..end)
+                .map_err(std::io::Error::other)?;
+            if self.buffer.is_empty() {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::UnexpectedEof,
+                    format!(
+                        "{}: shorter than {} bytes",
+                        self.dir.object_url(&self.name),
+                        self.size
+                    ),
+                ));
+            }
+            self.at += self.buffer.len() as u64;
+            self.used = 0;
+        }
+        let n = out.len().min(self.buffer.len() - self.used);
+        out[..n].copy_from_slice(&self.buffer[self.used..self.used + n]);
+        self.used += n;
+        Ok(n)
     }
 }

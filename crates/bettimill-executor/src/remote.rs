@@ -1,0 +1,283 @@
+//! Builds into object storage (`--out s3://BUCKET/PREFIX`) with the guarantees of a local
+//! build: the same objects, byte for byte, as the files of a local build of the manifest;
+//! create-only writes; records after their tars, `index.json` last; a lease instead of the
+//! directory lock; a build killed at any moment resumes against the bucket.
+//!
+//! Shards are made exactly as on disk ([`Dataset::write_shard`]) into a local staging
+//! directory, a dataset directory of the same manifest under the system's temporary
+//! directory, and uploaded from there by up to `max_uploads` threads while the next shard
+//! is made. A shard's tar leaves the staging directory as soon as its objects are in the
+//! bucket, so local disk holds at most `max_uploads + 1` shards; the records (small) stay
+//! there until `index.json` is written from them, as a local finalize writes it.
+
+use crate::{BuildError, BuildSummary, Dataset};
+use bettimill_env::EnvVars;
+use bettimill_format::bucket::{BucketDir, BucketShard};
+use bettimill_format::lease::Lease;
+use bettimill_format::FormatError;
+use bettimill_manifest::Manifest;
+use bettimill_plan::ShardPlan;
+use bettimill_shard::object::{ObjectError, S3Config};
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+/// Shards uploaded at once by default (`--max-uploads`).
+pub const DEFAULT_MAX_UPLOADS: usize = 4;
+
+/// How to reach object storage for an `s3://` output.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObjectOptions {
+    /// The server's base URL (`--endpoint`); `None` reads `AWS_ENDPOINT_URL`, and without
+    /// it the server is AWS S3.
+    pub endpoint: Option<String>,
+    /// Shards uploaded at once (at least 1); the staging directory holds at most one more.
+    pub max_uploads: usize,
+}
+
+impl Default for ObjectOptions {
+    fn default() -> Self {
+        ObjectOptions {
+            endpoint: None,
+            max_uploads: DEFAULT_MAX_UPLOADS,
+        }
+    }
+}
+
+/// The endpoint and credentials: `endpoint` when given, else `AWS_ENDPOINT_URL`; the key,
+/// secret, session token and region from the standard AWS variables.
+pub fn s3_config(endpoint: Option<&str>) -> S3Config {
+    let var = bettimill_env::var;
+    S3Config {
+        endpoint: endpoint
+            .map(str::to_string)
+            .or_else(|| var(EnvVars::AWS_ENDPOINT_URL))
+            .filter(|e| !e.is_empty()),
+        access_key_id: var(EnvVars::AWS_ACCESS_KEY_ID),
+        secret_access_key: var(EnvVars::AWS_SECRET_ACCESS_KEY),
+        session_token: var(EnvVars::AWS_SESSION_TOKEN).filter(|t| !t.is_empty()),
+        region: var(EnvVars::AWS_REGION)
+            .or_else(|| var(EnvVars::AWS_DEFAULT_REGION))
+            .filter(|r| !r.is_empty()),
+    }
+}
+
+/// Opens `url` with `endpoint` and the AWS variables: a wrong key, a missing bucket or an
+/// unreachable server is an error here, naming the URL.
+pub fn open_bucket(url: &str, endpoint: Option<&str>) -> Result<BucketDir, ObjectError> {
+    BucketDir::open(url, &s3_config(endpoint))
+}
+
+/// A bucket bound to a build, with its lease and its staging directory.
+pub(crate) struct BucketBuild {
+    bucket: BucketDir,
+    lease: Lease,
+    staging: tempfile::TempDir,
+    /// The staging directory's dataset: the plan, and the writer of shards and records.
+    pub(crate) dataset: Dataset,
+    max_uploads: usize,
+}
+
+impl BucketBuild {
+    /// Opens the bucket (checking the server, the credentials and the bucket), takes the
+    /// lease, creates the staging directory and binds the prefix to the manifest.
+    pub(crate) fn bind(
+        url: &str,
+        manifest_text: &str,
+        manifest: Manifest,
+        options: &ObjectOptions,
+    ) -> Result<BucketBuild, BuildError> {
+        let bucket = open_bucket(url, options.endpoint.as_deref()).map_err(FormatError::from)?;
+        let lease = Lease::acquire(&bucket)?;
+        let staging = tempfile::Builder::new()
+            .prefix("bettimill-staging-")
+            .tempdir()
+            .map_err(|source| BuildError::Io {
+                path: std::env::temp_dir(),
+                source,
+            })?;
+        let dataset = Dataset::bind(staging.path(), manifest_text, manifest)?;
+        let layout = dataset.layout();
+        let read = |path: &Path| {
+            std::fs::read(path).map_err(|source| BuildError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        };
+        let info = layout.read_build_info()?;
+        bucket.bind(
+            &read(&layout.manifest_path())?,
+            &read(&layout.build_info_path())?,
+            &info,
+        )?;
+        Ok(BucketBuild {
+            bucket,
+            lease,
+            staging,
+            dataset,
+            max_uploads: options.max_uploads.max(1),
+        })
+    }
+
+    /// The URL of `index.json`.
+    pub(crate) fn index_url(&self) -> String {
+        self.bucket
+            .objects()
+            .object_url(bettimill_format::dir::INDEX_FILE)
+    }
+
+    /// Builds every shard the bucket lacks, then writes the finalized files, `index.json`
+    /// last. `progress` gets (shards done, shards in the plan) as each shard is made and
+    /// handed to an uploader.
+    pub(crate) fn run(
+        self,
+        mut progress: impl FnMut(u64, u64),
+    ) -> Result<BuildSummary, BuildError> {
+        let dataset = &self.dataset;
+        let total = dataset.plan.shard_count();
+        let mut summary = BuildSummary {
+            dataset_samples: dataset.plan.samples,
+            ..BuildSummary::default()
+        };
+        // One listing; then the records of complete shards come into the staging
+        // directory, for index.json.
+        let sizes = self.bucket.sizes()?;
+        let mut missing = Vec::new();
+        for shard in dataset.plan.shards() {
+            match self.bucket.shard_state(&shard.name, &sizes)? {
+                BucketShard::Complete { record, .. }
+                    if record.shard.split == shard.split
+                        && record.shard.samples == shard.samples =>
+                {
+                    dataset.layout().write_record(&shard.name, &record)?;
+                    summary.skipped += 1;
+                }
+                BucketShard::Complete { .. } => {
+                    return Err(self.invalid(&shard, "its record disagrees with the plan"))
+                }
+                BucketShard::Invalid { reason } => return Err(self.invalid(&shard, &reason)),
+                BucketShard::Missing => missing.push(shard),
+            }
+        }
+        progress(summary.skipped, total);
+        let failure: Mutex<Option<BuildError>> = Mutex::new(None);
+        let failed = || failure.lock().map(|f| f.is_some()).unwrap_or(true);
+        let this = &self;
+        std::thread::scope(|scope| -> Result<(), BuildError> {
+            // A rendezvous channel: a made shard waits until an uploader is free, so at
+            // most `max_uploads` shards are staged besides the one being made.
+            let (send, receive) = std::sync::mpsc::sync_channel::<ShardPlan>(0);
+            let receive = Arc::new(Mutex::new(receive));
+            for _ in 0..this.max_uploads {
+                let receive = Arc::clone(&receive);
+                let failure = &failure;
+                scope.spawn(move || loop {
+                    let next = receive.lock().ok().and_then(|r| r.recv().ok());
+                    let Some(shard) = next else { return };
+                    if let Err(err) = this.upload(&shard) {
+                        if let Ok(mut failure) = failure.lock() {
+                            failure.get_or_insert(err);
+                        }
+                    }
+                });
+            }
+            for shard in missing {
+                if failed() {
+                    break;
+                }
+                this.check_lease()?;
+                let record = dataset.write_shard(&shard)?;
+                summary.built += 1;
+                summary.samples_built += shard.samples;
+                summary.regenerations += record.regenerations.iter().map(|r| r.1).sum::<u64>();
+                if send.send(shard).is_err() {
+                    break;
+                }
+                // Made and handed to an uploader (the index waits for every upload).
+                progress(summary.skipped + summary.built, total);
+            }
+            Ok(())
+        })?;
+        if let Some(err) = failure.into_inner().ok().flatten() {
+            return Err(err);
+        }
+        self.check_lease()?;
+        // The finalized files from the plan and the records, as a local finalize makes
+        // them; index.json comes last, so its presence means the dataset is complete.
+        let root = dataset.dir.clone();
+        for (path, bytes) in dataset.finalized_bytes()? {
+            let name = path
+                .strip_prefix(&root)
+                .map(|p| p.to_string_lossy().replace('\\', "/"))
+                .unwrap_or_default();
+            self.check_lease()?;
+            self.bucket.put_same(&name, bytes)?;
+        }
+        drop(self.lease);
+        drop(self.staging);
+        Ok(summary)
+    }
+
+    /// Uploads a staged shard: its tar, then its record, then (statistics only) its timing;
+    /// then removes its tar and timing from the staging directory.
+    fn upload(&self, shard: &ShardPlan) -> Result<(), BuildError> {
+        let layout = self.dataset.layout();
+        let read = |path: &Path| {
+            std::fs::read(path).map_err(|source| BuildError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        };
+        let tar = layout.tar_path(&shard.name);
+        self.check_lease()?;
+        self.bucket
+            .put_same(&BucketDir::tar_name(&shard.name), read(&tar)?)?;
+        self.check_lease()?;
+        self.bucket.put_same(
+            &BucketDir::record_name(&shard.name),
+            read(&layout.record_path(&shard.name))?,
+        )?;
+        let timing = layout.timing_path(&shard.name);
+        if let Ok(bytes) = std::fs::read(&timing) {
+            // Times differ between runs: an earlier run's timing stays.
+            let _ = self
+                .bucket
+                .objects()
+                .put_new(&BucketDir::timing_name(&shard.name), bytes);
+        }
+        for path in [tar, timing] {
+            match std::fs::remove_file(&path) {
+                Err(err) if err.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(BuildError::Io { path, source: err })
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    fn check_lease(&self) -> Result<(), BuildError> {
+        if self.lease.lost() {
+            return Err(BuildError::Corrupt {
+                path: self.lease.url().into(),
+                reason: "another build took this build's lease (it could not renew it in time); \
+                         stopping: run the build again once the other one is done"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
+
+    fn invalid(&self, shard: &ShardPlan, reason: &str) -> BuildError {
+        BuildError::Corrupt {
+            path: self
+                .bucket
+                .objects()
+                .object_url(&BucketDir::tar_name(&shard.name))
+                .into(),
+            reason: format!(
+                "{reason}; objects are never overwritten: delete {} and its record, then build again",
+                BucketDir::tar_name(&shard.name)
+            ),
+        }
+    }
+}
