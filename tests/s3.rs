@@ -1,0 +1,346 @@
+//! `bettimill build --out s3://BUCKET/PREFIX` against a real local S3 server (moto_server,
+//! started by ci/s3-up.sh): the objects equal a local build's files byte for byte; a build
+//! killed (kill -9 of the real binary) resumes against the bucket to the same bytes; a
+//! second writer is refused while the first holds the lease and nothing is overwritten; a
+//! bad endpoint, a missing bucket and wrong credentials are one line naming the URL, exit 2.
+//!
+//! System tests: they run only with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it), because
+//! they install and start the server (idempotent). When it cannot be started they fail in
+//! CI (CI=true) and are skipped with a message elsewhere.
+
+mod common;
+
+use bettimill_shard::object::{ObjectDir, S3Config};
+use bettimill_testkit::{skip_unless_ci, system_test};
+use common::{assert_exit, ball_and_handle, bettimill, stderr, Dir};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+/// The local server: its variables (for the child processes) and the bucket.
+struct Server {
+    vars: Vec<(String, String)>,
+    bucket: String,
+}
+
+impl Server {
+    /// Starts the server (a no-op when it is up); `None` (skip) only outside CI.
+    fn up() -> Option<Server> {
+        let script = common::repo_root().join("ci/s3-up.sh");
+        let reason = match Command::new("bash").arg(&script).output() {
+            Ok(out) if out.status.success() => None,
+            Ok(out) => Some(format!(
+                "{} exited with {}:\n{}",
+                script.display(),
+                out.status,
+                String::from_utf8_lossy(&out.stderr)
+            )),
+            Err(err) => Some(format!("cannot run {}: {err}", script.display())),
+        };
+        if let Some(reason) = reason {
+            skip_unless_ci("a local S3 server", &reason);
+            return None;
+        }
+        let env = std::fs::read_to_string("/tmp/bettimill-s3/env").expect("ci/s3-up.sh wrote env");
+        let mut vars = Vec::new();
+        let mut bucket = None;
+        for line in env.lines() {
+            let (key, value) = line.split_once('=').expect("KEY=VALUE");
+            if key == "BETTIMILL_S3_CI_BUCKET" {
+                bucket = Some(value.to_string());
+            } else {
+                vars.push((key.to_string(), value.to_string()));
+            }
+        }
+        Some(Server {
+            vars,
+            bucket: bucket.expect("the env file names the bucket"),
+        })
+    }
+
+    fn var(&self, key: &str) -> String {
+        self.vars
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.clone())
+            .unwrap_or_else(|| panic!("no {key}"))
+    }
+
+    /// A URL under a prefix no earlier run used (the server keeps its objects while it runs).
+    fn fresh_url(&self, test: &str) -> String {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap()
+            .as_nanos();
+        format!(
+            "s3://{}/cli-tests/{test}-{}-{nanos}",
+            self.bucket,
+            std::process::id()
+        )
+    }
+
+    /// A `bettimill` command that reaches the server through the AWS variables alone.
+    fn command(&self) -> Command {
+        let mut command = bettimill();
+        for key in [
+            "AWS_ACCESS_KEY_ID",
+            "AWS_SECRET_ACCESS_KEY",
+            "AWS_SESSION_TOKEN",
+            "AWS_REGION",
+            "AWS_DEFAULT_REGION",
+            "AWS_ENDPOINT_URL",
+        ] {
+            command.env_remove(key);
+        }
+        command.envs(self.vars.iter().map(|(k, v)| (k, v)));
+        command
+    }
+
+    fn build(&self, manifest: &Path, out: &str, extra: &[&str]) -> Output {
+        self.command()
+            .args(["build", manifest.to_str().unwrap(), "--out", out])
+            .args(extra)
+            .output()
+            .unwrap()
+    }
+
+    /// The objects under `url`, opened as the tests' own client.
+    fn objects(&self, url: &str) -> ObjectDir {
+        let config = S3Config {
+            endpoint: Some(self.var("AWS_ENDPOINT_URL")),
+            access_key_id: Some(self.var("AWS_ACCESS_KEY_ID")),
+            secret_access_key: Some(self.var("AWS_SECRET_ACCESS_KEY")),
+            session_token: None,
+            region: Some(self.var("AWS_REGION")),
+        };
+        ObjectDir::open(url, &config).unwrap()
+    }
+}
+
+/// A manifest of 3D balls and handles: 12 shards of 2 samples.
+fn manifest(dir: &Dir) -> PathBuf {
+    ball_and_handle(dir.join("m.toml"), "s3test", 3, 24, 24, 2, 11)
+}
+
+/// Every object under `url` but the build timings (`timings/`, never the same twice) is
+/// byte for byte the file of the same name in the local dataset `local`, and the local
+/// dataset has no other file (its lock and temporaries, names starting with a dot, aside).
+/// Nothing else is left under the prefix: no lease, no temporary.
+#[track_caller]
+fn assert_same_as_local(server: &Server, url: &str, local: &Path) {
+    let dir = server.objects(url);
+    let objects: BTreeMap<String, u64> = dir
+        .list()
+        .unwrap()
+        .into_iter()
+        .map(|e| (e.name, e.bytes))
+        .filter(|(name, _)| !name.starts_with("timings/"))
+        .collect();
+    let files: BTreeMap<String, Vec<u8>> = common::snapshot(local)
+        .into_iter()
+        .map(|(path, bytes)| (path.to_string_lossy().into_owned(), bytes))
+        .filter(|(name, _)| {
+            !Path::new(name)
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with('.')
+        })
+        .collect();
+    assert!(files.contains_key("index.json"), "{}", local.display());
+    assert_eq!(
+        objects.keys().collect::<Vec<_>>(),
+        files.keys().collect::<Vec<_>>(),
+        "{url} and {} hold different names",
+        local.display()
+    );
+    for (name, bytes) in &files {
+        let got = dir.get(name).unwrap().unwrap();
+        assert!(&got == bytes, "{url}/{name} differs from the local file");
+    }
+}
+
+#[test]
+fn a_build_to_a_bucket_equals_a_local_build_object_for_object() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    let manifest = manifest(&dir);
+    let local = dir.join("local");
+    assert_exit(&common::build(&manifest, &local, 2), 0);
+    let url = server.fresh_url("equal");
+    let out = server.build(&manifest, &url, &["--max-uploads", "2"]);
+    assert_exit(&out, 0);
+    assert!(
+        stderr(&out).contains(&format!("{url}/index.json")),
+        "{}",
+        stderr(&out)
+    );
+    assert_same_as_local(&server, &url, &local);
+    // Timings are uploaded for stats, one per shard.
+    let timings = server
+        .objects(&url)
+        .list()
+        .unwrap()
+        .into_iter()
+        .filter(|e| e.name.starts_with("timings/"))
+        .count();
+    assert_eq!(timings, 12);
+
+    // A second build of a finished prefix builds nothing and changes nothing.
+    let again = server.build(&manifest, &url, &[]);
+    assert_exit(&again, 0);
+    assert!(
+        stderr(&again).contains("built 0 shards, skipped 12 complete"),
+        "{}",
+        stderr(&again)
+    );
+    assert_same_as_local(&server, &url, &local);
+}
+
+#[test]
+fn a_killed_build_resumes_against_the_bucket_to_the_same_bytes() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    let manifest = manifest(&dir);
+    let local = dir.join("local");
+    assert_exit(&common::build(&manifest, &local, 2), 0);
+    let url = server.fresh_url("killed");
+    let objects = server.objects(&url);
+    let records = || objects.list_under("records").map(|l| l.len()).unwrap_or(0);
+    // Each shard waits in its staging write, so the kills land while shards are made and
+    // uploaded: after the first record, then after the fifth.
+    for records_before_kill in [1, 5] {
+        let mut child = server
+            .command()
+            .args(["build", manifest.to_str().unwrap(), "--out", &url])
+            .env("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "0.3")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        common::wait_until("records in the bucket", Duration::from_secs(120), || {
+            records() >= records_before_kill
+        });
+        assert!(common::kill("-9", child.id()));
+        child.wait().unwrap();
+        assert_eq!(
+            objects.size("index.json").unwrap(),
+            None,
+            "the build was killed before its end"
+        );
+    }
+    let resumed = server.build(&manifest, &url, &[]);
+    assert_exit(&resumed, 0);
+    assert!(
+        !stderr(&resumed).contains("skipped 0 complete"),
+        "the resumed build found the killed builds' shards: {}",
+        stderr(&resumed)
+    );
+    assert_same_as_local(&server, &url, &local);
+}
+
+#[test]
+fn a_second_writer_is_refused_and_nothing_is_overwritten() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    let manifest = manifest(&dir);
+    let url = server.fresh_url("writers");
+    let objects = server.objects(&url);
+    // The first build holds the lease while it waits at start-up.
+    let first = server
+        .command()
+        .args(["build", manifest.to_str().unwrap(), "--out", &url])
+        .env("BETTIMILL_TEST_PAUSE_AT_STARTUP", "4")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    common::wait_until("the first build's lease", Duration::from_secs(60), || {
+        objects.list_under(".lease").is_ok_and(|l| !l.is_empty())
+    });
+    let second = server.build(&manifest, &url, &[]);
+    assert_exit(&second, 2);
+    let text = stderr(&second);
+    assert!(
+        text.contains("another bettimill build is running in"),
+        "{text}"
+    );
+    assert!(text.contains(&url), "{text}");
+    let first = first.wait_with_output().unwrap();
+    assert_exit(&first, 0);
+    let local = dir.join("local");
+    assert_exit(&common::build(&manifest, &local, 1), 0);
+    assert_same_as_local(&server, &url, &local);
+
+    // An object another writer left with other bytes is never overwritten: the build
+    // stops naming it, and the object keeps its bytes. (The prefix is that writer's
+    // dataset of the same manifest: a prefix without build.json is refused whole.)
+    let finished = objects;
+    let url = server.fresh_url("other-bytes");
+    let objects = server.objects(&url);
+    for identity in ["manifest.toml", "build.json"] {
+        let bytes = finished.get(identity).unwrap().unwrap();
+        objects.put_new(identity, bytes).unwrap();
+    }
+    let planted = b"not the shard bettimill writes".to_vec();
+    let name = "shards/s3test-000003.tar";
+    objects.put_new(name, planted.clone()).unwrap();
+    let refused = server.build(&manifest, &url, &[]);
+    assert_exit(&refused, 2);
+    let text = stderr(&refused);
+    assert!(
+        text.contains(&format!("{url}/{name}: exists and differs")),
+        "{text}"
+    );
+    assert_eq!(objects.get(name).unwrap(), Some(planted));
+    assert_eq!(objects.size("index.json").unwrap(), None);
+}
+
+#[test]
+fn a_bad_endpoint_a_missing_bucket_and_wrong_credentials_are_one_line_exit_2() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    let manifest = manifest(&dir);
+    let url = server.fresh_url("errors");
+    let one_line = |out: &Output, needle: &str| {
+        assert_exit(out, 2);
+        let text = stderr(out);
+        assert_eq!(text.trim_end().lines().count(), 1, "one line: {text}");
+        assert!(text.starts_with(&format!("error: {needle}")), "{text}");
+    };
+    // Nothing listens on port 9 (discard) of loopback.
+    let out = server.build(&manifest, &url, &["--endpoint", "http://127.0.0.1:9"]);
+    one_line(&out, &format!("{url}: "));
+    assert!(
+        stderr(&out).contains("http://127.0.0.1:9"),
+        "{}",
+        stderr(&out)
+    );
+    let out = server.build(&manifest, "s3://no-such-bucket-here/x", &[]);
+    one_line(
+        &out,
+        "s3://no-such-bucket-here/x: the bucket no-such-bucket-here does not exist",
+    );
+    let out = server
+        .command()
+        .env("AWS_SECRET_ACCESS_KEY", "not-the-secret")
+        .args(["build", manifest.to_str().unwrap(), "--out", &url])
+        .output()
+        .unwrap();
+    one_line(&out, &format!("{url}: the server refused the credentials"));
+    // Nothing was written by any of them.
+    assert_eq!(server.objects(&url).list().unwrap(), vec![]);
+}
