@@ -344,3 +344,82 @@ fn a_bad_endpoint_a_missing_bucket_and_wrong_credentials_are_one_line_exit_2() {
     // Nothing was written by any of them.
     assert_eq!(server.objects(&url).list().unwrap(), vec![]);
 }
+
+#[test]
+fn verify_and_status_read_a_bucket_and_verify_finds_a_flipped_byte() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    let manifest = manifest(&dir);
+    let url = server.fresh_url("verify");
+    let objects = server.objects(&url);
+    let run = |args: &[&str]| server.command().args(args).output().unwrap();
+
+    // Half-way: status names what is done and what is missing.
+    let mut child = server
+        .command()
+        .args(["build", manifest.to_str().unwrap(), "--out", &url])
+        .env("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "0.3")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    common::wait_until("records in the bucket", Duration::from_secs(120), || {
+        objects.list_under("records").is_ok_and(|l| l.len() >= 2)
+    });
+    assert!(common::kill("-9", child.id()));
+    child.wait().unwrap();
+    let status = run(&["status", &url, "--json"]);
+    assert_exit(&status, 0);
+    let report: serde_json::Value = serde_json::from_slice(&status.stdout).unwrap();
+    let complete = report["complete_count"].as_u64().unwrap();
+    assert!((2..12).contains(&complete), "{report}");
+    assert_eq!(report["missing_count"].as_u64().unwrap(), 12 - complete);
+    assert_eq!(report["finalized"], false);
+    let unfinished = run(&["verify", &url]);
+    assert_exit(&unfinished, 2);
+    assert!(stderr(&unfinished).contains("not a finished bettimill dataset"));
+
+    assert_exit(&server.build(&manifest, &url, &[]), 0);
+    let ok = run(&["verify", &url]);
+    assert_exit(&ok, 0);
+    assert_eq!(
+        common::stdout(&ok),
+        format!("ok: 12 shards and 5 other files match {url}/index.json\n")
+    );
+    let status = run(&["status", &url]);
+    assert_exit(&status, 0);
+    assert!(
+        common::stdout(&status).starts_with(&format!(
+            "{url}: 12 of 12 shards complete, 0 missing, 0 invalid; index.json written"
+        )),
+        "{}",
+        common::stdout(&status)
+    );
+
+    // One flipped bit in the last byte of a shard's first array: verify names the member.
+    let name = "shards/s3test-000004.tar";
+    let mut bytes = objects.get(name).unwrap().unwrap();
+    let record = objects.get("records/s3test-000004.json").unwrap().unwrap();
+    let record: serde_json::Value = serde_json::from_slice(&record).unwrap();
+    let member = record["shard"]["members"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["name"].as_str().unwrap().ends_with(".npy"))
+        .unwrap();
+    let at = (member["offset"].as_u64().unwrap() + member["bytes"].as_u64().unwrap() - 1) as usize;
+    bytes[at] ^= 1;
+    objects.delete(name).unwrap();
+    objects.put_new(name, bytes).unwrap();
+    let bad = run(&["verify", &url, "--json"]);
+    assert_exit(&bad, 1);
+    let report: serde_json::Value = serde_json::from_slice(&bad.stdout).unwrap();
+    let problems = report["problems"].as_array().unwrap();
+    assert_eq!(problems.len(), 1, "{report}");
+    assert_eq!(problems[0]["kind"], "data_corrupt");
+    assert_eq!(problems[0]["shard"], name);
+    assert_eq!(problems[0]["member"], member["name"]);
+}

@@ -80,7 +80,7 @@ enum Command {
     ///
     /// Example: bettimill status /shared/demo --json
     Status {
-        /// The dataset directory.
+        /// The dataset directory, or s3://BUCKET/PREFIX (read with the AWS_* variables).
         dir: PathBuf,
         /// Print the report as JSON.
         #[arg(long)]
@@ -96,7 +96,7 @@ enum Command {
     ///
     /// Example: bettimill verify demo-out
     Verify {
-        /// The dataset directory.
+        /// The dataset directory, or s3://BUCKET/PREFIX (read with the AWS_* variables).
         dir: PathBuf,
         /// Print the report as JSON.
         #[arg(long)]
@@ -396,28 +396,47 @@ fn plan_file_problems(dir: &Path) -> Vec<bettimill_format::Problem> {
     }
 }
 
+/// The `s3://BUCKET/PREFIX` URL a dataset argument names, if it names one.
+pub(crate) fn object_url(dir: &Path) -> Option<&str> {
+    dir.to_str()
+        .filter(|d| bettimill_shard::object::is_object_url(d))
+}
+
 fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
     // The bar appears once the index is read and the number of shards known.
     let mut bar = None;
-    let report = bettimill_format::DatasetDir::new(dir).verify(&mut |done, total| {
+    let mut progress = |done, total| {
         bar.get_or_insert_with(|| crate::progress::bar(total, "shards", "verifying", quiet))
             .set_position(done);
-    });
+    };
+    let (report, index) = match object_url(dir) {
+        Some(url) => {
+            let bucket = bettimill_executor::remote::open_bucket(url, None)?;
+            let report = bucket.verify(&mut progress);
+            (report, format!("{url}/index.json"))
+        }
+        None => (
+            bettimill_format::DatasetDir::new(dir).verify(&mut progress),
+            bettimill_format::DatasetDir::new(dir)
+                .index_path()
+                .display()
+                .to_string(),
+        ),
+    };
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
     let mut report = report?;
-    report.problems.extend(plan_file_problems(dir));
+    if object_url(dir).is_none() {
+        report.problems.extend(plan_file_problems(dir));
+    }
     if json {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else if report.problems.is_empty() {
         outln!(
-            "ok: {} shards and {} other files match {}",
+            "ok: {} shards and {} other files match {index}",
             report.shards_checked,
             report.files_checked,
-            bettimill_format::DatasetDir::new(dir)
-                .index_path()
-                .display()
         );
     } else {
         for problem in &report.problems {

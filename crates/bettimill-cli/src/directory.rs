@@ -89,9 +89,13 @@ fn file_identity(path: &Path) -> Option<(u64, u64, Option<std::time::SystemTime>
 
 /// `bettimill status DIR`.
 pub fn status(dir: &Path, json: bool) -> anyhow::Result<ExitStatus> {
-    bettimill_format::DatasetDir::new(dir).require_bound()?;
-    let dataset = Dataset::open(dir)?;
-    let report = cluster::status(&dataset);
+    let report = match crate::commands::object_url(dir) {
+        Some(url) => bettimill_executor::remote::bucket_status(url, None)?,
+        None => {
+            bettimill_format::DatasetDir::new(dir).require_bound()?;
+            cluster::status(&Dataset::open(dir)?)
+        }
+    };
     let mut text = String::new();
     if json {
         text = serde_json::to_string_pretty(&report)?;

@@ -281,3 +281,65 @@ impl BucketBuild {
         }
     }
 }
+
+/// `status` of a dataset in a bucket: every planned shard complete (its record, and a tar
+/// of the record's size), missing or invalid, from one listing and the records; the plan
+/// comes from the stored manifest, checked against `build.json` as a directory's is.
+pub fn bucket_status(
+    url: &str,
+    endpoint: Option<&str>,
+) -> Result<crate::cluster::StatusReport, BuildError> {
+    use crate::cluster::{InvalidShard, StatusReport, STATUS_NAMES};
+    let bucket = open_bucket(url, endpoint).map_err(FormatError::from)?;
+    let text = bucket.read_manifest_text()?;
+    let manifest = Manifest::parse(&text, Path::new(url))?;
+    let plan = bettimill_plan::Plan::new(&manifest)?;
+    let expected = bettimill_format::BuildInfo::current(plan.manifest_hash.clone(), plan.hash());
+    bettimill_format::check_build_info(Path::new(url), &bucket.read_build_info()?, &expected)?;
+    let sizes = bucket.sizes()?;
+    let mut report = StatusReport {
+        dir: url.into(),
+        shards: plan.shard_count(),
+        finalized: sizes.contains_key(bettimill_format::dir::INDEX_FILE),
+        ..StatusReport::default()
+    };
+    for shard in plan.shards() {
+        let state = match bucket.shard_state(&shard.name, &sizes)? {
+            BucketShard::Complete { record, .. }
+                if record.shard.split != shard.split || record.shard.samples != shard.samples =>
+            {
+                BucketShard::Invalid {
+                    reason: format!(
+                        "its record says {} samples of split {}, the plan has {} of split {}",
+                        record.shard.samples, record.shard.split, shard.samples, shard.split
+                    ),
+                }
+            }
+            state => state,
+        };
+        match state {
+            BucketShard::Complete { .. } => {
+                report.complete_count += 1;
+                if report.complete.len() < STATUS_NAMES {
+                    report.complete.push(shard.name);
+                }
+            }
+            BucketShard::Missing => {
+                report.missing_count += 1;
+                if report.missing.len() < STATUS_NAMES {
+                    report.missing.push(shard.name);
+                }
+            }
+            BucketShard::Invalid { reason } => {
+                report.invalid_count += 1;
+                if report.invalid.len() < STATUS_NAMES {
+                    report.invalid.push(InvalidShard {
+                        shard: shard.name,
+                        reason,
+                    });
+                }
+            }
+        }
+    }
+    Ok(report)
+}

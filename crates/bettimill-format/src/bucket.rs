@@ -247,3 +247,214 @@ impl BucketDir {
         }
     }
 }
+
+impl BucketDir {
+    /// `verify` of a dataset in a bucket: every shard listed in `index.json` against its
+    /// record (whose blake3 the index keeps) and byte for byte against the record's layout,
+    /// every other file against the index's `files`, and any tar under `shards/` the index
+    /// does not list. Objects are read by ranges ([`ObjectDir::reader`]), one at a time:
+    /// memory holds one range, whatever the sizes. `progress` gets (shards checked, shards
+    /// in the index).
+    pub fn verify(
+        &self,
+        progress: &mut dyn FnMut(u64, u64),
+    ) -> Result<crate::VerifyReport, FormatError> {
+        use crate::tar_check::{file_problems, record_problems, Depth};
+        use crate::{NoRecord, Problem};
+        let sizes = self.sizes()?;
+        let index_name = crate::dir::INDEX_FILE;
+        let Some(&index_size) = sizes.get(index_name) else {
+            return Err(FormatError::NotADataset {
+                dir: self.url_path(),
+                found: if sizes.contains_key(BUILD_INFO_FILE) {
+                    "a build that is not finished; run the same build again to resume it".into()
+                } else {
+                    "no bettimill dataset".into()
+                },
+            });
+        };
+        let mut report = crate::VerifyReport::default();
+        let mut started = false;
+        let index_url = PathBuf::from(self.objects.object_url(index_name));
+        let header = crate::read_index_from(
+            std::io::BufReader::with_capacity(1 << 16, self.objects.reader(index_name, index_size)),
+            &index_url,
+            &mut |header, entry| {
+                if !started {
+                    progress(0, header.shard_count);
+                    started = true;
+                }
+                report.shards_checked += 1;
+                report.samples_checked += entry.samples;
+                let problems = &mut report.problems;
+                let stem = DatasetDir::shard_stem(&entry.name).to_string();
+                let record_name = Self::record_name(&stem);
+                let record_url = PathBuf::from(self.objects.object_url(&record_name));
+                let record = match self.objects.get(&record_name) {
+                    Ok(Some(bytes)) => {
+                        let found = bettimill_shard::blake3_hex(&bytes);
+                        if found != entry.record_blake3 {
+                            Err(NoRecord::HashDiffers {
+                                path: record_url,
+                                found,
+                                indexed: entry.record_blake3.clone(),
+                            })
+                        } else {
+                            serde_json::from_slice::<CompletionRecord>(&bytes).map_err(|err| {
+                                NoRecord::Unreadable(FormatError::Corrupt {
+                                    path: record_url,
+                                    reason: format!("not a completion record: {err}"),
+                                })
+                            })
+                        }
+                    }
+                    Ok(None) => Err(NoRecord::Missing { path: record_url }),
+                    Err(err) => Err(NoRecord::Unreadable(err.into())),
+                };
+                let size = sizes.get(&entry.name).copied();
+                let record = match record {
+                    Ok(record) => record.shard,
+                    Err(reason) => {
+                        problems.push(Problem::RecordInconsistent {
+                            shard: entry.name.clone(),
+                            reason: reason.to_string(),
+                        });
+                        match self.hash(&entry.name) {
+                            Ok(None) => problems.push(Problem::MissingShard {
+                                shard: entry.name.clone(),
+                            }),
+                            Ok(Some((bytes, hash)))
+                                if bytes == entry.bytes
+                                    && hash.to_hex().as_str() == entry.blake3 =>
+                            {
+                                report.bytes_checked += bytes
+                            }
+                            Ok(Some(_)) => problems.push(Problem::RecordInconsistent {
+                                shard: entry.name.clone(),
+                                reason: "its size or blake3 differs from index.json's".into(),
+                            }),
+                            Err(err) => problems.push(Problem::Unreadable {
+                                path: self.objects.object_url(&entry.name),
+                                error: err.to_string(),
+                            }),
+                        }
+                        progress(report.shards_checked, header.shard_count);
+                        return;
+                    }
+                };
+                if let Some(reason) = record.disagreement(&entry) {
+                    problems.push(Problem::RecordInconsistent {
+                        shard: entry.name.clone(),
+                        reason,
+                    });
+                }
+                let consistent = record_problems(&record, problems);
+                match size {
+                    None => problems.push(Problem::MissingShard {
+                        shard: record.name.clone(),
+                    }),
+                    Some(len) if !consistent => match self.hash(&entry.name) {
+                        Ok(Some((bytes, hash)))
+                            if bytes == record.bytes && hash.to_hex().as_str() == record.blake3 =>
+                        {
+                            report.bytes_checked += bytes
+                        }
+                        Ok(_) => problems.push(Problem::RecordInconsistent {
+                            shard: entry.name.clone(),
+                            reason: format!("{len} bytes, not the record's size and blake3"),
+                        }),
+                        Err(err) => problems.push(Problem::Unreadable {
+                            path: self.objects.object_url(&entry.name),
+                            error: err.to_string(),
+                        }),
+                    },
+                    Some(len) => {
+                        let mut reader = self.objects.reader(&entry.name, len);
+                        match file_problems(&record, &mut reader, len, Depth::All, problems) {
+                            Ok(read) => report.bytes_checked += read,
+                            Err(err) => problems.push(Problem::Unreadable {
+                                path: self.objects.object_url(&entry.name),
+                                error: err.to_string(),
+                            }),
+                        }
+                    }
+                }
+                progress(report.shards_checked, header.shard_count);
+            },
+        )?;
+        if !started {
+            progress(0, header.shard_count);
+        }
+        for name in crate::REQUIRED_FILES {
+            if !header.files.iter().any(|f| f.name == *name) {
+                report.problems.push(Problem::File {
+                    path: name.to_string(),
+                    reason: "not listed in index.json's files".into(),
+                });
+            }
+        }
+        for file in &header.files {
+            report.files_checked += 1;
+            let reason = match self.hash(&file.name) {
+                Ok(None) => Some("missing".to_string()),
+                Ok(Some((bytes, _))) if bytes != file.bytes => {
+                    Some(format!("{bytes} bytes, index.json says {}", file.bytes))
+                }
+                Ok(Some((_, hash))) if hash.to_hex().as_str() != file.blake3 => Some(format!(
+                    "blake3 {}, index.json says {}",
+                    hash.to_hex(),
+                    file.blake3
+                )),
+                Ok(Some(_)) => None,
+                Err(err) => Some(err.to_string()),
+            };
+            if let Some(reason) = reason {
+                report.problems.push(Problem::File {
+                    path: file.name.clone(),
+                    reason,
+                });
+            }
+        }
+        // Tars the index does not list: the listing's names, less the index's (read again,
+        // so no list of the index's names is kept beside the listing).
+        let mut extra: std::collections::BTreeSet<&String> = sizes
+            .keys()
+            .filter(|name| name.starts_with(crate::dir::SHARDS_DIR) && name.contains('/'))
+            .collect();
+        crate::read_index_from(
+            std::io::BufReader::with_capacity(1 << 16, self.objects.reader(index_name, index_size)),
+            &index_url,
+            &mut |_, entry| {
+                extra.remove(&entry.name);
+            },
+        )?;
+        for path in extra {
+            report
+                .problems
+                .push(Problem::ExtraFile { path: path.clone() });
+        }
+        // The index's identity must be the dataset's, as in a directory.
+        match self.read_build_info() {
+            Ok(info) => {
+                for (field, indexed, built) in [
+                    ("tool_version", &header.tool_version, &info.tool_version),
+                    ("manifest_hash", &header.manifest_hash, &info.manifest_hash),
+                    ("plan_hash", &header.plan_hash, &info.plan_hash),
+                ] {
+                    if indexed != built {
+                        report.problems.push(Problem::File {
+                            path: index_name.into(),
+                            reason: format!("{field} is {indexed}, build.json says {built}"),
+                        });
+                    }
+                }
+            }
+            Err(err) => report.problems.push(Problem::File {
+                path: BUILD_INFO_FILE.into(),
+                reason: err.to_string(),
+            }),
+        }
+        report.header = Some(header);
+        Ok(report)
+    }
+}
