@@ -10,6 +10,7 @@
 //!   driven from one place (the executor's `build`): the CLI and the Python binding neither
 //!   make build options nor read scheduler variables.
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
+//! - The CLI prints only through its `Printer`, which alone knows `--quiet`.
 //! - A check shared by several commands (a plain file, a file against its record, a tar
 //!   against its record) is defined once, by the file that owns it.
 
@@ -909,4 +910,75 @@ fn each_shared_check_is_defined_once_by_its_owner() {
         ));
     }
     assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+// ------------------------------------------------------------ the CLI's one printer
+
+/// What prints or decides quietness in the CLI: print macros, the standard streams, and the
+/// `quiet` flag read outside the printer.
+const PRINTING: &[&str] = &[
+    "println!(",
+    "print!(",
+    "eprint!(",
+    "dbg!(",
+    "std::io::stdout",
+    "std::io::stderr",
+    "io::stdout()",
+    "io::stderr()",
+    "quiet",
+];
+
+/// Where `code` prints or reads quietness itself: `(line, needle)`, comment lines left out.
+fn printing(code: &str) -> Vec<(usize, &'static str)> {
+    let mut found = Vec::new();
+    for (number, line) in code_lines(code) {
+        for &needle in PRINTING {
+            if line.contains(needle) {
+                found.push((number, needle));
+                break;
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn printing_checker_finds_prints_streams_and_quietness() {
+    let bad = "// eprintln!(\"in a comment\")\nif !quiet {\n    eprintln!(\"x\");\n}\n\
+               print!(\"{yaml}\");\nlet out = std::io::stdout().lock();\noutln!(\"data\")?;\n\
+               printer.note(\"fine\");\n";
+    let lines: Vec<usize> = printing(bad).iter().map(|(n, _)| *n).collect();
+    assert_eq!(lines, vec![2, 3, 5, 6]);
+}
+
+/// The CLI says everything through `printer.rs`'s `Printer`, made once from `--quiet` in
+/// `commands.rs`: no other file prints, takes a standard stream or reads the flag. The
+/// worker's protocol stream is the one exception: bytes for the coordinator, not output
+/// for a person.
+#[test]
+fn the_cli_prints_only_through_its_printer() {
+    let root = repo_root();
+    let src = root.join("crates/bettimill-cli/src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    assert!(files.len() > 10, "only {} files", files.len());
+    let allowed: &[(&str, &str)] = &[("commands.rs", "quiet"), ("cluster.rs", "std::io::stdout")];
+    let mut found = Vec::new();
+    for file in files {
+        let name = relative(&src, &file);
+        if name == "printer.rs" {
+            continue;
+        }
+        let text = std::fs::read_to_string(&file).unwrap();
+        for (line, needle) in printing(&non_test_code(&file, &text)) {
+            if !allowed.contains(&(name.as_str(), needle)) {
+                found.push(format!("crates/bettimill-cli/src/{name}:{line}: {needle}"));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "print through crate::printer::Printer (note, always, data, bar) instead:\n{}",
+        found.join("\n")
+    );
 }

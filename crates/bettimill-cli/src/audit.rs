@@ -1,6 +1,7 @@
 //! `bettimill audit`: rebuild chosen shards and compare bytes, and/or recompute labels.
 
 use crate::commands::ExitStatus;
+use crate::printer::Printer;
 use bettimill_audit::{AuditReport, Selection};
 use bettimill_executor::Dataset;
 use clap::Args;
@@ -30,7 +31,7 @@ pub struct AuditArgs {
 }
 
 /// Runs an audit, with a progress bar per sample on stderr (see `crate::progress`).
-pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
+pub fn run(args: &AuditArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
     // An index of an older format is named as such before the plan is compared.
     bettimill_format::DatasetDir::new(&args.dir).check_index()?;
     let dataset = Dataset::open(&args.dir).map_err(|err| match err {
@@ -71,7 +72,7 @@ pub fn run(args: &AuditArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     // One bar over both passes: every chosen sample once per pass.
     let samples: u64 = chosen.iter().map(|shard| shard.samples).sum();
     let passes = u64::from(selection.is_some()) + u64::from(args.relabel);
-    let bar = crate::progress::bar(samples * passes, "samples", "", quiet);
+    let bar = printer.bar(samples * passes, "samples", "");
     let tick = || bar.inc(1);
     let mut report = AuditReport::default();
     if selection.is_some() {

@@ -4,6 +4,7 @@
 
 use crate::build_display::{count, Display};
 use crate::commands::{load_manifest, ExitStatus};
+use crate::printer::Printer;
 use anyhow::bail;
 use bettimill_executor::coordinator::BuildControl;
 use bettimill_executor::{BuildProgress, BuildRequest, Runner};
@@ -27,7 +28,7 @@ pub fn build(
     max_shard_failures: u32,
     progress_interval: f64,
     limits: Limits,
-    quiet: bool,
+    printer: Printer,
 ) -> anyhow::Result<ExitStatus> {
     if !(progress_interval.is_finite() && progress_interval > 0.0) {
         bail!("--progress-interval must be a positive number of seconds, got {progress_interval}");
@@ -77,24 +78,24 @@ pub fn build(
     };
     let report = bettimill_executor::build(request, control, |progress| match progress {
         BuildProgress::Bound(dataset) => {
-            if !quiet && !dataset.plan.infeasible.is_empty() {
+            if !dataset.plan.infeasible.is_empty() {
                 // Said at the start, not only by `plan`: a researcher should know what the
                 // dataset will not contain before it is built.
-                eprintln!(
+                printer.note(format_args!(
                     "left out of the plan ({} that cannot be built; the dataset card lists them too):",
                     if dataset.plan.infeasible.len() == 1 {
                         "1 combination".to_string()
                     } else {
                         format!("{} combinations", dataset.plan.infeasible.len())
                     }
-                );
+                ));
                 for item in &dataset.plan.infeasible {
-                    eprintln!("  {}: {}", item.label, item.reason);
+                    printer.note(format_args!("  {}: {}", item.label, item.reason));
                 }
             }
             started = std::time::Instant::now();
             display = Some(Display::new(
-                quiet,
+                printer,
                 std::time::Duration::from_secs_f64(progress_interval),
             ));
         }
@@ -107,49 +108,50 @@ pub fn build(
     })?;
     // A build that returns was bound first, so the display exists.
     let mut display = display.unwrap_or_else(|| {
-        Display::new(quiet, std::time::Duration::from_secs_f64(progress_interval))
+        Display::new(
+            printer,
+            std::time::Duration::from_secs_f64(progress_interval),
+        )
     });
     display.finish();
     let (report, index) = (report.totals, report.index);
     let seconds = started.elapsed().as_secs_f64();
     if report.interrupted {
-        eprintln!(
+        Printer::always(format_args!(
             "interrupted: {} of {} shards complete, nothing partial is visible; resume with: {resume}",
             report.complete, report.shards
-        );
+        ));
         return Ok(ExitStatus::Interrupted);
     }
     if !report.failed.is_empty() {
-        eprintln!(
+        Printer::always(format_args!(
             "error: {} failed {} times and were given up ({} of {} shards complete; index.json not written):",
             count(report.failed.len() as u64, "shard"),
             max_shard_failures,
             report.complete,
             report.shards
-        );
+        ));
         for failed in &report.failed {
-            eprintln!(
+            Printer::always(format_args!(
                 "  {}: {}",
                 failed.shard,
                 failed.reasons.last().map(String::as_str).unwrap_or("")
-            );
+            ));
         }
-        eprintln!("fix the cause, then resume with: {resume}");
+        Printer::always(format_args!("fix the cause, then resume with: {resume}"));
         return Ok(ExitStatus::Failure);
     }
-    if !quiet {
-        eprintln!(
-            "built {}, skipped {} complete; {} in {} ({}, {}), {}, {}\n{}",
-            count(report.built, "shard"),
-            report.skipped,
-            count(report.samples_built, "sample"),
-            crate::build_display::human_seconds(seconds),
-            crate::build_display::rate(report.samples_built, seconds),
-            count(display.workers as u64, "worker"),
-            count(report.regenerations, "regeneration"),
-            count(report.retries, "retried shard attempt"),
-            index.display()
-        );
-    }
+    printer.note(format_args!(
+        "built {}, skipped {} complete; {} in {} ({}, {}), {}, {}\n{}",
+        count(report.built, "shard"),
+        report.skipped,
+        count(report.samples_built, "sample"),
+        crate::build_display::human_seconds(seconds),
+        crate::build_display::rate(report.samples_built, seconds),
+        count(display.workers as u64, "worker"),
+        count(report.regenerations, "regeneration"),
+        count(report.retries, "retried shard attempt"),
+        index.display()
+    ));
     Ok(ExitStatus::Success)
 }

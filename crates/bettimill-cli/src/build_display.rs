@@ -11,10 +11,10 @@
 //! at most), which counts as a fraction of a sample (`3.4/8 samples`, an estimate from the
 //! stage), and each worker's line, or the plain line's end, says what it is doing.
 
+use crate::printer::Printer;
 use bettimill_executor::coordinator::BuildEvent;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
-use std::io::IsTerminal;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -210,7 +210,7 @@ pub(crate) struct Display {
     samples_done: u64,
     regenerations: u64,
     failures: u64,
-    quiet: bool,
+    printer: Printer,
     /// Worker processes (or 0 for an in-process build), for the closing summary.
     pub(crate) workers: usize,
     /// The plain progress lines (when stderr is not a terminal and not `--quiet`), written
@@ -221,16 +221,15 @@ pub(crate) struct Display {
 impl Display {
     /// A display; `interval` is the time between plain progress lines (used when stderr is
     /// not a terminal).
-    #[allow(clippy::disallowed_methods)] // asks whether stderr is a terminal; writes nothing
-    pub(crate) fn new(quiet: bool, interval: Duration) -> Display {
-        let plain = (!quiet && !std::io::stderr().is_terminal()).then(|| {
+    pub(crate) fn new(printer: Printer, interval: Duration) -> Display {
+        let plain = printer.plain_progress().then(|| {
             let started = Instant::now();
             Periodic::start(interval, Counts::default(), move |counts| {
-                eprintln!("{}", progress_line(counts, started.elapsed()));
+                printer.note(progress_line(counts, started.elapsed()));
             })
         });
         Display {
-            multi: MultiProgress::with_draw_target(crate::progress::target(quiet)),
+            multi: MultiProgress::with_draw_target(printer.draw_target()),
             overall: None,
             slots: Vec::new(),
             shards: Vec::new(),
@@ -238,7 +237,7 @@ impl Display {
             samples_done: 0,
             regenerations: 0,
             failures: 0,
-            quiet,
+            printer,
             workers: 0,
             plain,
         }
@@ -423,11 +422,9 @@ impl Display {
 
     /// A line above the bars, or on stderr when bars are hidden (never with --quiet).
     pub(crate) fn note(&self, line: String) {
-        if self.quiet {
-            return;
-        }
+        // With --quiet the bars are hidden too, and the note says nothing.
         if self.multi.is_hidden() {
-            eprintln!("{line}");
+            self.printer.note(line);
         } else {
             let _ = self.multi.println(line);
         }
@@ -515,7 +512,7 @@ mod tests {
 
     /// A quiet display of a one-worker build that has started.
     fn started(shards: u64, samples: u64) -> Display {
-        let mut display = Display::new(true, Duration::from_secs(60));
+        let mut display = Display::new(Printer::new(true), Duration::from_secs(60));
         display.event(BuildEvent::Started {
             shards,
             samples,

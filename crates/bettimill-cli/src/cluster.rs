@@ -5,6 +5,7 @@
 
 use crate::build_display::{human_seconds, Periodic};
 use crate::commands::{load_manifest, ExitStatus};
+use crate::printer::Printer;
 use anyhow::{bail, Context};
 use bettimill_executor::cluster::{self, KubernetesOptions, SlurmOptions};
 use bettimill_executor::worker;
@@ -55,22 +56,24 @@ struct TaskState {
 struct TaskLines {
     lines: Periodic<TaskState>,
     started: Instant,
+    printer: Printer,
 }
 
 impl TaskLines {
-    fn start(interval: Duration) -> TaskLines {
-        let lines = Periodic::start(interval, TaskState::default(), |state| {
+    fn start(interval: Duration, printer: Printer) -> TaskLines {
+        let lines = Periodic::start(interval, TaskState::default(), move |state| {
             for (key, shard, stage, attempt, since) in state.working.values() {
-                eprintln!(
+                printer.note(format_args!(
                     "working: {key} (shard {shard}) {stage}{}, {} in",
                     attempt_note(*attempt),
                     human_seconds(since.elapsed().as_secs_f64())
-                );
+                ));
             }
         });
         TaskLines {
             lines,
             started: Instant::now(),
+            printer,
         }
     }
 
@@ -100,13 +103,13 @@ impl TaskLines {
                     .unwrap_or(0.0);
                 state.samples_done += 1;
                 // Printed under the lock, so two threads' lines never interleave.
-                eprintln!(
+                self.printer.note(format_args!(
                     "sample {} done (shard {shard}) in {}, {regenerations} regenerations; {} samples by this task, {} elapsed",
                     task.key,
                     human_seconds(took),
                     state.samples_done,
                     human_seconds(self.started.elapsed().as_secs_f64()),
-                );
+                ));
             }),
         }
     }
@@ -122,7 +125,7 @@ fn attempt_note(attempt: u32) -> String {
 }
 
 /// `bettimill worker`.
-pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
+pub fn worker(args: WorkerArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
     let dataset = Dataset::open(&args.dir)?;
     let threads = match (args.task_count, args.threads) {
         (None, _) => 1,
@@ -145,9 +148,10 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
         Some(index) => bail!("--task-index {index} is not below --task-count {count}"),
         None => {
             let found = worker::task_index_from_environment(count)?;
-            if !quiet {
-                eprintln!("task index {} from {}", found.index, found.variable);
-            }
+            printer.note(format_args!(
+                "task index {} from {}",
+                found.index, found.variable
+            ));
             found.index
         }
     };
@@ -162,20 +166,17 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
             args.progress_interval
         );
     }
-    let lines = (!quiet).then(|| TaskLines::start(Duration::from_secs_f64(args.progress_interval)));
+    let lines = printer
+        .shows_notes()
+        .then(|| TaskLines::start(Duration::from_secs_f64(args.progress_interval), printer));
     let report = pool.install(|| {
         worker::run_task(
             &dataset,
             index,
             count,
-            |shard, result| {
-                if quiet {
-                    return;
-                }
-                match result {
-                    Ok(()) => eprintln!("built {shard}"),
-                    Err(reason) => eprintln!("error: {shard}: {reason}"),
-                }
+            |shard, result| match result {
+                Ok(()) => printer.note(format_args!("built {shard}")),
+                Err(reason) => printer.note(format_args!("error: {shard}: {reason}")),
             },
             &|shard, event| {
                 if let Some(lines) = &lines {
@@ -186,14 +187,12 @@ pub fn worker(args: WorkerArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
     });
     drop(lines);
     let report = report?;
-    if !quiet {
-        eprintln!(
-            "task {index} of {count}: built {}, already complete {}, failed {}",
-            report.built.len(),
-            report.skipped.len(),
-            report.failed.len()
-        );
-    }
+    printer.note(format_args!(
+        "task {index} of {count}: built {}, already complete {}, failed {}",
+        report.built.len(),
+        report.skipped.len(),
+        report.failed.len()
+    ));
     Ok(if report.failed.is_empty() {
         ExitStatus::Success
     } else {
@@ -237,7 +236,7 @@ pub struct SlurmArgs {
 }
 
 /// `bettimill slurm`.
-pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
+pub fn slurm(args: SlurmArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
     crate::commands::check_out_dir(&args.out)?;
     let (text, manifest) = load_manifest(args.manifest.as_deref())?;
     let mut extra = args.sbatch_options.clone();
@@ -261,35 +260,31 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
             extra,
         },
     )?;
-    if !quiet {
-        match &scripts.build {
-            Some(path) => eprintln!(
-                "{}: {} incomplete shard(s) in {} of {tasks} array task(s)",
-                path.display(),
-                scripts.incomplete_shards,
-                scripts.tasks_with_work.len()
-            ),
-            None => eprintln!("every shard is complete; only finalize is left"),
-        }
-        eprintln!("{}", scripts.finalize.display());
+    match &scripts.build {
+        Some(path) => printer.note(format_args!(
+            "{}: {} incomplete shard(s) in {} of {tasks} array task(s)",
+            path.display(),
+            scripts.incomplete_shards,
+            scripts.tasks_with_work.len()
+        )),
+        None => printer.note("every shard is complete; only finalize is left"),
     }
+    printer.note(scripts.finalize.display());
     if !args.submit {
-        if !quiet {
-            let build = scripts
-                .build
-                .as_ref()
-                .map(|p| format!("JOB=$(sbatch --parsable {}) && ", p.display()))
-                .unwrap_or_default();
-            let dependency = if scripts.build.is_some() {
-                "--dependency=afterok:$JOB "
-            } else {
-                ""
-            };
-            eprintln!(
-                "submit with: {build}sbatch {dependency}{}",
-                scripts.finalize.display()
-            );
-        }
+        let build = scripts
+            .build
+            .as_ref()
+            .map(|p| format!("JOB=$(sbatch --parsable {}) && ", p.display()))
+            .unwrap_or_default();
+        let dependency = if scripts.build.is_some() {
+            "--dependency=afterok:$JOB "
+        } else {
+            ""
+        };
+        printer.note(format_args!(
+            "submit with: {build}sbatch {dependency}{}",
+            scripts.finalize.display()
+        ));
         return Ok(ExitStatus::Success);
     }
     let mut finalize_args = Vec::new();
@@ -309,11 +304,11 @@ pub fn slurm(args: SlurmArgs, quiet: bool) -> anyhow::Result<ExitStatus> {
             Ok(ExitStatus::Success)
         }
         Err(err) if args.wait => {
-            eprintln!(
+            Printer::always(format_args!(
                 "error: {err}\nsee `bettimill status {}` and the logs in {}",
                 args.out.display(),
                 args.out.join("slurm/logs").display()
-            );
+            ));
             Ok(ExitStatus::Failure)
         }
         Err(err) => Err(err.into()),
@@ -367,6 +362,6 @@ pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
             max_memory: args.max_memory,
         },
     )?;
-    print!("{yaml}");
+    Printer::data(yaml.as_bytes())?;
     Ok(ExitStatus::Success)
 }

@@ -1,5 +1,6 @@
 //! Subcommands. Each returns an [`ExitStatus`] or an error that `main` reports with exit code 2.
 
+use crate::printer::Printer;
 use bettimill_grid::Dim;
 use bettimill_manifest::{Manifest, DEMO_MANIFEST};
 use clap::{Parser, Subcommand};
@@ -232,6 +233,7 @@ impl ExitStatus {
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
+    let printer = Printer::new(cli.quiet);
     match cli.command {
         Command::Build {
             manifest,
@@ -257,15 +259,15 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
                     max_uploads,
                 },
             },
-            cli.quiet,
+            printer,
         ),
-        Command::Worker(args) => crate::cluster::worker(args, cli.quiet),
-        Command::Slurm(args) => crate::cluster::slurm(args, cli.quiet),
+        Command::Worker(args) => crate::cluster::worker(args, printer),
+        Command::Slurm(args) => crate::cluster::slurm(args, printer),
         Command::K8s(args) => crate::cluster::kubernetes(args),
-        Command::Finalize { dir } => crate::directory::finalize(&dir, cli.quiet),
+        Command::Finalize { dir } => crate::directory::finalize(&dir, printer),
         Command::Status { dir, json } => crate::directory::status(&dir, json),
-        Command::Audit(args) => crate::audit::run(&args, cli.quiet),
-        Command::Verify { dir, json } => verify(&dir, json, cli.quiet),
+        Command::Audit(args) => crate::audit::run(&args, printer),
+        Command::Verify { dir, json } => verify(&dir, json, printer),
         Command::Deform(args) => crate::deform::run(&args),
         Command::Betti {
             image,
@@ -297,10 +299,10 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             out: out.as_deref(),
             html: html.as_deref(),
             undeformed,
-            quiet: cli.quiet,
+            printer,
         }),
         Command::Stats { dir, json, plot } => {
-            crate::stats::run(&dir, json, plot.as_deref(), cli.quiet)
+            crate::stats::run(&dir, json, plot.as_deref(), printer)
         }
         Command::Completions { shell } => crate::completions::run(shell),
     }
@@ -402,11 +404,11 @@ pub(crate) fn object_url(dir: &Path) -> Option<&str> {
         .filter(|d| bettimill_shard::object::is_object_url(d))
 }
 
-fn verify(dir: &Path, json: bool, quiet: bool) -> anyhow::Result<ExitStatus> {
+fn verify(dir: &Path, json: bool, printer: Printer) -> anyhow::Result<ExitStatus> {
     // The bar appears once the index is read and the number of shards known.
     let mut bar = None;
     let mut progress = |done, total| {
-        bar.get_or_insert_with(|| crate::progress::bar(total, "shards", "verifying", quiet))
+        bar.get_or_insert_with(|| printer.bar(total, "shards", "verifying"))
             .set_position(done);
     };
     let (report, index) = match object_url(dir) {

@@ -11,6 +11,6 @@ pub fn run(shell: Shell) -> anyhow::Result<ExitStatus> {
     // can be a closed pipe.
     let mut script = Vec::new();
     clap_complete::generate(shell, &mut command, "bettimill", &mut script);
-    crate::stats::write_stdout(&script)?;
+    crate::printer::Printer::data(&script)?;
     Ok(ExitStatus::Success)
 }

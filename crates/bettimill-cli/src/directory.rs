@@ -3,24 +3,24 @@
 //! shard from the directory alone). Exit code 2 when the dataset is incomplete.
 
 use crate::commands::ExitStatus;
-use anyhow::Context;
+use crate::printer::Printer;
 use bettimill_executor::cluster::{self};
 use bettimill_executor::Dataset;
 use std::path::Path;
 
 /// `bettimill finalize DIR`.
-pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
+pub fn finalize(dir: &Path, printer: Printer) -> anyhow::Result<ExitStatus> {
     let dataset = Dataset::open(dir)?;
     // The lock keeps finalize from removing the temporaries of a running build (or of
     // another finalize) and from racing it to the same renames. A Slurm finalize job and
     // a user's finalize, or a finalize during a build's last step, must not fail: the
     // second waits for the first, then finds its work done.
     let _lock = bettimill_executor::DirLock::wait(dir, |lock| {
-        eprintln!(
+        Printer::always(format_args!(
             "another bettimill process is building or finalizing {} (it holds {}); waiting for it to finish",
             dir.display(),
             lock.display()
-        );
+        ));
     })?;
     let status = cluster::status(&dataset);
     let incomplete: Vec<&str> = status
@@ -40,13 +40,13 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
                 dir.display()
             ));
         }
-        eprintln!(
+        Printer::always(format_args!(
             "error: {} of {} shards are not complete: {}\nindex.json not written; build them (resubmit `bettimill slurm ... --submit`, or run `bettimill build ... --out {}`), then finalize again",
             not_complete,
             status.shards,
             names,
             dir.display()
-        );
+        ));
         return Ok(ExitStatus::Failure);
     }
     // Every shard is complete and the lock is held, so no writer has work left: leftovers
@@ -60,19 +60,17 @@ pub fn finalize(dir: &Path, quiet: bool) -> anyhow::Result<ExitStatus> {
     let index_path = dataset.layout().index_path();
     let before = file_identity(&index_path);
     dataset.finalize_checked(&|_| true)?;
-    if !quiet {
-        if before.is_some() && before == file_identity(&index_path) {
-            eprintln!(
-                "{} shards complete; index.json and the other files were already up to date, nothing changed",
-                status.shards
-            );
-        } else {
-            eprintln!(
-                "{} shards complete; wrote {}",
-                status.shards,
-                index_path.display()
-            );
-        }
+    if before.is_some() && before == file_identity(&index_path) {
+        printer.note(format_args!(
+            "{} shards complete; index.json and the other files were already up to date, nothing changed",
+            status.shards
+        ));
+    } else {
+        printer.note(format_args!(
+            "{} shards complete; wrote {}",
+            status.shards,
+            index_path.display()
+        ));
     }
     Ok(ExitStatus::Success)
 }
@@ -133,12 +131,6 @@ pub fn status(dir: &Path, json: bool) -> anyhow::Result<ExitStatus> {
         }
     }
     // A reader that stops early (`| head`) is not an error.
-    let mut stdout = std::io::stdout().lock();
-    match std::io::Write::write_all(&mut stdout, text.as_bytes()) {
-        Err(err) if err.kind() != std::io::ErrorKind::BrokenPipe => {
-            return Err(err).context("cannot write to stdout")
-        }
-        _ => {}
-    }
+    Printer::data(text.as_bytes())?;
     Ok(ExitStatus::Success)
 }

@@ -12,14 +12,14 @@
 #![allow(clippy::print_stdout, clippy::print_stderr, clippy::disallowed_methods)]
 
 /// `println!` for data on stdout that ends quietly when the reader closes the pipe
-/// (`bettimill plan | head`) instead of panicking; see `stats::write_stdout`. Only usable
-/// in functions that return `anyhow::Result`.
+/// (`bettimill plan | head`) instead of panicking; see `printer::Printer::data`. Only
+/// usable in functions that return `anyhow::Result`.
 macro_rules! outln {
     () => {
-        crate::stats::write_stdout(b"\n")?
+        crate::printer::Printer::data(b"\n")?
     };
     ($($arg:tt)*) => {
-        crate::stats::write_stdout(format!("{}\n", format_args!($($arg)*)).as_bytes())?
+        crate::printer::Printer::data(format!("{}\n", format_args!($($arg)*)).as_bytes())?
     };
 }
 
@@ -34,6 +34,7 @@ mod directory;
 mod image;
 mod plan;
 mod preview;
+mod printer;
 mod progress;
 mod signals;
 mod stats;
@@ -41,7 +42,6 @@ mod stats;
 use anyhow::Context;
 use clap::Parser;
 use std::ffi::OsString;
-use std::io::Write;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
@@ -68,13 +68,13 @@ pub fn run(args: impl IntoIterator<Item = OsString>) -> i32 {
     let status = match commands::run(cli) {
         Ok(status) => status,
         Err(err) => {
-            eprintln!("error: {}", error_line(&err));
+            printer::Printer::always(format_args!("error: {}", error_line(&err)));
             commands::ExitStatus::Failure
         }
     };
     // A process that ends in `main` flushes stdout on exit; a caller that goes on (the
     // Python console script) must see everything printed before the code is returned.
-    let _ = std::io::stdout().flush();
+    printer::Printer::flush();
     status.code()
 }
 

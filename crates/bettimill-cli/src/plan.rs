@@ -222,14 +222,14 @@ pub fn show(
         let head = head
             .strip_suffix("\n}")
             .expect("a pretty-printed JSON object ends with a closing brace on its own line");
-        crate::stats::write_stdout(format!("{head},\n  \"shards\": [").as_bytes())?;
+        crate::printer::Printer::data(format!("{head},\n  \"shards\": [").as_bytes())?;
         for shard in plan.shards() {
             let entry = serde_json::json!({
                 "name": shard.name, "split": shard.split, "first_sample": shard.first_sample,
                 "samples": shard.samples, "strata_counts": plan.shard_counts(&shard),
             });
             let comma = if shard.index == 0 { "" } else { "," };
-            crate::stats::write_stdout(format!("{comma}\n    {entry}").as_bytes())?;
+            crate::printer::Printer::data(format!("{comma}\n    {entry}").as_bytes())?;
         }
         outln!("\n  ]\n}}");
         bettimill_executor::memory::check(&plan, max_memory, 1, 1)?;

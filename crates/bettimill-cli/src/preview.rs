@@ -2,6 +2,7 @@
 //! directory, one shard, or a plain `.npy` image, and the browser viewer of one sample.
 
 use crate::commands::ExitStatus;
+use crate::printer::Printer;
 use anyhow::{bail, Context};
 use bettimill_format::{DatasetDir, ShardStream};
 use bettimill_preview::{
@@ -24,8 +25,8 @@ pub struct Request<'a> {
     pub html: Option<&'a Path>,
     /// Draw each sample's undeformed construction instead of its voxels.
     pub undeformed: bool,
-    /// Say nothing on success.
-    pub quiet: bool,
+    /// Where to say what was written.
+    pub printer: Printer,
 }
 
 /// The shards of a dataset directory in build order, with their splits: from `index.json`
@@ -161,12 +162,10 @@ fn undeform(dir: &Path, found: &mut [SampleView]) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Writes `bytes` to `path` and says so unless quiet.
-fn write_output(path: &Path, bytes: &[u8], what: &str, quiet: bool) -> anyhow::Result<()> {
+/// Writes `bytes` to `path` and says so (a note: nothing with `--quiet`).
+fn write_output(path: &Path, bytes: &[u8], what: &str, printer: Printer) -> anyhow::Result<()> {
     std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
-    if !quiet {
-        eprintln!("wrote {} ({what})", path.display());
-    }
+    printer.note(format_args!("wrote {} ({what})", path.display()));
     Ok(())
 }
 
@@ -312,11 +311,11 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
     };
     if let (Some(path), Some(canvas)) = (request.out, &canvas) {
         let what = format!("{}x{} pixels", canvas.width(), canvas.height());
-        write_output(path, &canvas.to_png()?, &what, request.quiet)?;
+        write_output(path, &canvas.to_png()?, &what, request.printer)?;
     }
     if let (Some(path), Some(page)) = (request.html, &page) {
         let what = format!("{} KiB, open it in a browser", page.len().div_ceil(1024));
-        write_output(path, page.as_bytes(), &what, request.quiet)?;
+        write_output(path, page.as_bytes(), &what, request.printer)?;
     }
     Ok(ExitStatus::Success)
 }

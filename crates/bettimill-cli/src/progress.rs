@@ -1,18 +1,9 @@
-//! Progress bars on stderr, one look and one hiding rule for every command (`build`,
-//! `verify`, `audit`, `stats`): drawn only when stderr is a terminal (indicatif checks) and
-//! never with `--quiet`. Progress never goes to stdout, so `--json` output is unchanged.
+//! The look of progress bars, one for every command (`build`, `verify`, `audit`, `stats`).
+//! Where and whether they are drawn is the [`crate::printer::Printer`]'s: only when stderr
+//! is a terminal (indicatif checks) and never with `--quiet`. Progress never goes to
+//! stdout, so `--json` output is unchanged.
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-
-/// Where bars are drawn: stderr (indicatif draws nothing when it is not a terminal), or
-/// nowhere with `--quiet`.
-pub fn target(quiet: bool) -> ProgressDrawTarget {
-    if quiet {
-        ProgressDrawTarget::hidden()
-    } else {
-        ProgressDrawTarget::stderr()
-    }
-}
+use indicatif::ProgressStyle;
 
 /// The style of a main bar counting `unit` (`samples`, `shards`); the message follows.
 pub fn style(unit: &str) -> ProgressStyle {
@@ -21,13 +12,6 @@ pub fn style(unit: &str) -> ProgressStyle {
     ))
     .expect("the template is valid")
     .progress_chars("=> ")
-}
-
-/// A bar of `len` `unit`s on [`target`] in [`style`], showing `message`.
-pub fn bar(len: u64, unit: &str, message: &'static str, quiet: bool) -> ProgressBar {
-    let bar = ProgressBar::with_draw_target(Some(len), target(quiet)).with_style(style(unit));
-    bar.set_message(message);
-    bar
 }
 
 /// The style of a bar whose position counts thousandths of a `unit` (`samples`), so that it

@@ -86,7 +86,7 @@ fn received() {
         INTERRUPTED.store(true, Ordering::SeqCst);
         return;
     }
-    eprintln!("{}", MESSAGE.get().map_or(DEFAULT_MESSAGE, String::as_str));
+    crate::printer::Printer::always(MESSAGE.get().map_or(DEFAULT_MESSAGE, String::as_str));
     std::process::exit(130);
 }
 

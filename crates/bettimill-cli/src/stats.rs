@@ -3,6 +3,7 @@
 //! histogram PNG.
 
 use crate::commands::ExitStatus;
+use crate::printer::Printer;
 use anyhow::{bail, Context};
 use bettimill_format::DatasetDir;
 use bettimill_preview::{labels_in_stream, plot, BuildTime, Stats};
@@ -13,7 +14,7 @@ pub fn run(
     dir: &Path,
     json: bool,
     plot_path: Option<&Path>,
-    quiet: bool,
+    printer: Printer,
 ) -> anyhow::Result<ExitStatus> {
     if !dir.is_dir() {
         bail!(
@@ -27,7 +28,7 @@ pub fn run(
     }
     let shards = crate::preview::dataset_shards(dir)?;
     let layout = DatasetDir::new(dir);
-    let bar = crate::progress::bar(shards.len() as u64, "shards", "reading labels", quiet);
+    let bar = printer.bar(shards.len() as u64, "shards", "reading labels");
     let mut labels = Vec::new();
     for (split, name) in &shards {
         bar.inc(1);
@@ -60,14 +61,12 @@ pub fn run(
     } else {
         stats.to_text()
     };
-    write_stdout(output.as_bytes())?;
+    Printer::data(output.as_bytes())?;
     if let Some(path) = plot_path {
         let canvas = plot(&stats)?;
         std::fs::write(path, canvas.to_png()?)
             .with_context(|| format!("cannot write {}", path.display()))?;
-        if !quiet {
-            eprintln!("wrote {}", path.display());
-        }
+        printer.note(format_args!("wrote {}", path.display()));
     }
     Ok(ExitStatus::Success)
 }
@@ -101,18 +100,4 @@ pub(crate) fn refuse_inside_dataset(path: &Path, flag: &str) -> anyhow::Result<(
         );
     }
     Ok(())
-}
-
-/// Writes data to stdout. A reader that stops early (`bettimill stats DIR | head`) closes
-/// the pipe; that is the reader's choice, not an error, so a broken pipe ends quietly
-/// instead of panicking the way `println!` does.
-pub(crate) fn write_stdout(bytes: &[u8]) -> anyhow::Result<()> {
-    use std::io::Write;
-    let mut stdout = std::io::stdout().lock();
-    match stdout.write_all(bytes).and_then(|()| stdout.flush()) {
-        Err(err) if err.kind() != std::io::ErrorKind::BrokenPipe => {
-            Err(err).context("cannot write to stdout")
-        }
-        _ => Ok(()),
-    }
 }
