@@ -11,6 +11,8 @@
 //!   make build options nor read scheduler variables.
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
 //! - The CLI prints only through its `Printer`, which alone knows `--quiet`.
+//! - ARCHITECTURE.md stays short (lines and line length), and its code map lists each crate
+//!   below the crates it depends on, as it says.
 //! - A check shared by several commands (a plain file, a file against its record, a tar
 //!   against its record) is defined once, by the file that owns it.
 
@@ -298,6 +300,62 @@ fn every_crate_is_on_the_code_map() {
             p.name
         );
     }
+}
+
+/// The crates of ARCHITECTURE.md's code map, in the order of their `### `NAME`` headings.
+fn code_map_order(architecture: &str) -> Vec<&str> {
+    architecture
+        .lines()
+        .filter_map(|line| line.strip_prefix("### `")?.strip_suffix('`'))
+        .collect()
+}
+
+/// Where `order` puts a crate after one that depends on it, given each crate's
+/// dependencies: `(crate, dependency listed later or not at all)`.
+fn out_of_order<'a>(
+    order: &[&'a str],
+    deps: &[(&'a str, Vec<&'a str>)],
+) -> Vec<(&'a str, &'a str)> {
+    let mut wrong = Vec::new();
+    for (name, dependencies) in deps {
+        let Some(at) = order.iter().position(|n| n == name) else {
+            continue;
+        };
+        for dep in dependencies {
+            if !order[..at].contains(dep) {
+                wrong.push((*name, *dep));
+            }
+        }
+    }
+    wrong
+}
+
+#[test]
+fn code_map_order_checker_finds_a_crate_above_its_dependency() {
+    let map = "### `a`\ntext\n### `c`\n### `b`\n";
+    assert_eq!(code_map_order(map), ["a", "c", "b"]);
+    let deps = [("a", vec![]), ("b", vec!["a"]), ("c", vec!["a", "b"])];
+    assert_eq!(out_of_order(&code_map_order(map), &deps), [("c", "b")]);
+}
+
+/// ARCHITECTURE.md says "a crate depends only on crates above it in this list": the code
+/// map's order is checked against the resolved dependencies (tests may use anything).
+#[test]
+fn the_code_map_lists_each_crate_below_its_dependencies() {
+    let architecture = std::fs::read_to_string(repo_root().join("ARCHITECTURE.md")).unwrap();
+    assert!(architecture.contains("a crate depends only on crates above it in this list"));
+    let order = code_map_order(&architecture);
+    let packages = packages();
+    let deps: Vec<(&str, Vec<&str>)> = packages
+        .iter()
+        .map(|p| (p.name.as_str(), p.internal_deps()))
+        .collect();
+    let wrong = out_of_order(&order, &deps);
+    assert!(
+        wrong.is_empty(),
+        "ARCHITECTURE.md's code map lists a crate above a crate it depends on (crate, \
+         dependency): {wrong:?}"
+    );
 }
 
 /// `rust-version`, version-wise: `(major, minor, patch)`, a missing part 0.
@@ -742,6 +800,22 @@ fn architecture_lines_fit_in_a_hundred_characters() {
     assert!(
         long.is_empty(),
         "ARCHITECTURE.md lines over 100 characters (line, length): {long:?}"
+    );
+}
+
+/// The most lines ARCHITECTURE.md may have: a map a newcomer reads in one sitting, one short
+/// paragraph per crate; details live in the code's module docs.
+const MAX_ARCHITECTURE_LINES: usize = 250;
+
+#[test]
+fn architecture_is_under_two_hundred_and_fifty_lines() {
+    let text = std::fs::read_to_string(repo_root().join("ARCHITECTURE.md")).unwrap();
+    let lines = text.lines().count();
+    assert!(
+        lines < MAX_ARCHITECTURE_LINES,
+        "ARCHITECTURE.md has {lines} lines, at most {} allowed: say less, or move the detail \
+         into the module's own docs",
+        MAX_ARCHITECTURE_LINES - 1
     );
 }
 
