@@ -1287,6 +1287,41 @@ fn a_complete_shard_without_its_timing_changes_nothing_but_the_stats_line() {
     );
 }
 
+/// `stats` used to read every file in `records/`: a stray file there stopped it (exit 2,
+/// `not a completion record`) and a copy of a record counted its shard twice (`11 of 10
+/// shards`), although records no shard names are never data (docs/format.md). It now
+/// reads the records of the dataset's shards only.
+#[test]
+fn a_stray_or_copied_file_in_records_neither_stops_nor_skews_stats() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 8, 2);
+    let out = tmp.path().join("strays");
+    assert_exit(&build(&m, &out, 1), 0);
+    let stats = || {
+        let result = run(&["stats", "--json", out.to_str().unwrap()]);
+        assert_exit(&result, 0);
+        let value: serde_json::Value = serde_json::from_slice(&result.stdout).unwrap();
+        (value, text(&result.stdout))
+    };
+    let (before, before_text) = stats();
+    let records = out.join("records");
+    std::fs::write(records.join("notes.json"), "not a record\n").unwrap();
+    std::fs::copy(
+        records.join("r2d-000000.json"),
+        records.join("old-copy.json"),
+    )
+    .unwrap();
+    std::fs::copy(
+        out.join("timings").join("r2d-000000.json"),
+        out.join("timings").join("old-copy.json"),
+    )
+    .unwrap();
+    let (after, after_text) = stats();
+    assert_eq!(before, after, "{before_text}\n{after_text}");
+    assert_eq!(after["build_time"]["shards_timed"], 4, "{after_text}");
+    assert_exit(&run(&["verify", out.to_str().unwrap()]), 0);
+}
+
 // ---------------------------------------------------------------- soak
 
 struct SoakReport {

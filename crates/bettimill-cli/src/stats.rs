@@ -43,12 +43,15 @@ pub fn run(
         })?;
         labels.extend(shard_labels.into_iter().map(|l| (split.clone(), l)));
     }
+    // The records and timings of the shards read, not every file in records/: a leftover
+    // (a stray file, a record no shard names) is never data (docs/format.md), so it must
+    // neither stop stats nor be counted as a shard.
     let mut records = Vec::new();
     let mut timings = Vec::new();
-    for name in layout.record_names()? {
-        if let Some(record) = layout.read_record(&name)? {
+    for (_, name) in &shards {
+        if let Some(record) = layout.read_record(name)? {
             records.push(record);
-            if let Some(t) = layout.read_timing(&name) {
+            if let Some(t) = layout.read_timing(name) {
                 timings.push((t.started_unix, t.seconds, t.samples));
             }
         }
