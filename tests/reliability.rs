@@ -763,6 +763,123 @@ fn finalize_does_not_remove_the_temporaries_of_a_running_build_or_finalize() {
     assert_same(&clean, &out);
 }
 
+/// Array tasks (`bettimill worker --task-index`) take no directory lock, so a `finalize`
+/// run by hand while they build must neither report a failure that is not one nor remove a
+/// temporary a task is still writing. Two jobs' tasks run at once (a job resubmitted while
+/// the first still runs): the first job's tasks hold each shard five seconds before its
+/// rename (test hook), the second job's build every shard meanwhile, and finalize, run
+/// while the first job's tasks still hold their temporaries, finds every shard complete.
+/// It used to remove those temporaries, and each of the first job's tasks then failed
+/// (`cannot rename into ...: No such file or directory`, exit 2). Every finalize must exit
+/// 0, or 2 saying shards are not complete; every task 0; every temporary must stay until
+/// its writer renames it; the directory must end as a local build's, every shard timed.
+#[test]
+fn a_manual_finalize_while_array_tasks_build_fails_nothing_and_removes_no_live_temporary() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 16, 2);
+    let clean = common::clean_build(&m, tmp.path(), 1);
+    let out = tmp.path().join("array");
+    assert_exit(
+        &run(&[
+            "slurm",
+            m.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--tasks",
+            "2",
+        ]),
+        0,
+    );
+    let task = |index: u32, pause: Option<&str>| {
+        let mut command = bettimill();
+        command
+            .arg("worker")
+            .arg("--dir")
+            .arg(&out)
+            .args([
+                "--task-index",
+                &index.to_string(),
+                "--task-count",
+                "2",
+                "--threads",
+                "1",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        if let Some(pause) = pause {
+            command.env("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", pause);
+        }
+        command.spawn().unwrap()
+    };
+    let finalize = || {
+        let result = bettimill()
+            .arg("finalize")
+            .arg(&out)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .output()
+            .unwrap();
+        let message = text(&result.stderr);
+        assert!(
+            result.status.code() == Some(0)
+                || (result.status.code() == Some(2) && message.contains("not complete")),
+            "{:?}: {message}",
+            result.status
+        );
+        result.status.code() == Some(0)
+    };
+    let first: Vec<_> = (0..2).map(|i| task(i, Some("5"))).collect();
+    let held = || temporaries_in(&out.join("shards"));
+    wait_until(
+        "both tasks holding a shard",
+        Duration::from_secs(60),
+        || held().len() == 2,
+    );
+    // While shards are missing, finalize says so and changes nothing.
+    let before = held();
+    assert!(!finalize(), "finalize found every shard complete too early");
+    assert_eq!(held(), before, "finalize removed a task's temporary");
+    // The second job builds every shard, those the first job's tasks hold included.
+    for index in 0..2 {
+        let result = task(index, None).wait_with_output().unwrap();
+        assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+    }
+    // Every shard is complete while the first job's tasks still hold their temporaries
+    // (the test hook keeps each for 5 s, much longer than this takes).
+    let live = held();
+    assert!(
+        !live.is_empty() && first.iter().all(|t| alive(t.id())),
+        "the first job's tasks finished too early: {live:?}"
+    );
+    assert!(finalize(), "finalize did not find every shard complete");
+    for name in &live {
+        assert!(
+            out.join("shards").join(name).exists() || first.iter().all(|t| !alive(t.id())),
+            "finalize removed {name}, which a running task holds"
+        );
+    }
+    // Finalize again and again until the first job's tasks are done.
+    while first.iter().any(|t| alive(t.id())) {
+        finalize();
+    }
+    for (index, task) in first.into_iter().enumerate() {
+        let result = task.wait_with_output().unwrap();
+        assert_eq!(
+            result.status.code(),
+            Some(0),
+            "task {index} of the first job: {}",
+            text(&result.stderr)
+        );
+    }
+    assert!(finalize());
+    assert!(held().is_empty(), "{:?}", held());
+    assert_exit(&run(&["verify", out.to_str().unwrap()]), 0);
+    let timings = std::fs::read_dir(out.join("timings")).unwrap().count();
+    assert_eq!(timings, 8, "a shard without its timing");
+    std::fs::remove_dir_all(out.join("slurm")).unwrap();
+    assert_same(&clean, &out);
+}
+
 #[test]
 fn a_disk_full_while_the_directory_is_created_resumes_once_space_is_back() {
     if !system_test("a tmpfs mount") {

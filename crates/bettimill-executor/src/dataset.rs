@@ -343,9 +343,12 @@ impl Dataset {
     }
 
     /// Removes the temporary files that killed writers leave behind (`.NAME.tmp-PID` in the
-    /// directory, `shards/`, `records/` and `timings/`). Call it only under the directory lock (a build,
-    /// or a finalize that found every shard complete): a process without it may remove the
-    /// temporary of a running build's last step.
+    /// directory, `shards/`, `records/` and `timings/`), and returns them. Call it only under
+    /// the directory lock (a build, or a finalize that found every shard complete): a process
+    /// without it may remove the temporary of a running build's last step. Array tasks take
+    /// no directory lock, so a temporary whose writer still runs (it holds the file's lock:
+    /// a task writing its timing, or a resubmitted job's task beside the old job's) is left
+    /// to its writer.
     pub fn remove_temporaries(&self) -> Result<Vec<PathBuf>, BuildError> {
         let mut removed = Vec::new();
         for dir in [
@@ -364,8 +367,9 @@ impl Dataset {
                 let name = entry.file_name().to_string_lossy().into_owned();
                 if name.starts_with('.') && name.contains(".tmp-") {
                     let path = entry.path();
-                    std::fs::remove_file(&path).map_err(io(&path))?;
-                    removed.push(path);
+                    if shard::atomic::remove_if_abandoned(&path).map_err(io(&path))? {
+                        removed.push(path);
+                    }
                 }
             }
         }

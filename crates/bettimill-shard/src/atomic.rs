@@ -5,9 +5,17 @@
 //! directory, so that after a crash the target holds either its old bytes or the new ones,
 //! never a prefix. A crash can leave the temporary file behind; `bettimill verify` reports
 //! it as an extra file and it is safe to delete.
+//!
+//! The writer holds an exclusive lock (`flock`-style, [`File::try_lock`]) on its temporary
+//! file from just after creating it until it is renamed into place, and the operating system
+//! drops the lock when the writer dies in any way. [`remove_if_abandoned`] removes a
+//! temporary only when it can take that lock: several processes write into one dataset
+//! directory without sharing a lock (array tasks, a resubmitted job's tasks beside the old
+//! job's), and a cleaner must not remove the temporary of a writer that is still running,
+//! whose rename would then fail.
 
 use crate::ShardError;
-use std::fs::{File, OpenOptions};
+use std::fs::{File, OpenOptions, TryLockError};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -69,6 +77,7 @@ impl AtomicFile {
             .truncate(true)
             .open(&temporary)
             .map_err(|e| ShardError::io("cannot create", &temporary, e))?;
+        hold(&file);
         Ok(AtomicFile {
             path: path.to_path_buf(),
             temporary,
@@ -89,9 +98,10 @@ impl AtomicFile {
             .map_err(|e| ShardError::io("cannot write", &self.temporary, e.into_error()))?;
         file.sync_all()
             .map_err(|e| ShardError::io("cannot fsync", &self.temporary, e))?;
-        drop(file);
+        // The file (and its lock) stays open through the rename.
         std::fs::rename(&self.temporary, &self.path)
             .map_err(|e| ShardError::io("cannot rename into", &self.path, e))?;
+        drop(file);
         sync_parent(&self.path)
     }
 }
@@ -127,14 +137,46 @@ fn write_and_rename(
         .truncate(true)
         .open(temporary)
         .map_err(|e| ShardError::io("cannot create", temporary, e))?;
+    hold(&file);
     file.write_all(bytes)
         .map_err(|e| ShardError::io("cannot write", temporary, e))?;
     file.sync_all()
         .map_err(|e| ShardError::io("cannot fsync", temporary, e))?;
-    drop(file);
     before_rename();
+    // The file (and its lock) stays open through the rename.
     std::fs::rename(temporary, path).map_err(|e| ShardError::io("cannot rename into", path, e))?;
+    drop(file);
     sync_parent(path)
+}
+
+/// Locks a temporary file for its writer, so that [`remove_if_abandoned`] leaves it alone
+/// while the writer lives. Best effort: on a file system without locks the write goes on
+/// unlocked (and a cleaner there cannot tell a live writer from a dead one either).
+fn hold(file: &File) {
+    let _ = file.try_lock();
+}
+
+/// Removes the temporary file `path` of an atomic write unless its writer is still running
+/// (it holds the file's lock; see the module documentation). Returns whether it was
+/// removed: `false` for a live writer's file and for one that is already gone (renamed into
+/// place or removed meanwhile). Where the file system has no locks, the file is removed,
+/// as it would be without them.
+pub fn remove_if_abandoned(path: &Path) -> std::io::Result<bool> {
+    // Opened for writing: an exclusive lock over NFS needs a writable descriptor.
+    let file = match OpenOptions::new().write(true).open(path) {
+        Ok(file) => file,
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => return Ok(false),
+        Err(err) => return Err(err),
+    };
+    match file.try_lock() {
+        Ok(()) | Err(TryLockError::Error(_)) => {}
+        Err(TryLockError::WouldBlock) => return Ok(false),
+    }
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(true),
+        Err(err) if err.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(err) => Err(err),
+    }
 }
 
 #[cfg(unix)]
@@ -189,6 +231,30 @@ mod tests {
         assert_eq!(seen, Some((b"new".to_vec(), b"old".to_vec())));
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
         assert!(!temporary_path(&path).exists());
+    }
+
+    #[test]
+    fn a_temporary_is_removed_only_once_its_writer_is_gone() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.tar");
+        let mut writer = AtomicFile::create(&path).unwrap();
+        writer.write_all(b"half").unwrap();
+        let temporary = writer.temporary().to_path_buf();
+        // The writer holds it: a cleaner leaves it, and the writer still commits.
+        assert!(!remove_if_abandoned(&temporary).unwrap());
+        writer.commit().unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"half");
+        assert!(!remove_if_abandoned(&temporary).unwrap(), "gone already");
+        // The same file left by a writer that died (nobody holds it) is removed.
+        std::fs::write(&temporary, b"left").unwrap();
+        assert!(remove_if_abandoned(&temporary).unwrap());
+        assert!(!temporary.exists());
+        // A write waiting before its rename holds its temporary too.
+        write_atomic_then(&path, b"new", || {
+            assert!(!remove_if_abandoned(&temporary_path(&path)).unwrap());
+        })
+        .unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"new");
     }
 
     #[test]
