@@ -678,7 +678,7 @@ fn the_loser_of_two_builds_into_a_fresh_directory_is_told_about_the_lock() {
             assert!(
                 result.status.code() == Some(0)
                     || (result.status.code() == Some(2)
-                        && message.contains("another bettimill build is running")),
+                        && message.contains("another bettimill build or finalize is running")),
                 "{:?}: {message}",
                 result.status
             );
@@ -761,6 +761,79 @@ fn finalize_does_not_remove_the_temporaries_of_a_running_build_or_finalize() {
     assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
     assert!(waited, "no finalize waited for the build");
     assert_same(&clean, &out);
+}
+
+/// A build used to release the directory lock between binding the directory and starting
+/// its coordinator: a `finalize` that took it in that gap made the build refuse its own
+/// directory (exit 2, "another bettimill build is running") and left it unbuilt. The build
+/// now holds the lock from the binding on, so the finalize waits for it and finds the work
+/// done. The test hook holds the build in that gap for a second.
+#[test]
+fn a_finalize_during_a_builds_start_up_waits_for_the_build_instead_of_failing_it() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 16, 2);
+    let clean = common::clean_build(&m, tmp.path(), 1);
+    for (round, fresh) in [true, false].into_iter().enumerate() {
+        let out = tmp.path().join("started");
+        if fresh {
+            let _ = std::fs::remove_dir_all(&out);
+        } else {
+            // A bound directory without shards: the build resumes it.
+            let _ = std::fs::remove_dir_all(&out);
+            assert_exit(
+                &run(&[
+                    "slurm",
+                    m.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--tasks",
+                    "1",
+                ]),
+                0,
+            );
+            std::fs::remove_dir_all(out.join("slurm")).unwrap();
+        }
+        let coordinator = spawn_build(&m, &out, 1, &[("BETTIMILL_TEST_PAUSE_AT_STARTUP", "1")]);
+        wait_until(
+            "the build to lock its directory",
+            Duration::from_secs(60),
+            || holds_a_file_lock(coordinator.id()),
+        );
+        let finalize = bettimill()
+            .arg("finalize")
+            .arg(&out)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .output()
+            .unwrap();
+        let build = coordinator.wait_with_output().unwrap();
+        assert_eq!(
+            build.status.code(),
+            Some(0),
+            "round {round}: the build: {}",
+            text(&build.stderr)
+        );
+        let message = text(&finalize.stderr);
+        assert!(
+            finalize.status.code() == Some(0) && message.contains("is building or finalizing"),
+            "round {round}: the finalize did not wait for the build: {:?}: {message}",
+            finalize.status
+        );
+        assert_same(&clean, &out);
+    }
+}
+
+/// Whether process `pid` holds an flock-style lock (the directory lock), from /proc/locks.
+fn holds_a_file_lock(pid: u32) -> bool {
+    std::fs::read_to_string("/proc/locks")
+        .unwrap()
+        .lines()
+        .any(|line| {
+            let fields: Vec<&str> = line.split_whitespace().collect();
+            fields.get(1) == Some(&"FLOCK")
+                && fields.get(3) == Some(&"WRITE")
+                && fields.get(4) == Some(&pid.to_string().as_str())
+        })
 }
 
 /// Array tasks (`bettimill worker --task-index`) take no directory lock, so a `finalize`

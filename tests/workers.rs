@@ -122,7 +122,7 @@ fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resu
     let second = build(&m, &out, 1);
     assert_eq!(second.status.code(), Some(2));
     assert!(
-        text(&second.stderr).contains("another bettimill build is running"),
+        text(&second.stderr).contains("another bettimill build or finalize is running"),
         "{}",
         text(&second.stderr)
     );

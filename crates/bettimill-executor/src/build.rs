@@ -8,7 +8,7 @@
 //! report into their output.
 
 use crate::coordinator::{self, BuildControl, BuildEvent, BuildOptions, CoordinatorError};
-use crate::{BuildError, Dataset, DirLock, LockError};
+use crate::{BuildError, Dataset, LockError};
 use bettimill_env::EnvVars;
 use bettimill_manifest::Manifest;
 use bettimill_plan::memory::MemoryError;
@@ -90,7 +90,7 @@ pub enum BuildFailure {
     /// An in-process build failed (a shard could not be written, finalize failed).
     #[error(transparent)]
     InProcess(BuildError),
-    /// Another build holds the directory (in-process builds).
+    /// Another process (a build or a finalize) holds the directory lock.
     #[error(transparent)]
     Lock(#[from] LockError),
     /// The worker processes could not run the build.
@@ -135,7 +135,13 @@ pub fn build(
     {
         return build_to_bucket(url, &manifest_text, manifest, &object, progress);
     }
-    let dataset = Dataset::bind(&out, &manifest_text, manifest).map_err(BuildFailure::Dataset)?;
+    // The lock is held from here to the end, so a `finalize` started meanwhile waits for
+    // this build instead of taking the lock between the binding and the build.
+    let (dataset, lock) =
+        Dataset::bind_locked(&out, &manifest_text, manifest).map_err(|err| match err {
+            BuildError::Format(bettimill_format::FormatError::Lock(err)) => BuildFailure::Lock(err),
+            err => BuildFailure::Dataset(err),
+        })?;
     // Test hook: a test signals the build while it waits here, in the middle of start-up.
     if let Some(pause) = bettimill_env::seconds(EnvVars::BETTIMILL_TEST_PAUSE_AT_STARTUP) {
         std::thread::sleep(pause);
@@ -143,7 +149,6 @@ pub fn build(
     progress(BuildProgress::Bound(&dataset));
     let totals = match runner {
         Runner::InProcess => {
-            let _lock = DirLock::acquire(&dataset.dir)?;
             let summary = dataset
                 .build_in_process(|done, total| progress(BuildProgress::Shard(done, total)))
                 .map_err(BuildFailure::InProcess)?;
@@ -167,11 +172,12 @@ pub fn build(
                 worker_args: worker_args(&out, memory_limit.map(|(limit, _)| limit)),
                 worker_timeout,
             };
-            coordinator::run(&dataset, &options, control, |event| {
+            coordinator::run_locked(&dataset, &lock, &options, control, |event| {
                 progress(BuildProgress::Workers(event))
             })?
         }
     };
+    drop(lock);
     Ok(BuildReport {
         totals,
         samples: dataset.plan.samples,

@@ -307,9 +307,21 @@ pub fn run(
     dataset: &Dataset,
     options: &BuildOptions,
     control: impl std::future::Future<Output = BuildControl>,
+    events: impl FnMut(BuildEvent),
+) -> Result<BuildReport, CoordinatorError> {
+    let lock = DirLock::acquire(&dataset.dir)?;
+    run_locked(dataset, &lock, options, control, events)
+}
+
+/// [`run`] under a directory lock the caller already holds (from
+/// [`Dataset::bind_locked`], so that nothing takes it between the binding and the build).
+pub fn run_locked(
+    dataset: &Dataset,
+    _lock: &DirLock,
+    options: &BuildOptions,
+    control: impl std::future::Future<Output = BuildControl>,
     mut events: impl FnMut(BuildEvent),
 ) -> Result<BuildReport, CoordinatorError> {
-    let _lock = DirLock::acquire(&dataset.dir)?;
     dataset.remove_temporaries()?;
     // Nothing is read per shard before the workers start: the shards to build are kept as
     // ranges of plan indexes, and whether a shard is already complete (a resumed build) is

@@ -1,6 +1,7 @@
 //! The output directory of one dataset and the operations on it.
 
 use bettimill_format::dir::{BUILD_INFO_FILE, MANIFEST_FILE};
+use bettimill_format::lock::DirLock;
 use bettimill_format::TarCheck;
 use bettimill_format::{member_name, DatasetDir, FormatError, TOOL_VERSION};
 pub use bettimill_format::{BuildInfo, CompletionRecord, ShardState};
@@ -139,6 +140,28 @@ impl Dataset {
             plan,
             layout,
         })
+    }
+
+    /// [`Dataset::bind`] for a build, which holds the directory lock from the binding to its
+    /// end: a `finalize` started meanwhile waits for the build instead of taking the lock
+    /// in between and making the build refuse the directory as locked.
+    pub fn bind_locked(
+        dir: &Path,
+        manifest_text: &str,
+        manifest: Manifest,
+    ) -> Result<(Dataset, DirLock), BuildError> {
+        let plan = Plan::new(&manifest)?;
+        let info = BuildInfo::current(plan.manifest_hash.clone(), plan.hash());
+        let layout = DatasetDir::new(dir);
+        let lock = layout.bind_locked(manifest_text, &info)?;
+        let dataset = Dataset {
+            dir: dir.to_path_buf(),
+            manifest_text: manifest_text.to_string(),
+            manifest,
+            plan,
+            layout,
+        };
+        Ok((dataset, lock))
     }
 
     /// The directory's layout and records.

@@ -7,9 +7,10 @@
 //! lock does not. The file is always empty, so it never makes two directories differ.
 //!
 //! It is taken before anything is written into a new directory ([`crate::DatasetDir::bind`]
-//! creates the directory, locks it, then writes `manifest.toml` and `build.json`), and again
-//! by the coordinator for the whole build. A `.lock` that is a symbolic link is refused: the
-//! lock never creates a file outside the directory.
+//! creates the directory, locks it, then writes `manifest.toml` and `build.json`), and a
+//! build holds it from that binding to its end ([`crate::DatasetDir::bind_locked`]), so a
+//! `finalize` (which waits for it) never slips in between. A `.lock` that is a symbolic link
+//! is refused: the lock never creates a file outside the directory.
 //!
 //! Cluster workers (`bettimill worker --task-index-from-env`) do not take it: they build
 //! disjoint shards on shared file systems where such locks may not work, and every write is
@@ -21,8 +22,8 @@ use std::path::{Path, PathBuf};
 /// Why the directory could not be locked.
 #[derive(Debug, thiserror::Error)]
 pub enum LockError {
-    /// Another live process holds the lock.
-    #[error("another bettimill build is running in {dir} (it holds {path}); wait for it to finish or stop it, or use another --out directory")]
+    /// Another live process (a build or a finalize) holds the lock.
+    #[error("another bettimill build or finalize is running in {dir} (it holds {path}); wait for it to finish or stop it, or use another --out directory")]
     Busy {
         /// The dataset directory.
         dir: PathBuf,

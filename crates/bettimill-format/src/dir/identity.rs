@@ -125,7 +125,30 @@ impl DatasetDir {
     /// `records/` in both cases, and refuses them if they are symbolic links (bettimill
     /// never writes through a link inside the directory).
     pub fn bind(&self, manifest_text: &str, expected: &BuildInfo) -> Result<(), FormatError> {
+        self.bind_holding(manifest_text, expected, false).map(drop)
+    }
+
+    /// [`DatasetDir::bind`] for a build: takes the directory lock in every case (a
+    /// directory that exists too) and returns it held, so that no other process (a
+    /// `finalize`) can take it between the binding and the build. Refuses with
+    /// [`crate::lock::LockError::Busy`] when another process holds it.
+    pub fn bind_locked(
+        &self,
+        manifest_text: &str,
+        expected: &BuildInfo,
+    ) -> Result<crate::lock::DirLock, FormatError> {
+        let lock = self.bind_holding(manifest_text, expected, true)?;
+        Ok(lock.expect("bind_holding returns the lock it was asked to hold"))
+    }
+
+    fn bind_holding(
+        &self,
+        manifest_text: &str,
+        expected: &BuildInfo,
+        hold: bool,
+    ) -> Result<Option<crate::lock::DirLock>, FormatError> {
         let dir = &self.root;
+        let mut held = None;
         if !self.has_build_info() {
             // Refused before anything (even the lock) is written into it; checked again
             // under the lock.
@@ -142,18 +165,22 @@ impl DatasetDir {
                 _ => {}
             }
             std::fs::create_dir_all(dir).map_err(io(dir))?;
-            let _lock = crate::lock::DirLock::acquire(dir)?;
+            let lock = crate::lock::DirLock::acquire(dir)?;
             // Under the lock: another build may have created it meanwhile.
             if !self.has_build_info() {
                 self.create(manifest_text, expected)?;
             }
+            held = Some(lock);
         }
         let found = self.read_build_info()?;
         check_build_info(dir, &found, expected)?;
+        if hold && held.is_none() {
+            held = Some(crate::lock::DirLock::acquire(dir)?);
+        }
         for path in [self.shards_dir(), self.records_dir()] {
             ensure_real_dir(&path)?;
         }
-        Ok(())
+        Ok(held.filter(|_| hold))
     }
 
     /// Writes `manifest.toml` and `build.json` into a directory that has no `build.json`,
