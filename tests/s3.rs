@@ -423,3 +423,63 @@ fn verify_and_status_read_a_bucket_and_verify_finds_a_flipped_byte() {
     assert_eq!(problems[0]["shard"], name);
     assert_eq!(problems[0]["member"], member["name"]);
 }
+
+#[test]
+fn array_tasks_upload_their_shards_and_finalize_writes_the_index() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    let manifest = manifest(&dir);
+    let url = server.fresh_url("tasks");
+    let run = |args: &[&str]| server.command().args(args).output().unwrap();
+    // `k8s` binds the prefix and prints a Job with no volume, its pods' credentials from
+    // a Secret.
+    let job = run(&[
+        "k8s",
+        manifest.to_str().unwrap(),
+        "--out",
+        &url,
+        "--tasks",
+        "3",
+    ]);
+    assert_exit(&job, 0);
+    let yaml = common::stdout(&job);
+    assert!(yaml.contains(&format!("\"--dir\", \"{url}\"")), "{yaml}");
+    assert!(
+        yaml.contains("secretRef:\n                name: \"bettimill-s3\""),
+        "{yaml}"
+    );
+    assert!(!yaml.contains("persistentVolumeClaim"), "{yaml}");
+
+    let task = |index: &str| {
+        let out = run(&[
+            "worker",
+            "--dir",
+            &url,
+            "--task-index",
+            index,
+            "--task-count",
+            "3",
+        ]);
+        assert_exit(&out, 0);
+    };
+    task("0");
+    task("2");
+    // Task 1 has not run: finalize refuses, and writes no index.
+    let early = run(&["finalize", &url]);
+    assert_exit(&early, 2);
+    assert!(
+        stderr(&early).contains("4 of 12 shards are not complete"),
+        "{}",
+        stderr(&early)
+    );
+    assert_eq!(server.objects(&url).size("index.json").unwrap(), None);
+    task("1");
+    assert_exit(&run(&["finalize", &url]), 0);
+    let local = dir.join("local");
+    assert_exit(&common::build(&manifest, &local, 2), 0);
+    assert_same_as_local(&server, &url, &local);
+    assert_exit(&run(&["verify", &url]), 0);
+}

@@ -11,7 +11,7 @@ use bettimill_executor::cluster::{self, KubernetesOptions, SlurmOptions};
 use bettimill_executor::worker;
 use bettimill_executor::{Dataset, SampleEvent};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Arguments of the hidden `bettimill worker` subcommand.
@@ -41,6 +41,46 @@ pub struct WorkerArgs {
     /// progress has reached (a line per finished sample comes at once).
     #[arg(long, default_value_t = 10.0)]
     progress_interval: f64,
+}
+
+/// An array task whose dataset is under `s3://BUCKET/PREFIX`: builds its shards on all its
+/// threads (or `--threads`) and uploads them; `finalize` writes the index.
+fn bucket_worker(url: &str, args: &WorkerArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
+    let Some(count) = args.task_count.filter(|&c| c > 0) else {
+        bail!("worker --dir {url}: an s3:// dataset is built by array tasks (--task-count N) or by `bettimill build --out {url}`");
+    };
+    let index = match args.task_index {
+        Some(index) if index < count => index,
+        Some(index) => bail!("--task-index {index} is not below --task-count {count}"),
+        None => {
+            let found = worker::task_index_from_environment(count)?;
+            printer.note(format_args!(
+                "task index {} from {}",
+                found.index, found.variable
+            ));
+            found.index
+        }
+    };
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = args.threads {
+        pool = pool.num_threads(threads.max(1));
+    }
+    let pool = pool.build().context("cannot start the thread pool")?;
+    // The stored manifest's plan against the memory this task may use, before any work.
+    let text = bettimill_executor::remote::open_bucket(url, None)?.read_manifest_text()?;
+    let plan =
+        bettimill_plan::Plan::new(&bettimill_manifest::Manifest::parse(&text, Path::new(url))?)?;
+    let threads = pool.current_num_threads() as u64;
+    bettimill_executor::memory::check(&plan, args.max_memory, 1, threads)?;
+    drop(plan);
+    let options = bettimill_executor::remote::ObjectOptions::default();
+    let summary =
+        pool.install(|| bettimill_executor::remote::bucket_task(url, &options, index, count))?;
+    printer.note(format_args!(
+        "task {index} of {count}: built {}, already complete {} (of every task's)",
+        summary.built, summary.skipped
+    ));
+    Ok(ExitStatus::Success)
 }
 
 /// What an array task is doing, for its log lines (see [`TaskLines`]).
@@ -126,6 +166,9 @@ fn attempt_note(attempt: u32) -> String {
 
 /// `bettimill worker`.
 pub fn worker(args: WorkerArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
+    if let Some(url) = crate::commands::object_url(&args.dir) {
+        return bucket_worker(url, &args, printer);
+    }
     let dataset = Dataset::open(&args.dir)?;
     let threads = match (args.task_count, args.threads) {
         (None, _) => 1,
@@ -320,7 +363,8 @@ pub fn slurm(args: SlurmArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
 pub struct KubernetesArgs {
     /// The manifest (TOML). Without it, the embedded demo manifest.
     manifest: Option<PathBuf>,
-    /// Dataset directory: on the claim, mounted at this same path in every pod.
+    /// Dataset directory: on the claim, mounted at this same path in every pod; or
+    /// s3://BUCKET/PREFIX (no volume: the pods upload their shards).
     #[arg(long)]
     out: PathBuf,
     /// Completions (array tasks).
@@ -335,6 +379,10 @@ pub struct KubernetesArgs {
     /// PersistentVolumeClaim holding the dataset directory.
     #[arg(long, default_value = "bettimill-data")]
     claim: String,
+    /// For an s3:// --out: the Secret whose keys (AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY,
+    /// AWS_ENDPOINT_URL) become every pod's environment.
+    #[arg(long, default_value = "bettimill-s3")]
+    secret: String,
     /// Memory of one pod, e.g. 4G: the plan is refused if a pod's sample needs more, and
     /// the Job asks for it and limits each pod to it (`resources`), its worker checking
     /// against it (`--max-memory`). Without it, each pod checks its node's MemAvailable
@@ -350,6 +398,24 @@ pub fn kubernetes(args: KubernetesArgs) -> anyhow::Result<ExitStatus> {
     if let Some(limit) = args.max_memory {
         let plan = bettimill_plan::Plan::new(&manifest)?;
         bettimill_executor::memory::check(&plan, Some(limit), 1, 1)?;
+    }
+    if let Some(url) = crate::commands::object_url(&args.out) {
+        let options = bettimill_executor::remote::ObjectOptions::default();
+        let name = bettimill_executor::remote::bucket_bind(url, &text, manifest, &options)?;
+        let yaml = cluster::kubernetes_bucket_job(
+            url,
+            &name,
+            &args.secret,
+            &KubernetesOptions {
+                tasks: args.tasks,
+                parallelism: args.parallelism.unwrap_or(args.tasks),
+                image: args.image,
+                claim: args.claim,
+                max_memory: args.max_memory,
+            },
+        )?;
+        Printer::data(yaml.as_bytes())?;
+        return Ok(ExitStatus::Success);
     }
     let dataset = Dataset::bind(&args.out, &text, manifest)?;
     let yaml = cluster::kubernetes_job(

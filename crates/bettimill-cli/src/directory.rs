@@ -10,6 +10,12 @@ use std::path::Path;
 
 /// `bettimill finalize DIR`.
 pub fn finalize(dir: &Path, printer: Printer) -> anyhow::Result<ExitStatus> {
+    if let Some(url) = crate::commands::object_url(dir) {
+        let options = bettimill_executor::remote::ObjectOptions::default();
+        bettimill_executor::remote::bucket_finalize(url, &options)?;
+        printer.note(format_args!("finalized {url}/index.json"));
+        return Ok(ExitStatus::Success);
+    }
     let dataset = Dataset::open(dir)?;
     // The lock keeps finalize from removing the temporaries of a running build (or of
     // another finalize) and from racing it to the same renames. A Slurm finalize job and

@@ -416,6 +416,61 @@ pub fn kubernetes_job(
     ))
 }
 
+/// The Kubernetes Indexed Job of a dataset under `s3://BUCKET/PREFIX`: as
+/// [`kubernetes_job`], with no volume: each pod reads the stored manifest from the bucket,
+/// builds its shards and uploads them, with the credentials (and `AWS_ENDPOINT_URL` for an
+/// S3-compatible server) from the Secret `secret` as its environment.
+pub fn kubernetes_bucket_job(
+    url: &str,
+    dataset_name: &str,
+    secret: &str,
+    options: &KubernetesOptions,
+) -> Result<String, ClusterError> {
+    if options.tasks == 0 || options.parallelism == 0 {
+        return Err(ClusterError::Invalid(
+            "--tasks and --parallelism must be at least 1".into(),
+        ));
+    }
+    let name = dns_label(&format!("bettimill-{dataset_name}"));
+    let memory = options
+        .max_memory
+        .map(|bytes| format!("{}M", bytes.div_ceil(1 << 20)));
+    Ok(format!(
+        "# Written by `bettimill k8s`: pod t builds the incomplete shards s with s % {tasks} == t of\n\
+         # the dataset at {url} and uploads them; no volume is needed. The Secret {secret} holds\n\
+         # AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY (and AWS_ENDPOINT_URL for a server other than\n\
+         # AWS S3). Resubmitting is safe. When the Job completes, run: bettimill finalize {url}\n\
+         apiVersion: batch/v1\n\
+         kind: Job\n\
+         metadata:\n  name: {name}\n\
+         spec:\n  completionMode: Indexed\n  completions: {tasks}\n  parallelism: {parallelism}\n  backoffLimit: {backoff}\n\
+         \x20 template:\n    spec:\n      restartPolicy: Never\n      containers:\n\
+         \x20       - name: worker\n          image: {image}\n\
+         \x20         command: [\"bettimill\", \"worker\", \"--dir\", {url_y}, \"--task-index-from-env\", \"--task-count\", \"{tasks}\"{memory_arg}]\n\
+         \x20         envFrom:\n            - secretRef:\n                name: {secret_y}\n\
+         \x20         resources:\n            requests:\n              cpu: \"1\"\n{memory_resources}",
+        tasks = options.tasks,
+        parallelism = options.parallelism.min(options.tasks),
+        backoff = options.tasks.saturating_mul(2).max(6),
+        image = yaml_string(&options.image),
+        url_y = yaml_string(url),
+        secret_y = yaml_string(secret),
+        memory_arg = memory
+            .as_ref()
+            .map(|m| format!(", \"--max-memory\", \"{m}\""))
+            .unwrap_or_default(),
+        memory_resources = memory
+            .as_ref()
+            .map(|m| {
+                let quantity = format!("{}Mi", m.trim_end_matches('M'));
+                format!(
+                    "              memory: \"{quantity}\"\n            limits:\n              memory: \"{quantity}\"\n"
+                )
+            })
+            .unwrap_or_default(),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -67,10 +67,11 @@ pub fn open_bucket(url: &str, endpoint: Option<&str>) -> Result<BucketDir, Objec
     BucketDir::open(url, &s3_config(endpoint))
 }
 
-/// A bucket bound to a build, with its lease and its staging directory.
+/// A bucket bound to a build, with its lease (none for an array task) and its staging
+/// directory.
 pub(crate) struct BucketBuild {
     bucket: BucketDir,
-    lease: Lease,
+    lease: Option<Lease>,
     staging: tempfile::TempDir,
     /// The staging directory's dataset: the plan, and the writer of shards and records.
     pub(crate) dataset: Dataset,
@@ -87,7 +88,43 @@ impl BucketBuild {
         options: &ObjectOptions,
     ) -> Result<BucketBuild, BuildError> {
         let bucket = open_bucket(url, options.endpoint.as_deref()).map_err(FormatError::from)?;
-        let lease = Lease::acquire(&bucket)?;
+        let lease = Some(Lease::acquire(&bucket)?);
+        Self::bind_opened(bucket, lease, manifest_text, manifest, options)
+    }
+
+    /// Binds the dataset already in the bucket, from its stored manifest: with the lease
+    /// (finalize), or without it (an array task, which builds disjoint shards as on a
+    /// shared file system, where tasks take no lock either).
+    fn bind_stored(
+        url: &str,
+        options: &ObjectOptions,
+        leased: bool,
+    ) -> Result<BucketBuild, BuildError> {
+        let bucket = open_bucket(url, options.endpoint.as_deref()).map_err(FormatError::from)?;
+        let text = bucket.read_manifest_text()?;
+        let manifest = Manifest::parse(
+            &text,
+            Path::new(
+                &bucket
+                    .objects()
+                    .object_url(bettimill_format::dir::MANIFEST_FILE),
+            ),
+        )?;
+        let lease = if leased {
+            Some(Lease::acquire(&bucket)?)
+        } else {
+            None
+        };
+        Self::bind_opened(bucket, lease, &text, manifest, options)
+    }
+
+    fn bind_opened(
+        bucket: BucketDir,
+        lease: Option<Lease>,
+        manifest_text: &str,
+        manifest: Manifest,
+        options: &ObjectOptions,
+    ) -> Result<BucketBuild, BuildError> {
         let staging = tempfile::Builder::new()
             .prefix("bettimill-staging-")
             .tempdir()
@@ -128,8 +165,17 @@ impl BucketBuild {
     /// Builds every shard the bucket lacks, then writes the finalized files, `index.json`
     /// last. `progress` gets (shards done, shards in the plan) as each shard is made and
     /// handed to an uploader.
-    pub(crate) fn run(
-        self,
+    pub(crate) fn run(self, progress: impl FnMut(u64, u64)) -> Result<BuildSummary, BuildError> {
+        let summary = self.build_shards(&|_| true, progress)?;
+        self.finalize()?;
+        Ok(summary)
+    }
+
+    /// Builds the shards `ours` accepts that the bucket lacks; the records of every
+    /// complete shard come into the staging directory.
+    fn build_shards(
+        &self,
+        ours: &dyn Fn(&ShardPlan) -> bool,
         mut progress: impl FnMut(u64, u64),
     ) -> Result<BuildSummary, BuildError> {
         let dataset = &self.dataset;
@@ -155,13 +201,14 @@ impl BucketBuild {
                     return Err(self.invalid(&shard, "its record disagrees with the plan"))
                 }
                 BucketShard::Invalid { reason } => return Err(self.invalid(&shard, &reason)),
-                BucketShard::Missing => missing.push(shard),
+                BucketShard::Missing if ours(&shard) => missing.push(shard),
+                BucketShard::Missing => {}
             }
         }
         progress(summary.skipped, total);
         let failure: Mutex<Option<BuildError>> = Mutex::new(None);
         let failed = || failure.lock().map(|f| f.is_some()).unwrap_or(true);
-        let this = &self;
+        let this = self;
         std::thread::scope(|scope| -> Result<(), BuildError> {
             // A rendezvous channel: a made shard waits until an uploader is free, so at
             // most `max_uploads` shards are staged besides the one being made.
@@ -200,7 +247,30 @@ impl BucketBuild {
         if let Some(err) = failure.into_inner().ok().flatten() {
             return Err(err);
         }
+        Ok(summary)
+    }
+
+    /// Writes the finalized files once every shard is complete, `index.json` last; then
+    /// releases the lease and removes the staging directory.
+    fn finalize(self) -> Result<(), BuildError> {
+        let dataset = &self.dataset;
         self.check_lease()?;
+        let unfinished = dataset
+            .plan
+            .shards()
+            .filter(|shard| !dataset.record_path(shard).exists())
+            .count();
+        if unfinished > 0 {
+            return Err(BuildError::Corrupt {
+                path: self.bucket.url().into(),
+                reason: format!(
+                    "{unfinished} of {} shards are not complete (index.json not written): \
+                     run the array tasks that build them, or `bettimill build MANIFEST --out {}`",
+                    dataset.plan.shard_count(),
+                    self.bucket.url()
+                ),
+            });
+        }
         // The finalized files from the plan and the records, as a local finalize makes
         // them; index.json comes last, so its presence means the dataset is complete.
         let root = dataset.dir.clone();
@@ -214,7 +284,7 @@ impl BucketBuild {
         }
         drop(self.lease);
         drop(self.staging);
-        Ok(summary)
+        Ok(())
     }
 
     /// Uploads a staged shard: its tar, then its record, then (statistics only) its timing;
@@ -256,9 +326,9 @@ impl BucketBuild {
     }
 
     fn check_lease(&self) -> Result<(), BuildError> {
-        if self.lease.lost() {
+        if let Some(lease) = self.lease.as_ref().filter(|lease| lease.lost()) {
             return Err(BuildError::Corrupt {
-                path: self.lease.url().into(),
+                path: lease.url().into(),
                 reason: "another build took this build's lease (it could not renew it in time); \
                          stopping: run the build again once the other one is done"
                     .into(),
@@ -342,4 +412,37 @@ pub fn bucket_status(
         }
     }
     Ok(report)
+}
+
+/// An array task of a dataset in a bucket (`worker --dir s3://... --task-count N`): builds
+/// the shards `s` with `s % task_count == task_index` that the bucket lacks, from the stored
+/// manifest, on the current rayon pool; `index.json` is [`bucket_finalize`]'s.
+pub fn bucket_task(
+    url: &str,
+    options: &ObjectOptions,
+    task_index: u64,
+    task_count: u64,
+) -> Result<BuildSummary, BuildError> {
+    let build = BucketBuild::bind_stored(url, options, false)?;
+    let count = task_count.max(1);
+    build.build_shards(&|shard| shard.index % count == task_index, |_, _| {})
+}
+
+/// `finalize` of a dataset in a bucket: under the lease, once every shard is complete,
+/// writes the wids indexes, the class table, the card and `index.json` (last).
+pub fn bucket_finalize(url: &str, options: &ObjectOptions) -> Result<(), BuildError> {
+    let build = BucketBuild::bind_stored(url, options, true)?;
+    build.build_shards(&|_| false, |_, _| {})?;
+    build.finalize()
+}
+
+/// Binds a bucket prefix to a manifest (under the lease, released at once): what
+/// `bettimill k8s` does before array tasks run. Returns the dataset's name.
+pub fn bucket_bind(
+    url: &str,
+    manifest_text: &str,
+    manifest: Manifest,
+    options: &ObjectOptions,
+) -> Result<String, BuildError> {
+    BucketBuild::bind(url, manifest_text, manifest, options).map(|b| b.dataset.plan.name.clone())
 }
