@@ -12,7 +12,8 @@
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
 //! - The CLI prints only through its `Printer`, which alone knows `--quiet`.
 //! - ARCHITECTURE.md stays short (lines and line length), and its code map lists each crate
-//!   below the crates it depends on, as it says.
+//!   below the crates it depends on, as it says; BENCHMARKS.md opens with the current
+//!   figures and stays short.
 //! - A check shared by several commands (a plain file, a file against its record, a tar
 //!   against its record) is defined once, by the file that owns it.
 
@@ -817,6 +818,55 @@ fn architecture_is_under_two_hundred_and_fifty_lines() {
          into the module's own docs",
         MAX_ARCHITECTURE_LINES - 1
     );
+}
+
+/// The most lines BENCHMARKS.md may have: the current figures and one section per
+/// benchmark; older passes live in git history or dated files under `benches/results/`.
+const MAX_BENCHMARKS_LINES: usize = 400;
+
+/// What is wrong with the shape of a BENCHMARKS.md text: too long, or its first section is
+/// not the table of current figures.
+fn benchmarks_shape(text: &str) -> Vec<String> {
+    let mut wrong = Vec::new();
+    let lines = text.lines().count();
+    if lines >= MAX_BENCHMARKS_LINES {
+        wrong.push(format!(
+            "{lines} lines, at most {}: move older passes to a dated file under \
+             benches/results/ (or leave them to git history)",
+            MAX_BENCHMARKS_LINES - 1
+        ));
+    }
+    let mut sections = text.split("\n## ").skip(1);
+    match sections.next() {
+        Some(first) if first.starts_with("Current figures\n") => {
+            if !first.lines().any(|line| line.starts_with("| what |")) {
+                wrong.push("the current figures have no `| what |` table".to_string());
+            }
+        }
+        other => wrong.push(format!(
+            "the first section is {:?}, not \"Current figures\"",
+            other.and_then(|s| s.lines().next())
+        )),
+    }
+    wrong
+}
+
+#[test]
+fn benchmarks_checker_finds_length_and_order() {
+    let good = "# Benchmarks\n\nintro\n\n## Current figures\n\n| what | figure |\n\n## A\n";
+    assert!(benchmarks_shape(good).is_empty());
+    let late = "# Benchmarks\n\n## Old pass\n\n## Current figures\n\n| what |\n";
+    assert_eq!(benchmarks_shape(late).len(), 1);
+    let long = format!("{good}{}", "x\n".repeat(MAX_BENCHMARKS_LINES));
+    assert_eq!(benchmarks_shape(&long).len(), 1);
+}
+
+/// BENCHMARKS.md opens with one table of current figures and stays short.
+#[test]
+fn benchmarks_open_with_current_figures_and_stay_short() {
+    let text = std::fs::read_to_string(repo_root().join("BENCHMARKS.md")).unwrap();
+    let wrong = benchmarks_shape(&text);
+    assert!(wrong.is_empty(), "BENCHMARKS.md: {}", wrong.join("; "));
 }
 
 /// Where `text` points to the tracker by number (the word, an optional `#`, a number; any
