@@ -6,7 +6,8 @@
 //!   this file checks that every crate inherits those lints and that no library crate
 //!   allows them anywhere in its sources.
 //! - Every Rust file opens with a `//!` doc; the crates are on the code map.
-//! - The environment is read in one file (`bettimill-env`'s `env.rs`), and the build is
+//! - The environment is read in one file (`bettimill-env`'s `env.rs`), whose variables
+//!   docs/environment.md names, test hooks marked internal and hidden; and the build is
 //!   driven from one place (the executor's `build`): the CLI and the Python binding neither
 //!   make build options nor read scheduler variables.
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
@@ -490,6 +491,124 @@ fn the_environment_is_read_only_in_env_rs() {
         "environment read outside bettimill-env's env.rs (add the variable to EnvVars and \
          read it with bettimill_env::var): {found:#?}"
     );
+}
+
+/// One variable of `EnvVars`: its name, whether it is hidden from the documentation, and
+/// whether its doc comment says it is internal.
+#[derive(Debug, PartialEq)]
+struct EnvVar {
+    name: String,
+    hidden: bool,
+    internal: bool,
+}
+
+/// The variables `env.rs` declares (`pub const NAME: &'static str = "NAME";`, the value
+/// possibly on the next line), with their doc comments and attributes.
+fn env_vars(env_rs: &str) -> Vec<EnvVar> {
+    let mut out = Vec::new();
+    let mut docs = String::new();
+    let mut hidden = false;
+    for line in env_rs.lines().map(str::trim) {
+        if let Some(doc) = line.strip_prefix("///") {
+            docs.push_str(doc);
+        } else if line == "#[doc(hidden)]" {
+            hidden = true;
+        } else if let Some(rest) = line.strip_prefix("pub const ") {
+            let name = rest.split(':').next().unwrap().trim().to_string();
+            out.push(EnvVar {
+                name,
+                hidden,
+                internal: docs.trim_start().starts_with("Internal"),
+            });
+            docs.clear();
+            hidden = false;
+        } else if !line.starts_with('"') {
+            docs.clear();
+            hidden = false;
+        }
+    }
+    out
+}
+
+/// What is wrong between `env.rs`'s variables and the users' list `docs`: a documented
+/// variable the list does not name, a variable hidden without being marked internal (or
+/// the reverse), a test hook not hidden.
+fn env_docs_problems(vars: &[EnvVar], docs: &str) -> Vec<String> {
+    let mut wrong = Vec::new();
+    for var in vars {
+        let name = &var.name;
+        if !var.hidden && !docs.contains(&format!("`{name}`")) {
+            wrong.push(format!(
+                "{name} is documented in env.rs but not in the users' list"
+            ));
+        }
+        if var.hidden != var.internal {
+            wrong.push(format!(
+                "{name}: #[doc(hidden)] goes with a doc that starts \"Internal\", and only with it"
+            ));
+        }
+        if name.starts_with("BETTIMILL_TEST_") && !var.hidden {
+            wrong.push(format!(
+                "{name} is a test hook: mark it internal and hidden"
+            ));
+        }
+        if var.hidden && docs.contains(&format!("`{name}`")) {
+            wrong.push(format!("{name} is internal but the users' list names it"));
+        }
+    }
+    wrong
+}
+
+#[test]
+fn env_docs_checker_finds_undocumented_and_unmarked_variables() {
+    let env_rs =
+        "    /// Slurm: the index.\n    pub const SLURM_X: &'static str = \"SLURM_X\";\n\n\
+                  /// Internal test hook: fails.\n    #[doc(hidden)]\n    pub const \
+                  BETTIMILL_TEST_A: &'static str =\n        \"BETTIMILL_TEST_A\";\n\n\
+                  /// A hook someone forgot to hide.\n    pub const BETTIMILL_TEST_B: &'static \
+                  str = \"BETTIMILL_TEST_B\";\n";
+    let vars = env_vars(env_rs);
+    let names: Vec<(&str, bool, bool)> = vars
+        .iter()
+        .map(|v| (v.name.as_str(), v.hidden, v.internal))
+        .collect();
+    assert_eq!(
+        names,
+        [
+            ("SLURM_X", false, false),
+            ("BETTIMILL_TEST_A", true, true),
+            ("BETTIMILL_TEST_B", false, false)
+        ]
+    );
+    let wrong = env_docs_problems(&vars, "| `SLURM_X` | the index |");
+    assert_eq!(wrong.len(), 2, "{wrong:?}");
+    assert!(
+        wrong[0].starts_with("BETTIMILL_TEST_B is documented"),
+        "{wrong:?}"
+    );
+    assert!(
+        wrong[1].starts_with("BETTIMILL_TEST_B is a test hook"),
+        "{wrong:?}"
+    );
+    assert_eq!(env_docs_problems(&vars, "").len(), 3);
+}
+
+/// docs/environment.md is the users' copy of `EnvVars`: it names every variable that is not
+/// internal, and every internal one (test hooks, the test suite's settings) is marked and
+/// hidden from the documentation.
+#[test]
+fn the_users_list_of_environment_variables_matches_env_rs() {
+    let root = repo_root();
+    let env_rs = std::fs::read_to_string(root.join("crates/bettimill-env/src/env.rs")).unwrap();
+    let docs = std::fs::read_to_string(root.join("docs/environment.md")).unwrap();
+    let vars = env_vars(&env_rs);
+    assert!(vars.len() > 10, "only {} variables: {vars:?}", vars.len());
+    assert!(
+        vars.iter().any(|v| v.hidden),
+        "no internal variable found: {vars:?}"
+    );
+    let wrong = env_docs_problems(&vars, &docs);
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
 }
 
 /// The build is driven by `bettimill_executor::build` alone: the CLI and the Python
