@@ -67,8 +67,9 @@ fn read_stream(
     let compression = bettimill_shard::sniff(&magic);
     let whole = Cursor::new(magic).chain(reader);
     let decoded = bettimill_shard::decoder(whole, compression)?;
-    // The shape is checked against the memory available before any voxel is allocated
-    // (a valid 4.9 GB array used to be read for a minute and then abort the process).
+    // The shape is checked against the memory available before any voxel is allocated:
+    // a valid array larger than memory would otherwise be read for minutes and then abort
+    // the process.
     let admit = |shape: &[usize]| {
         if !(2..=4).contains(&shape.len()) {
             // Refused by its rank once read.

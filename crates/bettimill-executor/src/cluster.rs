@@ -79,8 +79,8 @@ pub struct InvalidShard {
 ///
 /// `shards/` and `records/` are each listed once; a planned shard with neither a tar nor a
 /// record there is missing without a file being opened, so the time grows with the shards
-/// on disk (each checked whole) and not with the shards planned (10^7 of them used to cost
-/// a failed open each).
+/// on disk (each checked whole), not with the shards planned: a plan of 10^7 shards costs
+/// no open per missing one.
 pub fn status(dataset: &Dataset) -> StatusReport {
     let mut report = StatusReport {
         dir: dataset.dir.clone(),

@@ -159,8 +159,8 @@ fn read_array(py: Python<'_>, array: &Bound<'_, PyAny>, strict: bool) -> PyResul
     // The shape is checked before the dtype's byte order matters, as a file's would be.
     npy::check_shape(untyped.shape()).map_err(value_error)?;
     // And against the memory available before anything is allocated: a broadcast array
-    // of 10^12 ones takes no memory in numpy, its copy here would (it used to abort the
-    // interpreter).
+    // of 10^12 ones takes no memory in numpy, but its copy here would, and a failed
+    // allocation aborts the interpreter.
     let padded = untyped
         .shape()
         .iter()
@@ -314,7 +314,8 @@ impl PyPlan {
     }
 
     /// Refuses a sample the machine cannot hold, before it is made (the CLI refuses such a
-    /// plan with the same estimate; a 4D side-254 sample used to abort the interpreter).
+    /// plan with the same estimate; a failed allocation, such as a 4D side-254 sample's,
+    /// would abort the interpreter).
     /// The answer depends only on the plan and the machine, so it is checked once per
     /// process: a forked worker checks again.
     fn admit(&self, index: u64) -> PyResult<()> {

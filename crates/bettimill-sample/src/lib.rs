@@ -120,8 +120,8 @@ pub fn pooling_for(mode: Mode) -> Pooling {
 
 /// The image cut down to the bounding box of its foreground (a copy; the image itself
 /// when the box is the whole image or there is no foreground). The foreground, and so its
-/// Betti numbers, is the same, but a solid box with a thick background shell around it
-/// (binned carve samples) no longer makes homology thin the shell.
+/// Betti numbers, is the same, and homology does not have to thin the thick background
+/// shell around a solid box (binned carve samples).
 pub fn foreground_window(image: &BinaryImage) -> std::borrow::Cow<'_, BinaryImage> {
     let d = image.dim().get();
     let shape = image.shape();

@@ -34,7 +34,7 @@ pub(crate) fn min_extent(family: &Family, dim: usize, floor: TubeFloor) -> Optio
 
 /// A random bounding radius for `object` between `minimum` and `upper`. A tentacled
 /// object draws from `minimum + TENTACLE_ROOM` up when there is that much room, so that its
-/// host leaves space for tentacles (draws near the minimum used to place none in most
+/// host leaves space for tentacles (draws near the minimum would place none in most
 /// samples); where there is not, it keeps the plain range and places what fits.
 pub(crate) fn draw_target(object: &Family, minimum: f64, upper: f64, rng: &mut ChaCha8Rng) -> f64 {
     let lo = match object {

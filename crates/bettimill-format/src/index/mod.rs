@@ -18,7 +18,7 @@
 //! declaration order, so equal indexes are equal bytes; [`IndexWriter`] writes it one shard
 //! at a time and [`read_index`] reads it one shard at a time, so neither holds the list.
 //!
-//! Format version 1 (bettimill 0.1.0 before this change) listed every member in the index
+//! Format version 1 (bettimill 0.1.0) listed every member in the index
 //! instead (about 590 bytes per sample); version 2 had no `files`. Both are refused with a
 //! message saying so (`bettimill finalize DIR` rewrites the index from the records).
 //!
