@@ -467,6 +467,39 @@ fn reads_env(line: &str) -> bool {
         .any(|(at, _)| !line[..at].ends_with("bettimill_"))
 }
 
+#[test]
+fn env_read_checker_finds_direct_reads_only() {
+    for direct in [
+        "let v = std::env::var(\"SLURM_JOB_ID\");",
+        "env::var_os(name)",
+        "for (k, v) in std::env::vars() {",
+    ] {
+        assert!(reads_env(direct), "{direct}");
+    }
+    for through in [
+        "bettimill_env::var(EnvVars::SLURM_JOB_ID)",
+        "let args = std::env::args();",
+        "std::env::current_exe()",
+    ] {
+        assert!(!reads_env(through), "{through}");
+    }
+}
+
+#[test]
+fn use_checker_names_file_line_and_needle_outside_comments() {
+    let sources = vec![(
+        PathBuf::from("src/build.rs"),
+        "// BuildOptions in a comment\nlet o = BuildOptions::default();\nlet x = 1;\n\
+         let id = \"SLURM_JOB_ID\";\n"
+            .to_string(),
+    )];
+    let found = uses(&sources, &["BuildOptions", "\"SLURM_"]);
+    assert_eq!(
+        found,
+        ["src/build.rs:2: BuildOptions", "src/build.rs:4: \"SLURM_"]
+    );
+}
+
 /// Every environment variable is read in `bettimill-env`'s `env.rs`, the one list of them
 /// (docs/environment.md is its users' copy): no other source file of a crate reads one.
 #[test]
