@@ -272,7 +272,7 @@ fn a_second_writer_is_refused_and_nothing_is_overwritten() {
     assert_exit(&second, 2);
     let text = stderr(&second);
     assert!(
-        text.contains("another bettimill build is running in"),
+        text.contains("another bettimill build or finalize is running in"),
         "{text}"
     );
     assert!(text.contains(&url), "{text}");
