@@ -180,6 +180,15 @@ fn a_build_to_a_bucket_equals_a_local_build_object_for_object() {
         stderr(&out)
     );
     assert_same_as_local(&server, &url, &local);
+    // `bettimill cat` streams an object as webdataset's `pipe:` URLs read it.
+    let shard = "shards/s3test-000007.tar";
+    let cat = server
+        .command()
+        .args(["cat", &format!("{url}/{shard}")])
+        .output()
+        .unwrap();
+    assert_exit(&cat, 0);
+    assert!(cat.stdout == std::fs::read(local.join(shard)).unwrap());
     // Timings are uploaded for stats, one per shard.
     let timings = server
         .objects(&url)

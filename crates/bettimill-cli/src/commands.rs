@@ -74,7 +74,7 @@ enum Command {
     ///
     /// Example: bettimill finalize /shared/demo
     Finalize {
-        /// The dataset directory.
+        /// The dataset directory, or s3://BUCKET/PREFIX (read with the AWS_* variables).
         dir: PathBuf,
     },
     /// Show which shards of a dataset are complete, missing or invalid.
@@ -198,6 +198,14 @@ enum Command {
         #[arg(long, value_name = "FILE.png")]
         plot: Option<PathBuf>,
     },
+    /// Write one object of an s3:// dataset to stdout, read by ranges (for webdataset's
+    /// `pipe:` URLs; credentials and server from the AWS_* variables).
+    ///
+    /// Example: bettimill cat s3://my-bucket/ds/shards/ds-000000.tar | tar -t
+    Cat {
+        /// The object: s3://BUCKET/PREFIX/NAME.
+        url: String,
+    },
     /// Print a shell completion script.
     ///
     /// Example: bettimill completions bash > ~/.local/share/bash-completion/completions/bettimill
@@ -304,6 +312,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
         Command::Stats { dir, json, plot } => {
             crate::stats::run(&dir, json, plot.as_deref(), printer)
         }
+        Command::Cat { url } => crate::directory::cat(&url),
         Command::Completions { shell } => crate::completions::run(shell),
     }
 }

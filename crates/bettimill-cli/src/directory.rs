@@ -140,3 +140,23 @@ pub fn status(dir: &Path, json: bool) -> anyhow::Result<ExitStatus> {
     Printer::data(text.as_bytes())?;
     Ok(ExitStatus::Success)
 }
+
+/// `bettimill cat s3://BUCKET/PREFIX/NAME`: the object to stdout, by ranged reads (one range
+/// in memory), so `pipe:bettimill cat URL` streams a shard to webdataset.
+pub fn cat(url: &str) -> anyhow::Result<ExitStatus> {
+    let bucket = bettimill_executor::remote::open_bucket(url, None)?;
+    let objects = bucket.objects();
+    let Some(size) = objects.size("")? else {
+        anyhow::bail!("{url}: no such object");
+    };
+    let mut reader = objects.reader("", size);
+    let mut buffer = vec![0u8; 1 << 20];
+    loop {
+        // A failed range names the object's URL.
+        let read = std::io::Read::read(&mut reader, &mut buffer)?;
+        if read == 0 {
+            return Ok(ExitStatus::Success);
+        }
+        Printer::data(&buffer[..read])?;
+    }
+}
