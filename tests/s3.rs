@@ -179,6 +179,12 @@ fn a_build_to_a_bucket_equals_a_local_build_object_for_object() {
         "{}",
         stderr(&out)
     );
+    // Its own progress lines (not a terminal), the last one at the last shard.
+    assert!(
+        stderr(&out).contains("progress: 12/12 shards made or found complete"),
+        "{}",
+        stderr(&out)
+    );
     assert_same_as_local(&server, &url, &local);
     // `bettimill cat` streams an object as webdataset's `pipe:` URLs read it.
     let shard = "shards/s3test-000007.tar";

@@ -67,6 +67,8 @@ pub fn build(
     };
     let mut started = std::time::Instant::now();
     let mut display = None;
+    let mut last_shard_line: Option<std::time::Instant> = None;
+    let to_bucket = crate::commands::object_url(out).is_some();
     // Signals set a flag while the workers run (the coordinator polls this future first,
     // before it starts any worker); before and after, they end the process with 130.
     let control = async {
@@ -94,17 +96,32 @@ pub fn build(
                 }
             }
             started = std::time::Instant::now();
-            display = Some(Display::new(
-                printer,
-                std::time::Duration::from_secs_f64(progress_interval),
-            ));
+            // Worker processes report through the display; an s3:// build, made in this
+            // process, by its own lines below.
+            if !to_bucket {
+                display = Some(Display::new(
+                    printer,
+                    std::time::Duration::from_secs_f64(progress_interval),
+                ));
+            }
         }
         BuildProgress::Workers(event) => {
             if let Some(display) = &mut display {
                 display.event(event);
             }
         }
-        BuildProgress::Shard(..) => {}
+        // An s3:// build makes its shards in this process: a line per interval (and at
+        // the last shard) says how far it is.
+        BuildProgress::Shard(done, total) => {
+            let interval = std::time::Duration::from_secs_f64(progress_interval);
+            if done == total || last_shard_line.is_none_or(|at| at.elapsed() >= interval) {
+                last_shard_line = Some(std::time::Instant::now());
+                printer.note(format_args!(
+                    "progress: {done}/{total} shards made or found complete, {} elapsed",
+                    crate::build_display::human_seconds(started.elapsed().as_secs_f64())
+                ));
+            }
+        }
     })?;
     // A build that returns was bound first, so the display exists.
     let mut display = display.unwrap_or_else(|| {
