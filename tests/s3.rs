@@ -340,7 +340,7 @@ fn a_bad_endpoint_a_missing_bucket_and_wrong_credentials_are_one_line_exit_2() {
     let out = server.build(&manifest, &url, &["--endpoint", "http://127.0.0.1:9"]);
     one_line(&out, &format!("{url}: "));
     assert!(
-        stderr(&out).contains("http://127.0.0.1:9"),
+        stderr(&out).contains("cannot reach the server http://127.0.0.1:9 "),
         "{}",
         stderr(&out)
     );

@@ -284,6 +284,16 @@ impl ObjectDir {
             | object_store::Error::Unauthenticated { .. } => {
                 ObjectError::Denied { url, reason: text }
             }
+            // No answer at all (refused, timed out, no route): the client's text is a
+            // request line with timings; the server and the last cause say it all.
+            _ if text.contains("error sending request") => ObjectError::Failed {
+                url,
+                reason: format!(
+                    "cannot reach the server {} (no answer after retries; check --endpoint or \
+                     AWS_ENDPOINT_URL, and the network)",
+                    self.endpoint
+                ),
+            },
             _ => ObjectError::Failed { url, reason: text },
         }
     }
