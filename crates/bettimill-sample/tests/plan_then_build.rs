@@ -226,13 +226,15 @@ fn every_manifest_that_plans_builds_the_first_sample_of_every_stratum() {
     );
 }
 
-/// The presets the hostile-manifest generator mutates here: the small demos as they are,
-/// the 4D demo at side 16 with the classes that fit there, and the mixed 128 preset's
-/// layout (carve mode, copies, hypervolume bins, the deformation sequence) at 4D side 18
-/// and 3D side 24, so that bins and their reach are mutated too.
+/// Every preset in `manifests/`, reduced to sizes a test builds: the small demos as they
+/// are, the 4D demo at side 18 with the classes that fit there, the mixed 128 preset's
+/// layout (carve mode, copies, hypervolume bins, downscaled copies, the deformation
+/// sequence) at 4D side 18 and 3D side 24, so that bins and their reach are mutated too,
+/// and the paper's figures at side 52 (the smallest its scene of four objects fits in when
+/// carved) with a tenth of its moves. The hostile-manifest generator mutates these.
 fn small_presets() -> Vec<String> {
     let demo_4d = include_str!("../../../manifests/demo-4d.toml")
-        .replace("side = 32", "side = 16")
+        .replace("side = 32", "side = 18")
         .replace(
             r#"family = ["ball", "handle", "s2_x_b2", "t2_x_b2"]"#,
             r#"family = ["ball", "handle"]"#,
@@ -253,17 +255,57 @@ fn small_presets() -> Vec<String> {
         .replace("side = 18", "side = 24")
         .replace("resolutions = [9]", "resolutions = [12]")
         .replace("mode = \"carve\"", "mode = [\"embed\", \"carve\"]");
+    let figures = include_str!("../../../manifests/paper-figures.toml")
+        .replace("side = 64", "side = 52")
+        .replace("steps = 600", "steps = 60");
     vec![
         include_str!("../../../manifests/demo-2d.toml").to_string(),
         include_str!("../../../manifests/demo-3d.toml").to_string(),
         demo_4d,
         mixed,
         mixed_3d,
+        figures,
     ]
 }
 
-/// The largest sample the hostile cases build (a mutated side can ask for 1024^3).
-const MAX_BUILT_VOXELS: u64 = 1 << 17;
+/// The largest sample the hostile cases build: the reduced paper figures' (a mutated side
+/// can ask for 1024^3, which is planned and left).
+const MAX_BUILT_VOXELS: u64 = 52 * 52 * 52;
+
+/// Every preset in `manifests/` is among [`small_presets`], and each, reduced, plans and
+/// builds the first sample of every stratum.
+#[test]
+fn every_reduced_preset_plans_and_builds_the_first_sample_of_every_stratum() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../manifests");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".toml"))
+        .collect();
+    names.sort();
+    let presets = small_presets();
+    let reduced: Vec<String> = presets
+        .iter()
+        .map(|text| {
+            let table: toml::Table = text.parse().unwrap();
+            format!("{}.toml", table["name"].as_str().unwrap())
+        })
+        .collect();
+    for name in &names {
+        let text = std::fs::read_to_string(dir.join(name)).unwrap();
+        let table: toml::Table = text.parse().unwrap();
+        let wanted = format!("{}.toml", table["name"].as_str().unwrap());
+        assert!(reduced.contains(&wanted), "{name} has no reduced form here");
+    }
+    for text in &presets {
+        // Combinations that do not fit at the reduced side are left out with a reason
+        // (two handles in a 4D side-18 cube); every stratum planned must build.
+        let plan = Plan::parse(text, std::path::Path::new("preset.toml")).unwrap();
+        assert!(!plan.strata.is_empty(), "{text}");
+        let built = build_every_stratum(text).unwrap();
+        assert_eq!(built, Some(plan.strata.len() as u32), "{text}");
+    }
+}
 
 #[test]
 fn every_hostile_manifest_that_plans_builds_the_first_sample_of_every_stratum() {
@@ -280,14 +322,21 @@ fn every_hostile_manifest_that_plans_builds_the_first_sample_of_every_stratum() 
         },
         TestRng::deterministic_rng(RngAlgorithm::ChaCha),
     );
-    let counts = std::sync::Mutex::new((0u32, 0u32, 0u32));
+    let counts = std::sync::Mutex::new((0u32, 0u32, 0u32, 0u32));
     // Half of the cases also write hostile bins, so that bins out of reach meet manifests
-    // that otherwise plan.
+    // that otherwise plan, and half write downscaled copies the preset's side allows (one
+    // or two of its divisors, down to the smallest copy), whose cavities carving must make
+    // thick enough; the generator's own copy lists are mostly refused by the plan.
     use bettimill_testkit::hostile::{mutate, mutations, Mutation, HOSTILE_BINS};
     let bins = prop::option::of(prop::sample::select(HOSTILE_BINS.to_vec()));
-    let strategy = (0..presets.len(), mutations(), bins);
-    let result = runner.run(&strategy, |(preset, mut mutations, bins)| {
+    let copies = prop::option::of((any::<usize>(), any::<bool>()));
+    let strategy = (0..presets.len(), mutations(), bins, copies);
+    let result = runner.run(&strategy, |(preset, mut mutations, bins, copies)| {
         mutations.extend(bins.map(Mutation::ReplaceBins));
+        if let Some((pick, two)) = copies {
+            let list = copy_sides(&presets[preset], pick, two);
+            mutations.push(Mutation::ReplaceResolutions(list));
+        }
         let text = mutate(&presets[preset], &mutations);
         // Only small samples are built; a larger one is planned and left.
         let small = bettimill_manifest_voxels(&text).is_some_and(|v| v <= MAX_BUILT_VOXELS);
@@ -299,19 +348,49 @@ fn every_hostile_manifest_that_plans_builds_the_first_sample_of_every_stratum() 
             counts.0 += 1;
             counts.1 += samples;
             counts.2 += u32::from(text.contains("[hypervolume]"));
+            counts.3 += u32::from(has_copies(&text));
         }
         Ok(())
     });
     if let Err(err) = result {
         panic!("{err}");
     }
-    let (planned, built, binned) = counts.into_inner().unwrap();
-    eprintln!("hostile manifests: {planned} planned (binned {binned}), {built} samples built");
-    // The generator must reach the building half of the property, binned manifests too.
-    assert!(
-        planned >= 15 && built >= 40 && binned >= 5,
-        "only {planned} hostile manifests planned ({binned} binned) and {built} samples built"
+    let (planned, built, binned, copies) = counts.into_inner().unwrap();
+    eprintln!(
+        "hostile manifests: {planned} planned (binned {binned}, with downscaled copies {copies}), {built} samples built"
     );
+    // The generator must reach the building half of the property, binned manifests and
+    // manifests with downscaled copies too.
+    assert!(
+        planned >= 15 && built >= 40 && binned >= 5 && copies >= 5,
+        "only {planned} hostile manifests planned ({binned} binned, {copies} with copies) and {built} samples built"
+    );
+}
+
+/// A `resolutions` list for the preset `text`: its side's `pick`-th divisor from 4 to below
+/// the side, and with `two` the next smaller one too.
+fn copy_sides(text: &str, pick: usize, two: bool) -> String {
+    let table: toml::Table = text.parse().expect("a preset parses");
+    let side = table["side"].as_integer().expect("a preset has a side");
+    let divisors: Vec<i64> = (4..side).rev().filter(|d| side % d == 0).collect();
+    let first = pick % divisors.len();
+    let chosen: Vec<String> = divisors[first..]
+        .iter()
+        .take(if two { 2 } else { 1 })
+        .map(i64::to_string)
+        .collect();
+    format!("[{}]", chosen.join(", "))
+}
+
+/// Whether the manifest `text` asks for at least one downscaled copy.
+fn has_copies(text: &str) -> bool {
+    let Ok(table) = text.parse::<toml::Table>() else {
+        return false;
+    };
+    table
+        .get("resolutions")
+        .and_then(|r| r.as_array())
+        .is_some_and(|r| !r.is_empty())
 }
 
 /// The voxels of one sample of the manifest `text` (`side ^ dimension`), if both parse.

@@ -1,8 +1,9 @@
 //! The hostile-manifest generator: presets mutated as a hostile user or a broken editor
 //! would, at three levels: whole lines (deleted, duplicated, swapped), values (replaced by
 //! hostile ones: negative, zero, 2^64 - 1, huge floats, NaN, strings, arrays, tables, bins
-//! out of reach) and bytes (inserted, replaced). The manifest parser's fuzz test feeds it
-//! every preset; the plan-then-build property builds what it makes of the small ones.
+//! out of reach, repeated or odd downscaled copies) and bytes (inserted, replaced). The
+//! manifest parser's fuzz test feeds it every preset; the plan-then-build property builds
+//! what it makes of the small ones.
 
 use proptest::prelude::*;
 
@@ -51,6 +52,26 @@ pub const HOSTILE_BINS: [&str; 8] = [
     "[[0.0, 1.0]]",
 ];
 
+/// Downscaled-copy lists a mutation writes in place of a `resolutions` value (or adds where
+/// there is none): sides that divide the presets' sides (18, 24, 32, 52), several at
+/// once, and hostile ones: repeated, not dividing, below the smallest copy, zero, empty.
+pub const HOSTILE_RESOLUTIONS: [&str; 14] = [
+    "[16, 8]",
+    "[8, 4]",
+    "[12, 6]",
+    "[12, 4]",
+    "[6]",
+    "[9, 6]",
+    "[26, 13]",
+    "[4]",
+    "[9, 9]",
+    "[12, 12]",
+    "[17]",
+    "[4, 2, 1]",
+    "[0]",
+    "[]",
+];
+
 /// One edit of a manifest's text.
 #[derive(Clone, Debug)]
 pub enum Mutation {
@@ -64,6 +85,9 @@ pub enum Mutation {
     ReplaceValue(usize, &'static str),
     /// Replaces the value of every `bins = ...` line.
     ReplaceBins(&'static str),
+    /// Replaces the value of every `resolutions = ...` line, or adds one after the first
+    /// `seed = ...` line when there is none.
+    ReplaceResolutions(String),
     /// Inserts a byte.
     InsertByte(usize, u8),
     /// Replaces a byte.
@@ -79,6 +103,8 @@ pub fn mutation() -> impl Strategy<Value = Mutation> {
         3 => (any::<usize>(), prop::sample::select(HOSTILE_VALUES.to_vec()))
             .prop_map(|(l, v)| Mutation::ReplaceValue(l, v)),
         1 => prop::sample::select(HOSTILE_BINS.to_vec()).prop_map(Mutation::ReplaceBins),
+        1 => prop::sample::select(HOSTILE_RESOLUTIONS.to_vec())
+            .prop_map(|r| Mutation::ReplaceResolutions(r.to_string())),
         1 => (any::<usize>(), prop::sample::select(b"=[]{}\"'#\n,.-0123456789 \\".to_vec()))
             .prop_map(|(at, b)| Mutation::InsertByte(at, b)),
         1 => (any::<usize>(), any::<u8>()).prop_map(|(at, b)| Mutation::ReplaceByte(at, b)),
@@ -119,6 +145,17 @@ pub fn mutate(text: &str, mutations: &[Mutation]) -> String {
                     {
                         *line = format!("bins = {bins}");
                     }
+                }
+            }
+            Mutation::ReplaceResolutions(resolutions) => {
+                let key_of = |line: &str| line.split('=').next().unwrap_or("").trim().to_string();
+                let line = format!("resolutions = {resolutions}");
+                if lines.iter().any(|l| key_of(l) == "resolutions") {
+                    for l in lines.iter_mut().filter(|l| key_of(l) == "resolutions") {
+                        l.clone_from(&line);
+                    }
+                } else if let Some(k) = lines.iter().position(|l| key_of(l) == "seed") {
+                    lines.insert(k + 1, line);
                 }
             }
             Mutation::InsertByte(at, byte) => {
