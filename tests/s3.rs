@@ -498,3 +498,70 @@ fn array_tasks_upload_their_shards_and_finalize_writes_the_index() {
     assert_same_as_local(&server, &url, &local);
     assert_exit(&run(&["verify", &url]), 0);
 }
+
+/// Peak resident set (KiB, GNU time's `%M`) of `bettimill ARGS` run against the server;
+/// `None` (the test returns) when /usr/bin/time is missing outside CI.
+fn peak_kib(server: &Server, args: &[&str]) -> Option<(Output, u64)> {
+    const TIME: &str = "/usr/bin/time";
+    if !Path::new(TIME).exists() {
+        skip_unless_ci("GNU time", "/usr/bin/time is not installed");
+        return None;
+    }
+    let report = tempfile::NamedTempFile::new().unwrap();
+    let mut command = Command::new(TIME);
+    command
+        .args(["-f", "%M", "-o"])
+        .arg(report.path())
+        .arg(common::BETTIMILL)
+        .args(args);
+    command.envs(server.vars.iter().map(|(k, v)| (k, v)));
+    let output = command.output().unwrap();
+    let text = std::fs::read_to_string(report.path()).unwrap();
+    let kib = text
+        .lines()
+        .filter_map(|l| l.trim().parse::<u64>().ok())
+        .next_back()
+        .unwrap_or_else(|| panic!("no peak in GNU time's report: {text:?}"));
+    Some((output, kib))
+}
+
+#[test]
+fn verify_and_cat_of_a_bucket_hold_memory_flat_whatever_the_shard_size() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    // Two shards of 120 samples of 96^3 voxels, uncompressed: about 102 MiB each.
+    let manifest = dir.join("big.toml");
+    std::fs::write(
+        &manifest,
+        "schema_version = 1\nname = \"big\"\ndimension = 3\nside = 96\nmode = [\"embed\"]\n\
+         samples = 240\nshard_size = 120\nseed = 3\n\n[[classes]]\nfamily = \"ball\"\n",
+    )
+    .unwrap();
+    let url = server.fresh_url("memory");
+    assert_exit(&server.build(&manifest, &url, &["--max-uploads", "1"]), 0);
+    let shard_bytes = server
+        .objects(&url)
+        .size("shards/big-000000.tar")
+        .unwrap()
+        .unwrap();
+    assert!(shard_bytes > 100 << 20, "{shard_bytes}");
+    // Ranges of 8 MiB, one at a time: far below one shard whatever its size.
+    for args in [
+        vec!["verify".to_string(), url.clone()],
+        vec!["cat".to_string(), format!("{url}/shards/big-000000.tar")],
+    ] {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let Some((out, kib)) = peak_kib(&server, &args) else {
+            return;
+        };
+        assert_exit(&out, 0);
+        assert!(
+            kib < 64 << 10,
+            "bettimill {}: peak {kib} KiB for shards of {shard_bytes} bytes",
+            args[0]
+        );
+    }
+}
