@@ -231,6 +231,7 @@ fn a_killed_build_resumes_against_the_bucket_to_the_same_bytes() {
     let records = || objects.list_under("records").map(|l| l.len()).unwrap_or(0);
     // Each shard waits in its staging write, so the kills land while shards are made and
     // uploaded: after the first record, then after the fifth.
+    let mut killed = Vec::new();
     for records_before_kill in [1, 5] {
         let mut child = server
             .command()
@@ -245,14 +246,33 @@ fn a_killed_build_resumes_against_the_bucket_to_the_same_bytes() {
         });
         assert!(common::kill("-9", child.id()));
         child.wait().unwrap();
+        killed.push(child.id());
         assert_eq!(
             objects.size("index.json").unwrap(),
             None,
             "the build was killed before its end"
         );
     }
+    let staging_of = |pid: &u32| -> Vec<PathBuf> {
+        let prefix = format!("bettimill-staging-{pid}-");
+        std::fs::read_dir(std::env::temp_dir())
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+            .map(|e| e.path())
+            .collect()
+    };
+    assert_eq!(
+        staging_of(&killed[1]).len(),
+        1,
+        "kill -9 leaves its staging"
+    );
     let resumed = server.build(&manifest, &url, &[]);
     assert_exit(&resumed, 0);
+    // The killed builds' staging directories (their shards in flight) are gone.
+    for pid in &killed {
+        assert_eq!(staging_of(pid), Vec::<PathBuf>::new());
+    }
     assert!(
         !stderr(&resumed).contains("skipped 0 complete"),
         "the resumed build found the killed builds' shards: {}",

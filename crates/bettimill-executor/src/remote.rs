@@ -67,6 +67,34 @@ pub fn open_bucket(url: &str, endpoint: Option<&str>) -> Result<BucketDir, Objec
     BucketDir::open(url, &s3_config(endpoint))
 }
 
+/// The staging directories' names under the temporary directory: this prefix, the
+/// process id, a random part.
+const STAGING_PREFIX: &str = "bettimill-staging-";
+
+/// Removes the staging directories of processes that are gone (a build killed with its
+/// shards in flight leaves them); those of live processes, and any that cannot be read,
+/// stay.
+fn remove_dead_staging() {
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(STAGING_PREFIX))
+            .and_then(|rest| rest.split_once('-'))
+            .and_then(|(pid, _)| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let gone = !Path::new(&format!("/proc/{pid}")).exists();
+        if gone && entry.file_type().is_ok_and(|t| t.is_dir()) {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
 /// A bucket bound to a build, with its lease (none for an array task) and its staging
 /// directory.
 pub(crate) struct BucketBuild {
@@ -125,8 +153,9 @@ impl BucketBuild {
         manifest: Manifest,
         options: &ObjectOptions,
     ) -> Result<BucketBuild, BuildError> {
+        remove_dead_staging();
         let staging = tempfile::Builder::new()
-            .prefix("bettimill-staging-")
+            .prefix(&format!("{STAGING_PREFIX}{}-", std::process::id()))
             .tempdir()
             .map_err(|source| BuildError::Io {
                 path: std::env::temp_dir(),
