@@ -16,18 +16,30 @@ pub fn finalize(dir: &Path, printer: Printer) -> anyhow::Result<ExitStatus> {
         printer.note(format_args!("finalized {url}/index.json"));
         return Ok(ExitStatus::Success);
     }
-    let dataset = Dataset::open(dir)?;
     // The lock keeps finalize from removing the temporaries of a running build (or of
     // another finalize) and from racing it to the same renames. A Slurm finalize job and
     // a user's finalize, or a finalize during a build's last step, must not fail: the
     // second waits for the first, then finds its work done.
-    let _lock = bettimill_executor::DirLock::wait(dir, |lock| {
-        Printer::always(format_args!(
-            "another bettimill process is building or finalizing {} (it holds {}); waiting for it to finish",
-            dir.display(),
-            lock.display()
-        ));
-    })?;
+    let wait = || {
+        bettimill_executor::DirLock::wait(dir, |lock| {
+            Printer::always(format_args!(
+                "another bettimill process is building or finalizing {} (it holds {}); waiting for it to finish",
+                dir.display(),
+                lock.display()
+            ))
+        })
+    };
+    // A build that is creating the directory holds the lock before build.json exists: a
+    // directory with the lock file and no build.json is waited for before it is opened
+    // (a creation that was killed is then refused as unfinished, as without the wait).
+    let layout = bettimill_format::DatasetDir::new(dir);
+    let creating = !layout.has_build_info() && dir.join(bettimill_format::dir::LOCK_FILE).is_file();
+    let early = if creating { Some(wait()?) } else { None };
+    let dataset = Dataset::open(dir)?;
+    let _lock = match early {
+        Some(lock) => lock,
+        None => wait()?,
+    };
     let status = cluster::status(&dataset);
     let incomplete: Vec<&str> = status
         .missing
