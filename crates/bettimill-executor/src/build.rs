@@ -152,17 +152,7 @@ pub fn build(
             let summary = dataset
                 .build_in_process(|done, total| progress(BuildProgress::Shard(done, total)))
                 .map_err(BuildFailure::InProcess)?;
-            let shards = dataset.plan.shard_count();
-            coordinator::BuildReport {
-                built: summary.built,
-                skipped: summary.skipped,
-                samples_built: summary.samples_built,
-                regenerations: summary.regenerations,
-                complete: shards,
-                shards,
-                finalized: true,
-                ..coordinator::BuildReport::default()
-            }
+            in_process_totals(&summary, dataset.plan.shard_count())
         }
         Runner::Workers { count, program } => {
             let options = BuildOptions {
@@ -183,6 +173,21 @@ pub fn build(
         samples: dataset.plan.samples,
         index: dataset.layout().index_path(),
     })
+}
+
+/// The totals of a build made in this process, which ends with every shard complete and
+/// the dataset finalized.
+fn in_process_totals(summary: &crate::BuildSummary, shards: u64) -> coordinator::BuildReport {
+    coordinator::BuildReport {
+        built: summary.built,
+        skipped: summary.skipped,
+        samples_built: summary.samples_built,
+        regenerations: summary.regenerations,
+        complete: shards,
+        shards,
+        finalized: true,
+        ..coordinator::BuildReport::default()
+    }
 }
 
 /// A build into object storage (see [`crate::remote`]): the bucket is checked and its lease
@@ -207,16 +212,7 @@ fn build_to_bucket(
         .run(|done, total| progress(BuildProgress::Shard(done, total)))
         .map_err(BuildFailure::InProcess)?;
     Ok(BuildReport {
-        totals: coordinator::BuildReport {
-            built: summary.built,
-            skipped: summary.skipped,
-            samples_built: summary.samples_built,
-            regenerations: summary.regenerations,
-            complete: shards,
-            shards,
-            finalized: true,
-            ..coordinator::BuildReport::default()
-        },
+        totals: in_process_totals(&summary, shards),
         samples,
         index,
     })
