@@ -434,26 +434,8 @@ impl BucketDir {
                 .push(Problem::ExtraFile { path: path.clone() });
         }
         // The index's identity must be the dataset's, as in a directory.
-        match self.read_build_info() {
-            Ok(info) => {
-                for (field, indexed, built) in [
-                    ("tool_version", &header.tool_version, &info.tool_version),
-                    ("manifest_hash", &header.manifest_hash, &info.manifest_hash),
-                    ("plan_hash", &header.plan_hash, &info.plan_hash),
-                ] {
-                    if indexed != built {
-                        report.problems.push(Problem::File {
-                            path: index_name.into(),
-                            reason: format!("{field} is {indexed}, build.json says {built}"),
-                        });
-                    }
-                }
-            }
-            Err(err) => report.problems.push(Problem::File {
-                path: BUILD_INFO_FILE.into(),
-                reason: err.to_string(),
-            }),
-        }
+        let problems = crate::dir::identity_problems(&header, self.read_build_info());
+        report.problems.extend(problems);
         report.header = Some(header);
         Ok(report)
     }

@@ -81,27 +81,9 @@ impl DatasetDir {
             crate::verify_with_progress(&self.root, REQUIRED_FILES, &mut records, progress)?;
         // The index's identity must be the directory's: build.json is itself covered by the
         // index's `files`, so an edit of either is found.
-        if let Some(header) = report.header.clone() {
-            match self.read_build_info() {
-                Ok(info) => {
-                    for (field, indexed, built) in [
-                        ("tool_version", &header.tool_version, &info.tool_version),
-                        ("manifest_hash", &header.manifest_hash, &info.manifest_hash),
-                        ("plan_hash", &header.plan_hash, &info.plan_hash),
-                    ] {
-                        if indexed != built {
-                            report.problems.push(crate::Problem::File {
-                                path: INDEX_FILE.into(),
-                                reason: format!("{field} is {indexed}, build.json says {built}"),
-                            });
-                        }
-                    }
-                }
-                Err(err) => report.problems.push(crate::Problem::File {
-                    path: BUILD_INFO_FILE.into(),
-                    reason: err.to_string(),
-                }),
-            }
+        if let Some(header) = &report.header {
+            let problems = super::identity_problems(header, self.read_build_info());
+            report.problems.extend(problems);
         }
         Ok(report)
     }

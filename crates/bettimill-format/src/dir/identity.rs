@@ -281,3 +281,33 @@ pub fn check_build_info(
     }
     Ok(())
 }
+
+/// What verify reports when an index's identity is not the dataset's: each of the index
+/// header's `tool_version`, `manifest_hash` and `plan_hash` that differs from `build.json`'s,
+/// or why `build.json` cannot be read. The same for a directory and a bucket.
+pub(crate) fn identity_problems(
+    header: &crate::IndexHeader,
+    info: Result<BuildInfo, FormatError>,
+) -> Vec<crate::Problem> {
+    let info = match info {
+        Ok(info) => info,
+        Err(err) => {
+            return vec![crate::Problem::File {
+                path: BUILD_INFO_FILE.into(),
+                reason: err.to_string(),
+            }]
+        }
+    };
+    [
+        ("tool_version", &header.tool_version, &info.tool_version),
+        ("manifest_hash", &header.manifest_hash, &info.manifest_hash),
+        ("plan_hash", &header.plan_hash, &info.plan_hash),
+    ]
+    .into_iter()
+    .filter(|(_, indexed, built)| indexed != built)
+    .map(|(field, indexed, built)| crate::Problem::File {
+        path: super::INDEX_FILE.into(),
+        reason: format!("{field} is {indexed}, build.json says {built}"),
+    })
+    .collect()
+}

@@ -13,6 +13,7 @@ mod layout;
 mod records;
 mod shard_state;
 
+pub(crate) use identity::identity_problems;
 pub use identity::{check_build_info, BuildInfo, Unbound};
 pub use layout::{
     dataset_containing, BUILD_INFO_FILE, CARD_FILE, CLASSES_FILE, CREATION_FILES, INDEX_FILE,
