@@ -181,6 +181,19 @@ def test_empty_and_oversized_manifest_text_is_refused_like_a_file():
         bettimill.Plan(padded)
 
 
+def test_a_megabyte_of_text_without_newline_is_refused_and_not_repeated():
+    # One comment line over 1 MiB has no newline and no `=`, so it was taken for a path;
+    # the error then printed the whole megabyte back.
+    with pytest.raises(ValueError, match="larger than 1048576 bytes") as refused:
+        bettimill.Plan("#" + "x" * 2**20)
+    assert len(str(refused.value)) < 300, len(str(refused.value))
+    # Under the limit it is a name that is no file and no preset: shown shortened.
+    with pytest.raises(FileNotFoundError, match="no such file") as missing:
+        bettimill.Plan("x" * 2**19)
+    assert len(str(missing.value)) < 600, len(str(missing.value))
+    assert "more characters" in str(missing.value)
+
+
 def test_presets_are_built_in_and_an_unknown_name_lists_them(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     presets = bettimill.presets()

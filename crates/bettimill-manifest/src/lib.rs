@@ -480,14 +480,7 @@ pub fn read_text(path: &Path) -> Result<String, ManifestError> {
         .read_to_end(&mut bytes)
         .map_err(io)?;
     if bytes.len() as u64 > MAX_MANIFEST_BYTES {
-        return Err(ManifestError::Invalid {
-            path: path.to_path_buf(),
-            line: 0,
-            field: "(file)".to_string(),
-            reason: format!(
-                "is larger than {MAX_MANIFEST_BYTES} bytes; a manifest is a short TOML file"
-            ),
-        });
+        return Err(too_large(path));
     }
     String::from_utf8(bytes).map_err(|err| ManifestError::Invalid {
         path: path.to_path_buf(),
@@ -495,6 +488,19 @@ pub fn read_text(path: &Path) -> Result<String, ManifestError> {
         field: "(file)".to_string(),
         reason: format!("is not UTF-8 text ({err})"),
     })
+}
+
+/// The refusal of a manifest over [`MAX_MANIFEST_BYTES`], the same for a file and for text
+/// given directly (which it never repeats).
+fn too_large(path: &Path) -> ManifestError {
+    ManifestError::Invalid {
+        path: path.to_path_buf(),
+        line: 0,
+        field: "(file)".to_string(),
+        reason: format!(
+            "is larger than {MAX_MANIFEST_BYTES} bytes; a manifest is a short TOML file"
+        ),
+    }
 }
 
 /// What a file that reading could block on is (a named pipe or a socket); character
@@ -522,8 +528,12 @@ impl Manifest {
         Manifest::parse(&read_text(path)?, path)
     }
 
-    /// Parses and validates manifest text; `path` is only used in error messages.
+    /// Parses and validates manifest text (at most [`MAX_MANIFEST_BYTES`], as a file); `path`
+    /// is only used in error messages.
     pub fn parse(text: &str, path: &Path) -> Result<Manifest, ManifestError> {
+        if text.len() as u64 > MAX_MANIFEST_BYTES {
+            return Err(too_large(path));
+        }
         let source = Source { path, text };
         let mut manifest: Manifest = toml::from_str(text).map_err(|err| {
             let (mut line, mut field) = match err.span() {

@@ -307,6 +307,25 @@ fn a_manifest_file_larger_than_the_limit_is_refused_without_reading_it_whole() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Text given directly (Python's `Plan(text)`) is held to the file limit, and the refusal
+/// does not repeat the megabyte it refuses.
+#[test]
+fn manifest_text_over_the_limit_is_refused_like_a_file() {
+    let text = format!("#{}", "x".repeat(1 << 20));
+    let err = Manifest::parse(&text, Path::new("<manifest text>")).unwrap_err();
+    let message = err.to_string();
+    assert!(message.contains("larger than 1048576 bytes"), "{message}");
+    assert!(
+        message.len() < 200,
+        "{} bytes: {message:.300}",
+        message.len()
+    );
+    assert!(matches!(err, ManifestError::Invalid { ref field, line: 0, .. } if field == "(file)"));
+    // One byte under the limit is parsed (and fails on what it says, not its size).
+    let err = Manifest::parse(&text[..1 << 20], Path::new("<manifest text>")).unwrap_err();
+    assert!(!err.to_string().contains("larger than"), "{err}");
+}
+
 /// A FIFO given as the manifest used to block `plan` and `build` for ever (opening a pipe
 /// waits for a writer); it is refused by its type before it is opened, as is a directory.
 #[test]

@@ -243,14 +243,10 @@ fn manifest_source(source: Option<&Bound<'_, PyAny>>) -> PyResult<Source> {
                 "the manifest is an empty string: give a path, TOML text, or None for the demo manifest",
             ));
         }
-        if text.contains('\n') || text.contains('=') {
-            // Text is held to the limit a manifest file is.
-            if text.len() as u64 > bettimill_manifest::MAX_MANIFEST_BYTES {
-                return Err(PyValueError::new_err(format!(
-                    "<manifest text>: field `(file)`: is larger than {} bytes; a manifest is a short TOML file",
-                    bettimill_manifest::MAX_MANIFEST_BYTES
-                )));
-            }
+        // A str over the manifest size limit is no path or preset name either: it is text,
+        // which parsing refuses as it refuses such a file, without repeating it.
+        let oversized = text.len() as u64 > bettimill_manifest::MAX_MANIFEST_BYTES;
+        if oversized || text.contains('\n') || text.contains('=') {
             return Ok(Source {
                 text,
                 origin: PathBuf::from("<manifest text>"),
@@ -276,12 +272,26 @@ fn manifest_source(source: Option<&Bound<'_, PyAny>>) -> PyResult<Source> {
             .collect();
         return Err(PyFileNotFoundError::new_err(format!(
             "cannot read the manifest {}: no such file, and no preset of that name (the presets: {})",
-            path.display(),
+            shortened(&path.to_string_lossy()),
             names.join(", ")
         )));
     }
     let text = bettimill_manifest::read_text(&path).map_err(value_error)?;
     Ok(Source { text, origin: path })
+}
+
+/// A name as an error shows it: at most 200 characters, saying how many more there were, so
+/// a long string that is neither a file nor TOML is not printed back whole.
+fn shortened(name: &str) -> String {
+    const SHOWN: usize = 200;
+    match name.char_indices().nth(SHOWN) {
+        Some((cut, _)) => format!(
+            "{}... ({} more characters)",
+            &name[..cut],
+            name[cut..].chars().count()
+        ),
+        None => name.to_string(),
+    }
 }
 
 fn parse_manifest(source: &Source) -> PyResult<Manifest> {
