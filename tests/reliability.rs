@@ -836,22 +836,32 @@ fn holds_a_file_lock(pid: u32) -> bool {
         })
 }
 
-/// Array tasks (`bettimill worker --task-index`) take no directory lock, so a `finalize`
-/// run by hand while they build must neither report a failure that is not one nor remove a
-/// temporary a task is still writing. Two jobs' tasks run at once (a job resubmitted while
-/// the first still runs): the first job's tasks hold each shard five seconds before its
-/// rename (test hook), the second job's build every shard meanwhile, and finalize, run
-/// while the first job's tasks still hold their temporaries, finds every shard complete.
-/// It used to remove those temporaries, and each of the first job's tasks then failed
-/// (`cannot rename into ...: No such file or directory`, exit 2). Every finalize must exit
-/// 0, or 2 saying shards are not complete; every task 0; every temporary must stay until
-/// its writer renames it; the directory must end as a local build's, every shard timed.
-#[test]
-fn a_manual_finalize_while_array_tasks_build_fails_nothing_and_removes_no_live_temporary() {
-    let tmp = Dir::new();
-    let m = manifest(tmp.path(), 2, 16, 16, 2);
-    let clean = common::clean_build(&m, tmp.path(), 1);
-    let out = tmp.path().join("array");
+/// `bettimill worker --task-index I --task-count 2` into `out`, started in the background
+/// (stderr captured), with the pause hook before each shard's rename when given.
+fn array_task(out: &Path, index: u32, pause: Option<&str>) -> std::process::Child {
+    let mut command = bettimill();
+    command
+        .arg("worker")
+        .arg("--dir")
+        .arg(out)
+        .args([
+            "--task-index",
+            &index.to_string(),
+            "--task-count",
+            "2",
+            "--threads",
+            "1",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    if let Some(pause) = pause {
+        command.env("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", pause);
+    }
+    command.spawn().unwrap()
+}
+
+/// A directory bound for 2 array tasks by `bettimill slurm` (scripts written, nothing run).
+fn bound_for_tasks(m: &Path, out: &Path) {
     assert_exit(
         &run(&[
             "slurm",
@@ -863,77 +873,49 @@ fn a_manual_finalize_while_array_tasks_build_fails_nothing_and_removes_no_live_t
         ]),
         0,
     );
-    let task = |index: u32, pause: Option<&str>| {
-        let mut command = bettimill();
-        command
-            .arg("worker")
-            .arg("--dir")
-            .arg(&out)
-            .args([
-                "--task-index",
-                &index.to_string(),
-                "--task-count",
-                "2",
-                "--threads",
-                "1",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped());
-        if let Some(pause) = pause {
-            command.env("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", pause);
-        }
-        command.spawn().unwrap()
-    };
-    let finalize = || {
-        let result = bettimill()
-            .arg("finalize")
-            .arg(&out)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .output()
-            .unwrap();
-        let message = text(&result.stderr);
-        assert!(
-            result.status.code() == Some(0)
-                || (result.status.code() == Some(2) && message.contains("not complete")),
-            "{:?}: {message}",
-            result.status
-        );
-        result.status.code() == Some(0)
-    };
-    let first: Vec<_> = (0..2).map(|i| task(i, Some("5"))).collect();
+}
+
+/// Array tasks hold the directory lock shared, so a `finalize` run by hand while they
+/// build waits for them (saying so) instead of racing them; and no temporary a task is
+/// still writing is removed. Two jobs' tasks run at once (a job resubmitted while the first
+/// still runs): the first job's tasks hold each shard a second before its rename (test
+/// hook), the second job's build every shard meanwhile, beside them and beside the waiting
+/// finalize. A finalize without the lock used to remove the first job's temporaries, and
+/// each of its tasks then failed (`cannot rename into ...: No such file or directory`).
+/// Every task must exit 0, the finalize 0 after the last task, and the directory must end
+/// as a local build's, every shard timed.
+#[test]
+fn a_manual_finalize_while_array_tasks_build_waits_for_them_and_removes_nothing() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 16, 2);
+    let clean = common::clean_build(&m, tmp.path(), 1);
+    let out = tmp.path().join("array");
+    bound_for_tasks(&m, &out);
+    let first: Vec<_> = (0..2).map(|i| array_task(&out, i, Some("1"))).collect();
     let held = || temporaries_in(&out.join("shards"));
     wait_until(
         "both tasks holding a shard",
         Duration::from_secs(60),
         || held().len() == 2,
     );
-    // While shards are missing, finalize says so and changes nothing.
-    let before = held();
-    assert!(!finalize(), "finalize found every shard complete too early");
-    assert_eq!(held(), before, "finalize removed a task's temporary");
+    let finalize = bettimill()
+        .arg("finalize")
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     // The second job builds every shard, those the first job's tasks hold included.
     for index in 0..2 {
-        let result = task(index, None).wait_with_output().unwrap();
+        let result = array_task(&out, index, None).wait_with_output().unwrap();
         assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
     }
-    // Every shard is complete while the first job's tasks still hold their temporaries
-    // (the test hook keeps each for 5 s, much longer than this takes).
-    let live = held();
-    assert!(
-        !live.is_empty() && first.iter().all(|t| alive(t.id())),
-        "the first job's tasks finished too early: {live:?}"
-    );
-    assert!(finalize(), "finalize did not find every shard complete");
-    for name in &live {
-        assert!(
-            out.join("shards").join(name).exists() || first.iter().all(|t| !alive(t.id())),
-            "finalize removed {name}, which a running task holds"
-        );
-    }
-    // Finalize again and again until the first job's tasks are done.
     while first.iter().any(|t| alive(t.id())) {
-        finalize();
+        assert!(
+            alive(finalize.id()),
+            "finalize ended while array tasks still held the directory"
+        );
+        std::thread::sleep(Duration::from_millis(20));
     }
     for (index, task) in first.into_iter().enumerate() {
         let result = task.wait_with_output().unwrap();
@@ -944,11 +926,71 @@ fn a_manual_finalize_while_array_tasks_build_fails_nothing_and_removes_no_live_t
             text(&result.stderr)
         );
     }
-    assert!(finalize());
+    let finalized = finalize.wait_with_output().unwrap();
+    let message = text(&finalized.stderr);
+    assert_eq!(finalized.status.code(), Some(0), "{message}");
+    assert!(
+        message.contains("array tasks (`bettimill worker --task-count N`) are writing into")
+            && message.contains("waiting for them to finish"),
+        "{message}"
+    );
     assert!(held().is_empty(), "{:?}", held());
     assert_exit(&run(&["verify", out.to_str().unwrap()]), 0);
     let timings = std::fs::read_dir(out.join("timings")).unwrap().count();
     assert_eq!(timings, 8, "a shard without its timing");
+    std::fs::remove_dir_all(out.join("slurm")).unwrap();
+    assert_same(&clean, &out);
+}
+
+/// A local `bettimill build` into a directory that array tasks are writing (a Slurm job
+/// still running) is refused before it writes anything, naming the array tasks and the
+/// lock they hold; an array task started while a build runs there is refused the same
+/// way, naming the build. The job and the build each finish on their own, and a build
+/// afterwards completes the directory to a local build's bytes.
+#[test]
+fn a_build_beside_running_array_tasks_is_refused_and_a_task_beside_a_build_too() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), 2, 16, 16, 2);
+    let clean = common::clean_build(&m, tmp.path(), 1);
+    let out = tmp.path().join("array");
+    bound_for_tasks(&m, &out);
+    let task = array_task(&out, 0, Some("1"));
+    wait_until("the task holding a shard", Duration::from_secs(60), || {
+        !temporaries_in(&out.join("shards")).is_empty()
+    });
+    for workers in [1, 2] {
+        let refused = build(&m, &out, workers);
+        assert_exit(&refused, 2);
+        let message = one_line_error(&refused);
+        assert!(
+            message.contains("array tasks (`bettimill worker --task-count N`) are writing into")
+                && message.contains(".lock"),
+            "--workers {workers}: {message}"
+        );
+    }
+    assert!(
+        alive(task.id()),
+        "the task ended before the builds were refused"
+    );
+    let result = task.wait_with_output().unwrap();
+    assert_eq!(result.status.code(), Some(0), "{}", text(&result.stderr));
+    // The other way round: a build holds the directory, a task started meanwhile is refused.
+    let coordinator = spawn_build(&m, &out, 1, &[("BETTIMILL_TEST_PAUSE_AT_STARTUP", "2")]);
+    wait_until(
+        "the build to lock its directory",
+        Duration::from_secs(60),
+        || holds_a_file_lock(coordinator.id()),
+    );
+    let refused = array_task(&out, 1, None).wait_with_output().unwrap();
+    assert_eq!(refused.status.code(), Some(2), "{}", text(&refused.stderr));
+    let message = one_line_error(&refused);
+    assert!(
+        message.contains("a bettimill build or finalize is running in")
+            && message.contains("array tasks do not write beside it"),
+        "{message}"
+    );
+    let built = coordinator.wait_with_output().unwrap();
+    assert_eq!(built.status.code(), Some(0), "{}", text(&built.stderr));
     std::fs::remove_dir_all(out.join("slurm")).unwrap();
     assert_same(&clean, &out);
 }

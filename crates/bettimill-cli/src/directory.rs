@@ -18,12 +18,20 @@ pub fn finalize(dir: &Path, printer: Printer) -> anyhow::Result<ExitStatus> {
     }
     // The lock keeps finalize from removing the temporaries of a running build (or of
     // another finalize) and from racing it to the same renames. A Slurm finalize job and
-    // a user's finalize, or a finalize during a build's last step, must not fail: the
-    // second waits for the first, then finds its work done.
+    // a user's finalize, a finalize during a build's last step or while array tasks still
+    // write, must not fail: it waits for them, then finds its work done or what is left.
     let wait = || {
-        bettimill_executor::DirLock::wait(dir, |lock| {
+        bettimill_executor::DirLock::wait(dir, |lock, holder| {
+            let who = match holder {
+                bettimill_executor::Holder::Build => {
+                    "another bettimill process is building or finalizing"
+                }
+                bettimill_executor::Holder::ArrayTasks => {
+                    "array tasks (`bettimill worker --task-count N`) are writing into"
+                }
+            };
             Printer::always(format_args!(
-                "another bettimill process is building or finalizing {} (it holds {}); waiting for it to finish",
+                "{who} {} (holding {}); waiting for them to finish",
                 dir.display(),
                 lock.display()
             ))

@@ -368,10 +368,10 @@ impl Dataset {
     /// Removes the temporary files that killed writers leave behind (`.NAME.tmp-PID` in the
     /// directory, `shards/`, `records/` and `timings/`), and returns them. Call it only under
     /// the directory lock (a build, or a finalize that found every shard complete): a process
-    /// without it may remove the temporary of a running build's last step. Array tasks take
-    /// no directory lock, so a temporary whose writer still runs (it holds the file's lock:
-    /// a task writing its timing, or a resubmitted job's task beside the old job's) is left
-    /// to its writer.
+    /// without it may remove the temporary of a running build's last step. Where the file
+    /// system has no working locks, array tasks write without the directory lock, so a
+    /// temporary whose writer still runs (it holds the file's own lock) is left to its
+    /// writer.
     pub fn remove_temporaries(&self) -> Result<Vec<PathBuf>, BuildError> {
         let mut removed = Vec::new();
         for dir in [

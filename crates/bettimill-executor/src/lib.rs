@@ -45,4 +45,4 @@ pub use dataset::{
     BuildError, BuildInfo, BuildSummary, CompletionRecord, Dataset, SampleEvent, ShardOutcome,
     ShardState,
 };
-pub use lock::{DirLock, LockError};
+pub use lock::{DirLock, Holder, LockError};

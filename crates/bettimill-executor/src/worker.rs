@@ -49,6 +49,9 @@ pub enum WorkerError {
         /// 0 or 1.
         base: u64,
     },
+    /// A build or a finalize holds the directory (array tasks do not write beside it).
+    #[error(transparent)]
+    Lock(#[from] crate::LockError),
     /// The failure-injection hook fired.
     #[error(
         "{}={index}: failing array task {index} on purpose (test hook)",
@@ -401,8 +404,10 @@ pub struct TaskReport {
 }
 
 /// Builds the incomplete shards of array task `task_index` of `task_count` (every shard `s`
-/// with `s % task_count == task_index`), on the current rayon pool. A failing shard is
-/// reported and the others are still built. `on_shard` is called after each shard, and
+/// with `s % task_count == task_index`), on the current rayon pool, holding the directory
+/// lock shared (tasks write side by side; a build or a finalize running there refuses the
+/// task, and a build started meanwhile is refused). A failing shard is reported and the
+/// others are still built. `on_shard` is called after each shard, and
 /// `on_sample` with each of its samples' stages and completions (from the pool's threads;
 /// see [`Dataset::write_shard_observed`]), with the shard's name.
 pub fn run_task(
@@ -415,6 +420,7 @@ pub fn run_task(
     if bettimill_env::number::<u64>(EnvVars::BETTIMILL_TEST_FAIL_TASK) == Some(task_index) {
         return Err(WorkerError::InjectedTaskFailure { index: task_index });
     }
+    let _lock = crate::DirLock::share(&dataset.dir)?;
     let mut report = TaskReport::default();
     let shard_count = if task_count > 0 {
         dataset.plan.shard_count()
