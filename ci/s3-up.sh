@@ -12,9 +12,16 @@
 # signature against it (INITIAL_NO_AUTH_ACTION_COUNT), so wrong credentials are refused as
 # by a real S3.
 #
+# With S3_CI_KEEP=1 the server keeps its objects across a restart, as a server with a disk
+# does (moto keeps them in memory): its recorder appends every request after the set-up to
+# $S3_CI_DIR/recording, and a start that finds a recording replays it. The set-up is seeded
+# (moto's /moto-api/seed), so a restart makes the same key and the requests' signatures
+# still hold. ci/s3-down.sh leaves the recording; a new directory starts empty.
+#
 # Environment:
-#   S3_CI_DIR    PID file, log and env file (default /tmp/bettimill-s3)
+#   S3_CI_DIR    PID file, log, env file, recording (default /tmp/bettimill-s3)
 #   S3_CI_PORT   port on 127.0.0.1 (default 39768)
+#   S3_CI_KEEP   1: keep the objects across a restart (default 0)
 #   S3_CI_VENV   the server's venv (default $REPO/.venv-s3; a venv of its own, see
 #                ci/s3-requirements.txt)
 #   PYTHON       the Python that makes the venv (default python3, >= 3.10)
@@ -30,6 +37,8 @@ UV_VERSION="0.13.8"
 PIDFILE=$S3_CI_DIR/moto.pid
 LOG=$S3_CI_DIR/moto.log
 ENVFILE=$S3_CI_DIR/env
+RECORDING=$S3_CI_DIR/recording
+KEEP=${S3_CI_KEEP:-0}
 BUCKET=bettimill-ci
 ENDPOINT=http://127.0.0.1:$PORT
 
@@ -44,6 +53,7 @@ die() {
 }
 
 [[ $PORT =~ ^[1-9][0-9]*$ ]] || die "bad S3_CI_PORT '$PORT'"
+[[ $KEEP == 0 || $KEEP == 1 ]] || die "bad S3_CI_KEEP '$KEEP' (0 or 1)"
 mkdir -p "$S3_CI_DIR"
 # Serialise concurrent callers (two test binaries starting at once). The server is started
 # with `9>&-`, or it would hold the lock for its whole life.
@@ -95,7 +105,7 @@ log "installing ci/s3-requirements.txt into $VENV (uv pip sync: exact versions)"
 # policy); every later one is checked against IAM, signature included.
 log "starting moto_server on $ENDPOINT"
 : >"$LOG"
-INITIAL_NO_AUTH_ACTION_COUNT=3 MOTO_ALLOW_NONEXISTENT_REGION=false \
+INITIAL_NO_AUTH_ACTION_COUNT=3 MOTO_ALLOW_NONEXISTENT_REGION=false MOTO_RECORDER_FILEPATH="$RECORDING" \
     setsid "$VENV/bin/moto_server" -H 127.0.0.1 -p "$PORT" </dev/null >>"$LOG" 2>&1 9>&- &
 pid=$!
 echo "$pid" >"$PIDFILE"
@@ -107,14 +117,29 @@ done
 answers || die "moto_server (pid $pid) does not accept connections on port $PORT after 30 s"
 
 # ---------------------------------------------------------------- 3. key, policy, bucket
-"$VENV/bin/python" - "$ENDPOINT" "$BUCKET" "$ENVFILE.tmp" <<'PY' || die "setting up the key and the bucket failed"
-import json, sys
+# With S3_CI_KEEP=1: the seed first (the same key at every start), and after the set-up the
+# recording's requests replayed, then recorded on. A request cut off by a stop (its line
+# without its newline) was never answered, and goes.
+if [[ $KEEP == 1 && -s $RECORDING && -n $(tail -c 1 "$RECORDING") ]]; then
+    head -c "$(($(wc -c <"$RECORDING") - $(tail -n 1 "$RECORDING" | wc -c)))" "$RECORDING" >"$RECORDING.tmp"
+    mv "$RECORDING.tmp" "$RECORDING"
+fi
+"$VENV/bin/python" - "$ENDPOINT" "$BUCKET" "$ENVFILE.tmp" "$KEEP" "$RECORDING" <<'PY' || die "setting up the key and the bucket failed"
+import json, os, sys
+import urllib.request
 import boto3
 from botocore.config import Config
 
-endpoint, bucket, envfile = sys.argv[1:]
+endpoint, bucket, envfile, keep, recording = sys.argv[1:]
+keep = keep == "1"
 region = "us-east-1"
 config = Config(retries={"max_attempts": 1})
+def moto_api(path):
+    with urllib.request.urlopen(urllib.request.Request(endpoint + "/moto-api/" + path, method="POST")) as answer:
+        if answer.status != 200:
+            sys.exit(f"/moto-api/{path}: HTTP {answer.status}")
+if keep:
+    moto_api("seed?a=44")
 iam = boto3.client("iam", endpoint_url=endpoint, region_name=region,
                    aws_access_key_id="setup", aws_secret_access_key="setup", config=config)
 iam.create_user(UserName="bettimill-ci")
@@ -135,6 +160,15 @@ except Exception:
     pass
 else:
     sys.exit("the server accepted a wrong secret key")
+if keep:
+    replayed = 0
+    if os.path.exists(recording):
+        with open(recording) as f:
+            replayed = sum(1 for _ in f)
+        moto_api("recorder/replay-recording")
+    moto_api("recorder/start-recording")
+    print(f"[s3-up] keeping the objects: replayed {replayed} recorded requests, recording on",
+          file=sys.stderr)
 with open(envfile, "w") as f:
     f.write(f"AWS_ENDPOINT_URL={endpoint}\n")
     f.write(f"AWS_ACCESS_KEY_ID={key['AccessKeyId']}\n")

@@ -1,8 +1,10 @@
 //! `bettimill build --out s3://BUCKET/PREFIX` against a real local S3 server (moto_server,
 //! started by ci/s3-up.sh): the objects equal a local build's files byte for byte; a build
 //! killed (kill -9 of the real binary) resumes against the bucket to the same bytes; a
-//! second writer is refused while the first holds the lease and nothing is overwritten; a
-//! bad endpoint, a missing bucket and wrong credentials are one line naming the URL, exit 2.
+//! build whose server stops fails in one line (exit 2) and, once the server is back with its
+//! objects, resumes to the same bytes; a second writer is refused while the first holds the
+//! lease and nothing is overwritten; a bad endpoint, a missing bucket and wrong credentials
+//! are one line naming the URL, exit 2.
 //!
 //! System tests: they run only with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it), because
 //! they install and start the server (idempotent). When it cannot be started they fail in
@@ -11,6 +13,7 @@
 mod common;
 
 use bettimill_shard::object::{ObjectDir, S3Config};
+use bettimill_testkit::s3::S3Server;
 use bettimill_testkit::{skip_unless_ci, system_test};
 use common::{assert_exit, ball_and_handle, bettimill, stderr, Dir};
 use std::collections::BTreeMap;
@@ -18,65 +21,27 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::Duration;
 
-/// The local server: its variables (for the child processes) and the bucket.
-struct Server {
-    vars: Vec<(String, String)>,
-    bucket: String,
-}
+/// The local server, and the commands and clients that reach it.
+struct Server(S3Server);
 
 impl Server {
-    /// Starts the server (a no-op when it is up); `None` (skip) only outside CI.
+    /// Starts the shared server (a no-op when it is up); `None` (skip) only outside CI.
     fn up() -> Option<Server> {
-        let script = common::repo_root().join("ci/s3-up.sh");
-        let reason = match Command::new("bash").arg(&script).output() {
-            Ok(out) if out.status.success() => None,
-            Ok(out) => Some(format!(
-                "{} exited with {}:\n{}",
-                script.display(),
-                out.status,
-                String::from_utf8_lossy(&out.stderr)
-            )),
-            Err(err) => Some(format!("cannot run {}: {err}", script.display())),
-        };
-        if let Some(reason) = reason {
-            skip_unless_ci("a local S3 server", &reason);
-            return None;
-        }
-        let env = std::fs::read_to_string("/tmp/bettimill-s3/env").expect("ci/s3-up.sh wrote env");
-        let mut vars = Vec::new();
-        let mut bucket = None;
-        for line in env.lines() {
-            let (key, value) = line.split_once('=').expect("KEY=VALUE");
-            if key == "BETTIMILL_S3_CI_BUCKET" {
-                bucket = Some(value.to_string());
-            } else {
-                vars.push((key.to_string(), value.to_string()));
-            }
-        }
-        Some(Server {
-            vars,
-            bucket: bucket.expect("the env file names the bucket"),
-        })
+        S3Server::shared().map(Server)
     }
 
-    fn var(&self, key: &str) -> String {
-        self.vars
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.clone())
-            .unwrap_or_else(|| panic!("no {key}"))
+    /// A server of this test's own, in `dir`, that keeps its objects across a stop and a
+    /// start.
+    fn own(dir: &Dir) -> Option<Server> {
+        S3Server::own(&dir.join("s3-server")).map(Server)
     }
 
     /// A URL under a prefix no earlier run used (the server keeps its objects while it runs).
     fn fresh_url(&self, test: &str) -> String {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .unwrap()
-            .as_nanos();
         format!(
-            "s3://{}/cli-tests/{test}-{}-{nanos}",
-            self.bucket,
-            std::process::id()
+            "s3://{}/{}",
+            self.0.bucket,
+            self.0.fresh_prefix("cli-tests", test)
         )
     }
 
@@ -93,7 +58,7 @@ impl Server {
         ] {
             command.env_remove(key);
         }
-        command.envs(self.vars.iter().map(|(k, v)| (k, v)));
+        command.envs(self.0.vars());
         command
     }
 
@@ -108,11 +73,11 @@ impl Server {
     /// The objects under `url`, opened as the tests' own client.
     fn objects(&self, url: &str) -> ObjectDir {
         let config = S3Config {
-            endpoint: Some(self.var("AWS_ENDPOINT_URL")),
-            access_key_id: Some(self.var("AWS_ACCESS_KEY_ID")),
-            secret_access_key: Some(self.var("AWS_SECRET_ACCESS_KEY")),
+            endpoint: Some(self.0.endpoint.clone()),
+            access_key_id: Some(self.0.access_key_id.clone()),
+            secret_access_key: Some(self.0.secret_access_key.clone()),
             session_token: None,
-            region: Some(self.var("AWS_REGION")),
+            region: Some(self.0.region.clone()),
         };
         ObjectDir::open(url, &config).unwrap()
     }
@@ -276,6 +241,69 @@ fn a_killed_build_resumes_against_the_bucket_to_the_same_bytes() {
     assert!(
         !stderr(&resumed).contains("skipped 0 complete"),
         "the resumed build found the killed builds' shards: {}",
+        stderr(&resumed)
+    );
+    assert_same_as_local(&server, &url, &local);
+}
+
+#[test]
+fn a_build_whose_server_stops_fails_and_resumes_after_the_restart_to_the_same_bytes() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let dir = Dir::new();
+    // A server of this test's own: stopping the shared one would fail the other tests.
+    let Some(server) = Server::own(&dir) else {
+        return;
+    };
+    let manifest = manifest(&dir);
+    let local = dir.join("local");
+    assert_exit(&common::build(&manifest, &local, 2), 0);
+    let url = server.fresh_url("restart");
+    let objects = server.objects(&url);
+    let records = || {
+        // Polled gently: the server records every request, to replay at its restart.
+        std::thread::sleep(Duration::from_millis(200));
+        objects.list_under("records").map(|l| l.len()).unwrap()
+    };
+    let mut child = server
+        .command()
+        .args(["build", manifest.to_str().unwrap(), "--out", &url])
+        .env("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "0.3")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    common::wait_until("records in the bucket", Duration::from_secs(120), || {
+        records() >= 3
+    });
+    server.0.stop();
+    // The build stops by itself, in one line naming the server, rather than waiting for it.
+    common::wait_until(
+        "the build to stop after its server",
+        Duration::from_secs(120),
+        || child.try_wait().unwrap().is_some(),
+    );
+    let failed = child.wait_with_output().unwrap();
+    assert_exit(&failed, 2);
+    let text = stderr(&failed);
+    let error: Vec<&str> = text.lines().filter(|l| l.starts_with("error: ")).collect();
+    assert_eq!(error.len(), 1, "{text}");
+    assert!(
+        error[0].contains(&format!("{url}/"))
+            && error[0].contains(&format!("cannot reach the server {} ", server.0.endpoint)),
+        "{text}"
+    );
+
+    // Restarted, the server has what it had; the build resumes from it.
+    server.0.start();
+    let kept = records();
+    assert!((3..12).contains(&kept), "{kept} records after the restart");
+    let resumed = server.build(&manifest, &url, &[]);
+    assert_exit(&resumed, 0);
+    assert!(
+        stderr(&resumed).contains(&format!("skipped {kept} complete")),
+        "{}",
         stderr(&resumed)
     );
     assert_same_as_local(&server, &url, &local);
@@ -534,7 +562,7 @@ fn peak_kib(server: &Server, args: &[&str]) -> Option<(Output, u64)> {
         .arg(report.path())
         .arg(common::BETTIMILL)
         .args(args);
-    command.envs(server.vars.iter().map(|(k, v)| (k, v)));
+    command.envs(server.0.vars());
     let output = command.output().unwrap();
     let text = std::fs::read_to_string(report.path()).unwrap();
     let kib = text

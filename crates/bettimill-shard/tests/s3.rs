@@ -7,53 +7,21 @@
 //! cannot be started it fails in CI (CI=true) and is skipped with a message elsewhere.
 
 use bettimill_shard::object::{ObjectDir, ObjectError, S3Config};
-use bettimill_testkit::{skip_unless_ci, system_test};
-use std::path::Path;
-use std::process::Command;
+use bettimill_testkit::s3::S3Server;
+use bettimill_testkit::system_test;
 
-/// The server's endpoint, credentials and bucket from ci/s3-up.sh's env file, after
-/// starting it; `None` (skip) only outside CI.
-fn s3_up() -> Option<(S3Config, String)> {
-    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let script = repo.join("ci/s3-up.sh");
-    let reason = match Command::new("bash").arg(&script).output() {
-        Ok(out) if out.status.success() => None,
-        Ok(out) => Some(format!(
-            "{} exited with {}:\n{}",
-            script.display(),
-            out.status,
-            String::from_utf8_lossy(&out.stderr)
-        )),
-        Err(err) => Some(format!("cannot run {}: {err}", script.display())),
-    };
-    if let Some(reason) = reason {
-        skip_unless_ci("a local S3 server", &reason);
-        return None;
-    }
-    let env = std::fs::read_to_string("/tmp/bettimill-s3/env").expect("ci/s3-up.sh wrote env");
-    let value = |key: &str| {
-        env.lines()
-            .find_map(|line| line.strip_prefix(&format!("{key}=")))
-            .map(str::to_string)
-            .unwrap_or_else(|| panic!("no {key} in /tmp/bettimill-s3/env"))
-    };
+/// The shared server's endpoint, credentials and bucket, after starting it; `None` (skip)
+/// only outside CI.
+fn s3_up() -> Option<(S3Server, S3Config)> {
+    let server = S3Server::shared()?;
     let config = S3Config {
-        endpoint: Some(value("AWS_ENDPOINT_URL")),
-        access_key_id: Some(value("AWS_ACCESS_KEY_ID")),
-        secret_access_key: Some(value("AWS_SECRET_ACCESS_KEY")),
+        endpoint: Some(server.endpoint.clone()),
+        access_key_id: Some(server.access_key_id.clone()),
+        secret_access_key: Some(server.secret_access_key.clone()),
         session_token: None,
-        region: Some(value("AWS_REGION")),
+        region: Some(server.region.clone()),
     };
-    Some((config, value("BETTIMILL_S3_CI_BUCKET")))
-}
-
-/// A prefix no earlier run used (the server keeps its objects while it runs).
-fn fresh_prefix(test: &str) -> String {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_nanos();
-    format!("shard-tests/{test}-{}-{nanos}", std::process::id())
+    Some((server, config))
 }
 
 #[test]
@@ -61,10 +29,14 @@ fn puts_are_create_only_and_reads_take_ranges() {
     if !system_test("object storage on a local S3 server") {
         return;
     }
-    let Some((config, bucket)) = s3_up() else {
+    let Some((server, config)) = s3_up() else {
         return;
     };
-    let url = format!("s3://{bucket}/{}", fresh_prefix("puts"));
+    let url = format!(
+        "s3://{}/{}",
+        server.bucket,
+        server.fresh_prefix("shard-tests", "puts")
+    );
     let dir = ObjectDir::open(&url, &config).unwrap();
     assert_eq!(dir.list().unwrap(), vec![], "a fresh prefix is empty");
     assert_eq!(dir.get("shards/a.tar").unwrap(), None);
@@ -118,10 +90,14 @@ fn wrong_credentials_a_missing_bucket_and_no_server_fail_at_open() {
     if !system_test("object storage on a local S3 server") {
         return;
     }
-    let Some((config, bucket)) = s3_up() else {
+    let Some((server, config)) = s3_up() else {
         return;
     };
-    let url = format!("s3://{bucket}/{}", fresh_prefix("errors"));
+    let url = format!(
+        "s3://{}/{}",
+        server.bucket,
+        server.fresh_prefix("shard-tests", "errors")
+    );
 
     let wrong = S3Config {
         secret_access_key: Some("not-the-secret".into()),

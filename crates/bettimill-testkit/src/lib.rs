@@ -7,13 +7,16 @@
 //!   mutated), shared by the parser's fuzz test and the plan-then-build property;
 //! - [`Xorshift`]: the seeded generator of the tests that do without proptest;
 //! - [`in_ci`] and [`skip_unless_ci`]: a test that needs an outside tool (GNU tar, Slurm,
-//!   root) fails in CI when the tool is missing, and skips with a message elsewhere.
+//!   root) fails in CI when the tool is missing, and skips with a message elsewhere;
+//! - [`s3`]: the local S3 server of the object-storage tests (ci/s3-up.sh), shared or a
+//!   test's own.
 
 // A test helper: its reports go to the (captured) stderr of the test that calls it, like
 // a test's own messages. Library crates of the product never print.
 #![allow(clippy::print_stderr)]
 
 pub mod hostile;
+pub mod s3;
 
 use proptest::strategy::Strategy;
 use proptest::test_runner::{Config, TestCaseError, TestRunner};
