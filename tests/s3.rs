@@ -4,7 +4,8 @@
 //! build whose server stops fails in one line (exit 2) and, once the server is back with its
 //! objects, resumes to the same bytes; a second writer is refused while the first holds the
 //! lease and nothing is overwritten; a bad endpoint, a missing bucket and wrong credentials
-//! are one line naming the URL, exit 2.
+//! are one line naming the URL, exit 2; Slurm array tasks (a real Slurm, ci/slurm-up.sh)
+//! upload their shards and the finalize job writes the index.
 //!
 //! System tests: they run only with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it), because
 //! they install and start the server (idempotent). When it cannot be started they fail in
@@ -541,6 +542,89 @@ fn array_tasks_upload_their_shards_and_finalize_writes_the_index() {
     assert_eq!(server.objects(&url).size("index.json").unwrap(), None);
     task("1");
     assert_exit(&run(&["finalize", &url]), 0);
+    let local = dir.join("local");
+    assert_exit(&common::build(&manifest, &local, 2), 0);
+    assert_same_as_local(&server, &url, &local);
+    assert_exit(&run(&["verify", &url]), 0);
+}
+
+#[test]
+fn slurm_array_tasks_upload_to_the_bucket_and_finalize_writes_the_index() {
+    if !system_test("a real Slurm (ci/slurm-up.sh) and a local S3 server") || !common::slurm_up() {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    // On /tmp, as the Slurm test's: the jobs run the binary and write their logs there.
+    let dir = Dir::new_in("/tmp", "bettimill-s3-slurm-");
+    let manifest = manifest(&dir);
+    let m = manifest.to_str().unwrap();
+    let url = server.fresh_url("slurm");
+    let scripts = dir.join("scripts");
+    let s = scripts.to_str().unwrap();
+    let run = |args: &[&str]| server.command().args(args).output().unwrap();
+
+    // A bucket has no directory for the scripts and logs: --scripts names one.
+    let out = run(&["slurm", m, "--out", &url, "--tasks", "3"]);
+    assert_exit(&out, 2);
+    assert!(
+        stderr(&out).contains("give --scripts DIR"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(server.objects(&url).list().unwrap(), vec![]);
+
+    // Bound, with every task in the array; the script names the bucket, not the key.
+    let out = run(&["slurm", m, "--out", &url, "--tasks", "3", "--scripts", s]);
+    assert_exit(&out, 0);
+    let body = std::fs::read_to_string(scripts.join("build.sbatch")).unwrap();
+    assert!(body.contains("#SBATCH --array=0,1,2\n"), "{body}");
+    assert!(
+        body.contains(&format!(
+            "worker --dir '{url}' --task-index-from-env --task-count 3"
+        )),
+        "{body}"
+    );
+    assert!(!body.contains(&server.0.secret_access_key), "{body}");
+    // Task 0 ran already (an earlier submission that did only it).
+    let task = run(&[
+        "worker",
+        "--dir",
+        &url,
+        "--task-index",
+        "0",
+        "--task-count",
+        "3",
+    ]);
+    assert_exit(&task, 0);
+
+    // The submission runs the tasks that still have work, then finalize (afterok), and
+    // waits for it; sbatch passes the AWS variables on to the jobs.
+    let out = run(&[
+        "slurm",
+        m,
+        "--out",
+        &url,
+        "--tasks",
+        "3",
+        "--scripts",
+        s,
+        "--submit",
+        "--wait",
+    ]);
+    let stdout = common::stdout(&out);
+    assert_eq!(out.status.code(), Some(0), "{stdout}{}", stderr(&out));
+    assert!(
+        stdout.contains("build job ") && stdout.contains("finalize job "),
+        "{stdout}"
+    );
+    let body = std::fs::read_to_string(scripts.join("build.sbatch")).unwrap();
+    assert!(body.contains("#SBATCH --array=1,2\n"), "{body}");
+    let logs: Vec<String> = std::fs::read_dir(scripts.join("logs"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(logs.len(), 3, "two array tasks and finalize: {logs:?}");
+
     let local = dir.join("local");
     assert_exit(&common::build(&manifest, &local, 2), 0);
     assert_same_as_local(&server, &url, &local);

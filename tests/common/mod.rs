@@ -320,3 +320,49 @@ pub fn assert_rebuilds_identically(manifest: &Path, out: &Path, workers: u32, cl
     assert_exit(&build(manifest, out, workers), 0);
     assert_same(clean, out);
 }
+
+/// Starts Slurm; `false` (skip) only outside CI.
+pub fn slurm_up() -> bool {
+    let script = repo_root().join("ci/slurm-up.sh");
+    let out = Command::new("bash").arg(&script).output();
+    let reason = match out {
+        Ok(out) if out.status.success() => return true,
+        Ok(out) => format!(
+            "{} exited with {}:\n{}{}",
+            script.display(),
+            out.status,
+            text(&out.stdout),
+            text(&out.stderr)
+        ),
+        Err(err) => format!("cannot run {}: {err}", script.display()),
+    };
+    assert!(
+        !std::env::var("BETTIMILL_SLURM_REQUIRED").is_ok_and(|v| v == "1"),
+        "Slurm is required here (BETTIMILL_SLURM_REQUIRED=1) but unavailable: {reason}"
+    );
+    bettimill_testkit::skip_unless_ci("Slurm", &reason);
+    false
+}
+
+/// `sbatch --wait` of a script (up to 5 minutes); returns its exit code. Its output goes to
+/// the test's stderr, for the diagnosis of a failing run.
+#[allow(clippy::print_stderr)]
+pub fn sbatch_wait(script: &Path, env: &[(&str, &str)]) -> Option<i32> {
+    let mut command = Command::new("timeout");
+    command
+        .args(["300", "sbatch", "--wait", "--parsable"])
+        .arg(script);
+    for (k, v) in env {
+        command.env(k, v);
+    }
+    let out = command.output().expect("sbatch runs");
+    eprintln!(
+        "sbatch --wait {}: {} {}{}",
+        script.display(),
+        out.status,
+        text(&out.stdout),
+        text(&out.stderr)
+    );
+    assert_ne!(out.status.code(), Some(124), "sbatch --wait timed out");
+    out.status.code()
+}

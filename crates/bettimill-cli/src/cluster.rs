@@ -249,9 +249,13 @@ pub struct SlurmArgs {
     /// The manifest (TOML). Without it, the embedded demo manifest.
     manifest: Option<PathBuf>,
     /// Dataset directory on a file system every node sees (new, or a partial build of the
-    /// same manifest).
+    /// same manifest); or s3://BUCKET/PREFIX (the tasks upload their shards).
     #[arg(long)]
     out: PathBuf,
+    /// For an s3:// --out: the directory, on a file system every node sees, for the sbatch
+    /// scripts and the tasks' logs (a directory --out keeps them in DIR/slurm).
+    #[arg(long, value_name = "DIR")]
+    scripts: Option<PathBuf>,
     /// Array tasks; shards are dealt round-robin (default: one per shard, at most 1000).
     #[arg(long)]
     tasks: Option<u64>,
@@ -288,21 +292,46 @@ pub fn slurm(args: SlurmArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
         bettimill_executor::memory::check(&plan, Some(limit), 1, args.cpus_per_task.max(1))?;
         extra.push(format!("--mem={}M", limit.div_ceil(1 << 20)));
     }
-    let dataset = Dataset::bind(&args.out, &text, manifest)?;
-    let tasks = args
-        .tasks
-        .unwrap_or_else(|| dataset.plan.shard_count().clamp(1, 1000));
     let program = crate::own_program()?;
-    let scripts = cluster::write_slurm_scripts(
-        &dataset,
-        &SlurmOptions {
-            tasks,
-            throttle: args.throttle,
-            cpus_per_task: args.cpus_per_task,
-            program,
-            extra,
-        },
-    )?;
+    let options = |shards: u64| SlurmOptions {
+        tasks: args.tasks.unwrap_or_else(|| shards.clamp(1, 1000)),
+        throttle: args.throttle,
+        cpus_per_task: args.cpus_per_task,
+        program: program.clone(),
+        extra: extra.clone(),
+    };
+    // The scripts, and where the tasks' logs go.
+    let (scripts, tasks, logs) = match crate::commands::object_url(&args.out) {
+        Some(url) => {
+            let Some(dir) = &args.scripts else {
+                bail!(
+                    "slurm --out {url}: give --scripts DIR, a directory every node sees, for \
+                     the sbatch scripts and the array tasks' logs"
+                );
+            };
+            let shards = bettimill_plan::Plan::new(&manifest)?.shard_count();
+            let object = bettimill_executor::remote::ObjectOptions::default();
+            let name = bettimill_executor::remote::bucket_bind(url, &text, manifest, &object)?;
+            let incomplete = bettimill_executor::remote::bucket_incomplete_shards(url, None)?;
+            let options = options(shards);
+            let scripts =
+                cluster::write_bucket_slurm_scripts(url, &name, &incomplete, dir, &options)?;
+            (scripts, options.tasks, dir.join("logs"))
+        }
+        None => {
+            if let Some(dir) = &args.scripts {
+                bail!(
+                    "--scripts {} is for an s3:// --out; the scripts of a directory go in {}",
+                    dir.display(),
+                    args.out.join("slurm").display()
+                );
+            }
+            let dataset = Dataset::bind(&args.out, &text, manifest)?;
+            let options = options(dataset.plan.shard_count());
+            let scripts = cluster::write_slurm_scripts(&dataset, &options)?;
+            (scripts, options.tasks, args.out.join("slurm/logs"))
+        }
+    };
     match &scripts.build {
         Some(path) => printer.note(format_args!(
             "{}: {} incomplete shard(s) in {} of {tasks} array task(s)",
@@ -350,7 +379,7 @@ pub fn slurm(args: SlurmArgs, printer: Printer) -> anyhow::Result<ExitStatus> {
             Printer::always(format_args!(
                 "error: {err}\nsee `bettimill status {}` and the logs in {}",
                 args.out.display(),
-                args.out.join("slurm/logs").display()
+                logs.display()
             ));
             Ok(ExitStatus::Failure)
         }

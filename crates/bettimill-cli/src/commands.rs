@@ -65,6 +65,8 @@ enum Command {
     /// Write Slurm array and finalize scripts for a dataset (and submit them).
     ///
     /// Example: bettimill slurm manifests/demo-3d.toml --out /shared/demo --tasks 8 --submit
+    ///
+    /// Example: bettimill slurm manifests/demo-3d.toml --out s3://my-bucket/demo --scripts ~/demo-slurm --tasks 8 --submit
     Slurm(crate::cluster::SlurmArgs),
     /// Print a Kubernetes Indexed Job that builds a dataset.
     ///

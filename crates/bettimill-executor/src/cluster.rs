@@ -14,6 +14,10 @@
 //! DIR/slurm/finalize.sbatch  runs `bettimill finalize DIR`
 //! DIR/slurm/logs/            one log per array task (%A_%a.out) and per finalize job
 //! ```
+//!
+//! A dataset under `s3://BUCKET/PREFIX` has no directory for them: the same two scripts
+//! and `logs/` go in a directory the caller names ([`write_bucket_slurm_scripts`]), and
+//! the tasks reach the bucket with the credentials of the environment sbatch passes on.
 
 use crate::{BuildError, Dataset, ShardState};
 use std::path::{Path, PathBuf};
@@ -177,6 +181,55 @@ pub fn write_slurm_scripts(
     dataset: &Dataset,
     options: &SlurmOptions,
 ) -> Result<SlurmScripts, ClusterError> {
+    let dir = absolute(&dataset.dir)?;
+    let incomplete: Vec<u64> = dataset
+        .plan
+        .shards()
+        .filter(|s| dataset.completed(s).is_none())
+        .map(|s| s.index)
+        .collect();
+    write_scripts(
+        &dir.to_string_lossy(),
+        &dataset.plan.name,
+        &incomplete,
+        &dir.join("slurm"),
+        "",
+        options,
+    )
+}
+
+/// Writes `build.sbatch`, `finalize.sbatch` and `logs/` into `scripts` (a directory every
+/// node sees) for the dataset `name` at `url` (`s3://BUCKET/PREFIX`, bound already), whose
+/// shards `incomplete` (plan indices) the bucket lacks. The scripts hold no credentials:
+/// the tasks read `AWS_*` from the environment sbatch passes on (its default, `--export=ALL`).
+pub fn write_bucket_slurm_scripts(
+    url: &str,
+    name: &str,
+    incomplete: &[u64],
+    scripts: &Path,
+    options: &SlurmOptions,
+) -> Result<SlurmScripts, ClusterError> {
+    write_scripts(
+        url,
+        name,
+        incomplete,
+        &absolute(scripts)?,
+        "# The tasks reach the bucket with AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY (and\n\
+         # AWS_ENDPOINT_URL for a server other than AWS S3) from the submitting environment.\n",
+        options,
+    )
+}
+
+/// The scripts of [`write_slurm_scripts`] for the dataset at `location` (an absolute
+/// directory or a URL), in `slurm_dir`; `note` is comment lines for the array script.
+fn write_scripts(
+    location: &str,
+    name: &str,
+    incomplete: &[u64],
+    slurm_dir: &Path,
+    note: &str,
+    options: &SlurmOptions,
+) -> Result<SlurmScripts, ClusterError> {
     if options.tasks == 0 {
         return Err(ClusterError::Invalid("--tasks must be at least 1".into()));
     }
@@ -185,26 +238,16 @@ pub fn write_slurm_scripts(
             "--throttle must be at least 1".into(),
         ));
     }
-    let dir = absolute(&dataset.dir)?;
     let program = absolute(&options.program)?;
-    let slurm_dir = dir.join("slurm");
     let logs = slurm_dir.join("logs");
     std::fs::create_dir_all(&logs).map_err(|source| BuildError::Io {
         path: logs.clone(),
         source,
     })?;
-    let incomplete: Vec<u64> = dataset
-        .plan
-        .shards()
-        .filter(|s| dataset.completed(s).is_none())
-        .map(|s| s.index)
-        .collect();
     let mut tasks_with_work: Vec<u64> = incomplete.iter().map(|s| s % options.tasks).collect();
     tasks_with_work.sort_unstable();
     tasks_with_work.dedup();
-    let dir_text = dir.to_string_lossy();
     let program_text = program.to_string_lossy();
-    let name = &dataset.plan.name;
     let extra: String = options
         .extra
         .iter()
@@ -224,6 +267,7 @@ pub fn write_slurm_scripts(
              # Written by `bettimill slurm`: array task t builds the incomplete shards s with\n\
              # s % {tasks} == t of the dataset in {dir_q}. Resubmitting is safe: complete shards\n\
              # are skipped and the rest are rebuilt with the same seeds.\n\
+             {note}\
              #SBATCH --job-name=bettimill-{name}\n\
              #SBATCH --array={array}{throttle}\n\
              #SBATCH --cpus-per-task={cpus}\n\
@@ -232,7 +276,7 @@ pub fn write_slurm_scripts(
              set -euo pipefail\n\
              exec {program} worker --dir {dir_q} --task-index-from-env --task-count {tasks} --threads \"${{SLURM_CPUS_PER_TASK:-{cpus}}}\"\n",
             tasks = options.tasks,
-            dir_q = shell_quote(&dir_text),
+            dir_q = shell_quote(location),
             array = list.join(","),
             cpus = options.cpus_per_task.max(1),
             logs = logs.to_string_lossy(),
@@ -254,7 +298,7 @@ pub fn write_slurm_scripts(
          exec {program} finalize {dir_q}\n",
         logs = logs.to_string_lossy(),
         program = shell_quote(&program_text),
-        dir_q = shell_quote(&dir_text),
+        dir_q = shell_quote(location),
     );
     let finalize = slurm_dir.join("finalize.sbatch");
     bettimill_shard::write_atomic(&finalize, script.as_bytes()).map_err(BuildError::from)?;

@@ -381,14 +381,15 @@ impl BucketBuild {
     }
 }
 
-/// `status` of a dataset in a bucket: every planned shard complete (its record, and a tar
-/// of the record's size), missing or invalid, from one listing and the records; the plan
-/// comes from the stored manifest, checked against `build.json` as a directory's is.
-pub fn bucket_status(
+/// The state of every planned shard of the dataset at `url`, in plan order, from one
+/// listing and the records (a record that disagrees with the plan makes its shard
+/// invalid); the plan comes from the stored manifest, checked against `build.json` as a
+/// directory's is. Returns the plan and whether `index.json` exists.
+fn bucket_shards(
     url: &str,
     endpoint: Option<&str>,
-) -> Result<crate::cluster::StatusReport, BuildError> {
-    use crate::cluster::{InvalidShard, StatusReport, STATUS_NAMES};
+    mut each: impl FnMut(ShardPlan, BucketShard),
+) -> Result<(bettimill_plan::Plan, bool), BuildError> {
     let bucket = open_bucket(url, endpoint).map_err(FormatError::from)?;
     let text = bucket.read_manifest_text()?;
     let manifest = Manifest::parse(&text, Path::new(url))?;
@@ -396,12 +397,6 @@ pub fn bucket_status(
     let expected = bettimill_format::BuildInfo::current(plan.manifest_hash.clone(), plan.hash());
     bettimill_format::check_build_info(Path::new(url), &bucket.read_build_info()?, &expected)?;
     let sizes = bucket.sizes()?;
-    let mut report = StatusReport {
-        dir: url.into(),
-        shards: plan.shard_count(),
-        finalized: sizes.contains_key(bettimill_format::dir::INDEX_FILE),
-        ..StatusReport::default()
-    };
     for shard in plan.shards() {
         let state = match bucket.shard_state(&shard.name, &sizes)? {
             BucketShard::Complete { record, .. }
@@ -416,31 +411,61 @@ pub fn bucket_status(
             }
             state => state,
         };
-        match state {
-            BucketShard::Complete { .. } => {
-                report.complete_count += 1;
-                if report.complete.len() < STATUS_NAMES {
-                    report.complete.push(shard.name);
-                }
-            }
-            BucketShard::Missing => {
-                report.missing_count += 1;
-                if report.missing.len() < STATUS_NAMES {
-                    report.missing.push(shard.name);
-                }
-            }
-            BucketShard::Invalid { reason } => {
-                report.invalid_count += 1;
-                if report.invalid.len() < STATUS_NAMES {
-                    report.invalid.push(InvalidShard {
-                        shard: shard.name,
-                        reason,
-                    });
-                }
+        each(shard, state);
+    }
+    let finalized = sizes.contains_key(bettimill_format::dir::INDEX_FILE);
+    Ok((plan, finalized))
+}
+
+/// `status` of a dataset in a bucket: every planned shard complete (its record, and a tar
+/// of the record's size), missing or invalid (see [`bucket_shards`]).
+pub fn bucket_status(
+    url: &str,
+    endpoint: Option<&str>,
+) -> Result<crate::cluster::StatusReport, BuildError> {
+    use crate::cluster::{InvalidShard, StatusReport, STATUS_NAMES};
+    let mut report = StatusReport {
+        dir: url.into(),
+        ..StatusReport::default()
+    };
+    let (plan, finalized) = bucket_shards(url, endpoint, |shard, state| match state {
+        BucketShard::Complete { .. } => {
+            report.complete_count += 1;
+            if report.complete.len() < STATUS_NAMES {
+                report.complete.push(shard.name);
             }
         }
-    }
+        BucketShard::Missing => {
+            report.missing_count += 1;
+            if report.missing.len() < STATUS_NAMES {
+                report.missing.push(shard.name);
+            }
+        }
+        BucketShard::Invalid { reason } => {
+            report.invalid_count += 1;
+            if report.invalid.len() < STATUS_NAMES {
+                report.invalid.push(InvalidShard {
+                    shard: shard.name,
+                    reason,
+                });
+            }
+        }
+    })?;
+    report.shards = plan.shard_count();
+    report.finalized = finalized;
     Ok(report)
+}
+
+/// The plan indices of the shards of the dataset at `url` that are not complete (missing
+/// or invalid), in plan order: the array tasks a resubmission still needs.
+pub fn bucket_incomplete_shards(url: &str, endpoint: Option<&str>) -> Result<Vec<u64>, BuildError> {
+    let mut incomplete = Vec::new();
+    bucket_shards(url, endpoint, |shard, state| {
+        if !matches!(state, BucketShard::Complete { .. }) {
+            incomplete.push(shard.index);
+        }
+    })?;
+    Ok(incomplete)
 }
 
 /// An array task of a dataset in a bucket (`worker --dir s3://... --task-count N`): builds
