@@ -142,7 +142,7 @@ fn typical_mistakes_fail_with_exit_code_2_and_one_line() {
     check_one_line_error(
         dir,
         &["preview", "thesis/chapter1.tex", "--out", "x.png"],
-        &["expected a dataset directory, a .tar shard or a .npy image"],
+        &["expected a dataset directory, s3://BUCKET/PREFIX, a .tar shard or a .npy image"],
     );
     check_one_line_error(dir, &["stats", "nowhere"], &["nowhere", "not a directory"]);
     check_one_line_error(dir, &["stats", "thesis"], &["holds no shards"]);

@@ -24,10 +24,13 @@
 //!   plan and the records, regenerated and compared byte for byte.
 //!
 //! The scratch directory lives inside the dataset directory (`DIR/.audit-PID`) so it is on
-//! the same file system, and is removed afterwards; nothing else in DIR is written.
+//! the same file system, and is removed afterwards; nothing else in DIR is written. A
+//! dataset in a bucket is audited from a local copy of everything but its shards (the
+//! plan, the records, the finished files), its shards read by ranges from the bucket
+//! ([`rebuild_from`], [`relabel_from`]); nothing in the bucket is written.
 
 use bettimill_executor::{BuildError, Dataset};
-use bettimill_format::{Label, MemberName};
+use bettimill_format::{DatasetSource, Label, MemberName};
 use bettimill_plan::ShardPlan;
 use bettimill_shard::ShardError;
 use rand::seq::SliceRandom;
@@ -347,7 +350,21 @@ pub fn rebuild_with_progress(
         .check_index()
         .map_err(BuildError::from)?;
     let stored = Dataset::open(dir)?;
-    let scratch = dir.join(format!(".audit-{}", std::process::id()));
+    let source = DatasetSource::Dir(bettimill_format::DatasetDir::new(dir));
+    rebuild_from(&stored, &source, shards, progress)
+}
+
+/// [`rebuild_with_progress`] of the shards of `source` (a directory or a bucket), whose
+/// plan and records `stored` holds (the directory itself, or a copy of a bucket's
+/// metadata, [`bettimill_format::bucket::BucketDir::copy_metadata`]). The scratch
+/// directory is made inside `stored`'s directory.
+pub fn rebuild_from(
+    stored: &Dataset,
+    source: &DatasetSource,
+    shards: &[ShardPlan],
+    progress: &(dyn Fn() + Sync),
+) -> Result<AuditReport, AuditError> {
+    let scratch = stored.dir.join(format!(".audit-{}", std::process::id()));
     let io = |source| AuditError::Io {
         path: scratch.clone(),
         source,
@@ -361,8 +378,8 @@ pub fn rebuild_with_progress(
         for shard in shards {
             fresh.write_shard_with_progress(shard, &|_| progress())?;
             report.rebuilt.push(shard.name.clone());
-            let original = match std::fs::File::open(stored.tar_path(shard)) {
-                Ok(file) => file,
+            let original = match source.tar_reader(&shard.name) {
+                Ok(reader) => reader,
                 Err(_) => {
                     report.findings.push(Finding::Missing {
                         shard: shard.name.clone(),
@@ -382,10 +399,10 @@ pub fn rebuild_with_progress(
                     source,
                 })?
                 .len();
-            // Streamed through fixed buffers; the stored file is read no further than one
-            // byte past the rebuilt length (a shard inflated to gigabytes, or a link to
-            // /dev/zero, differs there at the latest).
-            let stored_path = stored.tar_path(shard);
+            // Streamed through fixed buffers (a bucket's tar by ranges); the stored tar is
+            // read no further than one byte past the rebuilt length (a shard inflated to
+            // gigabytes, or a link to /dev/zero, differs there at the latest).
+            let stored_path = source.tar_location(&shard.name);
             let difference =
                 first_difference(std::io::Read::take(original, rebuilt_len + 1), rebuilt).map_err(
                     |source| AuditError::Io {
@@ -464,9 +481,21 @@ pub fn relabel_with_progress(
         .check_index()
         .map_err(BuildError::from)?;
     let dataset = Dataset::open(dir)?;
+    let source = DatasetSource::Dir(bettimill_format::DatasetDir::new(dir));
+    relabel_from(&dataset, &source, shards, progress)
+}
+
+/// [`relabel_with_progress`] of the shards of `source` (a directory or a bucket, read by
+/// ranges), against the plan of `dataset` (see [`rebuild_from`]).
+pub fn relabel_from(
+    dataset: &Dataset,
+    source: &DatasetSource,
+    shards: &[ShardPlan],
+    progress: &(dyn Fn() + Sync),
+) -> Result<AuditReport, AuditError> {
     let per_shard: Vec<(u64, Vec<Finding>)> = shards
         .par_iter()
-        .map(|shard| relabel_shard(&dataset, shard, progress))
+        .map(|shard| relabel_shard(dataset, source, shard, progress))
         .collect::<Result<_, _>>()?;
     let mut report = AuditReport::default();
     for (samples, findings) in per_shard {
@@ -481,6 +510,7 @@ type Fields = Vec<(String, Vec<u8>)>;
 
 fn relabel_shard(
     dataset: &Dataset,
+    source: &DatasetSource,
     shard: &ShardPlan,
     progress: &(dyn Fn() + Sync),
 ) -> Result<(u64, Vec<Finding>), AuditError> {
@@ -492,7 +522,7 @@ fn relabel_shard(
     };
     // Checked against its record before reading, then read one member at a time: a shard
     // inflated to gigabytes or replaced by a link to a device is a finding, not a read.
-    let mut stream = match dataset.layout().open_tar(
+    let mut stream = match source.open_tar(
         &shard.name,
         bettimill_shard::ustar::DEFAULT_MAX_MEMBER_BYTES,
     ) {

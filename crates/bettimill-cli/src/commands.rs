@@ -163,8 +163,9 @@ enum Command {
     ///
     /// Example: bettimill preview demo-out --key s000006 --html s000006.html
     Preview {
-        /// A dataset directory, one .tar shard, or a .npy image (.npy.gz, .npy.zst, or -
-        /// for standard input, as for `betti`).
+        /// A dataset directory, s3://BUCKET/PREFIX (read by ranges with the AWS_*
+        /// variables), one .tar shard, or a .npy image (.npy.gz, .npy.zst, or - for
+        /// standard input, as for `betti`).
         input: PathBuf,
         /// The key of the sample to draw (default: the first sample).
         #[arg(long, conflicts_with = "n")]
@@ -191,7 +192,8 @@ enum Command {
     ///
     /// Example: bettimill stats demo-out --plot stats.png
     Stats {
-        /// The dataset directory.
+        /// The dataset directory, or s3://BUCKET/PREFIX (read by ranges with the AWS_*
+        /// variables).
         dir: PathBuf,
         /// Print the statistics as JSON.
         #[arg(long)]

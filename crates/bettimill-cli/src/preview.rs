@@ -4,7 +4,7 @@
 use crate::commands::ExitStatus;
 use crate::printer::Printer;
 use anyhow::{bail, Context};
-use bettimill_format::{DatasetDir, ShardStream};
+use bettimill_format::{DatasetDir, DatasetSource, ShardStream, SourceShard};
 use bettimill_preview::{
     caption, contact_sheet, guess_mode, label_mode, render_sample, samples_in_stream,
     short_caption, viewer_html, Canvas, SampleView, Subject, ViewerImage,
@@ -29,53 +29,51 @@ pub struct Request<'a> {
     pub printer: Printer,
 }
 
-/// The shards of a dataset directory in build order, with their splits: from `index.json`
-/// when the build is finished, otherwise every `shards/*.tar` by name, its split taken from
-/// its completion record (`unknown` without one). Each is (split, shard name).
-pub(crate) fn dataset_shards(dir: &Path) -> anyhow::Result<Vec<(String, String)>> {
-    let layout = DatasetDir::new(dir);
-    if layout.is_finalized() {
-        let index = bettimill_format::Index::read(&layout.index_path())?;
-        return Ok(index
-            .shards
-            .iter()
-            .map(|s| (s.split.clone(), DatasetDir::shard_stem(&s.name).to_string()))
-            .collect());
+/// The dataset a command reads: `s3://BUCKET/PREFIX` (opened with the AWS_* variables, the
+/// server and the credentials checked at once), otherwise a directory, which must exist.
+pub(crate) fn open_source(dir: &Path) -> anyhow::Result<DatasetSource> {
+    if let Some(url) = crate::commands::object_url(dir) {
+        return Ok(DatasetSource::Bucket(
+            bettimill_executor::remote::open_bucket(url, None)?,
+        ));
     }
-    let names = layout.shard_names()?;
-    if names.is_empty() {
+    if !dir.is_dir() {
         bail!(
-            "{} holds no shards: give a directory written by `bettimill build --out DIR`",
+            "{} is not a directory: give a dataset directory written by `bettimill build --out DIR`, or s3://BUCKET/PREFIX",
             dir.display()
         );
     }
-    Ok(names
-        .into_iter()
-        .map(|name| {
-            let split = match layout.read_record(&name) {
-                Ok(Some(record)) => record.shard.split,
-                _ => "unknown".to_string(),
-            };
-            (split, name)
-        })
-        .collect())
+    Ok(DatasetSource::Dir(DatasetDir::new(dir)))
 }
 
-/// Where a shard to read is: one of a dataset directory, or a plain `.tar` file.
+/// The shards of a dataset in build order, with their splits (see
+/// [`DatasetSource::shards`]); an error when there is none.
+pub(crate) fn dataset_shards(source: &DatasetSource) -> anyhow::Result<Vec<SourceShard>> {
+    let shards = source.shards()?;
+    if shards.is_empty() {
+        bail!(
+            "{} holds no shards: give a dataset written by `bettimill build --out DIR`",
+            source.location().display()
+        );
+    }
+    Ok(shards)
+}
+
+/// Where a shard to read is: one of a dataset, or a plain `.tar` file.
 pub(crate) enum ShardAt<'a> {
-    /// Shard `name` of the dataset directory.
-    InDataset(&'a DatasetDir, &'a str),
+    /// Shard `name` of the dataset.
+    InDataset(&'a DatasetSource, &'a str),
     /// A `.tar` file given by itself.
     File(&'a Path),
 }
 
-/// Opens a shard for reading member after member (see `DatasetDir::open_tar`: a dataset's
-/// shard is checked against its completion record first, so a shard inflated to gigabytes
-/// or replaced by a link to a device is refused by name before anything is read).
-pub(crate) fn open_shard(at: ShardAt) -> anyhow::Result<ShardStream> {
+/// Opens a shard for reading member after member (see `DatasetSource::open_tar`: a
+/// dataset's shard is checked against its completion record first, so a shard inflated to
+/// gigabytes or replaced by a link to a device is refused by name before anything is read).
+pub(crate) fn open_shard(at: ShardAt<'_>) -> anyhow::Result<ShardStream<'_>> {
     Ok(match at {
-        ShardAt::InDataset(layout, name) => {
-            layout.open_tar(name, bettimill_shard::ustar::DEFAULT_MAX_MEMBER_BYTES)?
+        ShardAt::InDataset(source, name) => {
+            source.open_tar(name, bettimill_shard::ustar::DEFAULT_MAX_MEMBER_BYTES)?
         }
         ShardAt::File(path) => bettimill_format::open_tar_file(
             path,
@@ -135,10 +133,13 @@ fn sample_page(sample: &SampleView) -> anyhow::Result<String> {
 /// dataset's own manifest is planned again and each construction remade at the attempt its
 /// label records, so a sheet of these beside the dataset's own shows what deformation did.
 /// The caption's hypervolume becomes the construction's; the downscaled copies are dropped.
-fn undeform(dir: &Path, found: &mut [SampleView]) -> anyhow::Result<()> {
-    let path = DatasetDir::new(dir).manifest_path();
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("--undeformed needs the dataset's {}", path.display()))?;
+fn undeform(source: &DatasetSource, found: &mut [SampleView]) -> anyhow::Result<()> {
+    let (text, path) = source.read_manifest_text().with_context(|| {
+        format!(
+            "--undeformed needs the dataset's {}",
+            bettimill_format::dir::MANIFEST_FILE
+        )
+    })?;
     let plan = bettimill_plan::Plan::parse(&text, &path)?;
     for sample in found {
         let task = sample
@@ -181,7 +182,8 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
     }
     let input = request.input;
     let is_npy = crate::image::looks_like_image(input);
-    if request.undeformed && !input.is_dir() {
+    let dataset = input.is_dir() || crate::commands::object_url(input).is_some();
+    if request.undeformed && !dataset {
         bail!(
             "--undeformed remakes samples from a dataset directory's manifest; give the directory"
         );
@@ -237,33 +239,35 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
         };
         (canvas, page)
     } else {
-        let layout = DatasetDir::new(input);
-        let shards: Vec<(String, PathBuf)> = if input.is_dir() {
-            dataset_shards(input)?
-                .into_iter()
-                .map(|(_, name)| {
-                    let path = layout.tar_path(&name);
-                    (name, path)
-                })
-                .collect()
+        let source = if dataset {
+            Some(open_source(input)?)
         } else if input.extension().is_some_and(|e| e == "tar") {
             if !input.exists() {
                 bail!("{} does not exist", input.display());
             }
-            vec![(String::new(), input.to_path_buf())]
+            None
         } else {
             bail!(
-                "{}: expected a dataset directory, a .tar shard or a .npy image",
+                "{}: expected a dataset directory, s3://BUCKET/PREFIX, a .tar shard or a .npy image",
                 input.display()
             );
+        };
+        let shards: Vec<(String, PathBuf)> = match &source {
+            Some(source) => dataset_shards(source)?
+                .into_iter()
+                .map(|shard| {
+                    let location = source.tar_location(&shard.name);
+                    (shard.name, location)
+                })
+                .collect(),
+            None => vec![(String::new(), input.to_path_buf())],
         };
         let want = request.n.unwrap_or(1);
         let mut found = Vec::new();
         for (name, shard) in &shards {
-            let mut stream = open_shard(if input.is_dir() {
-                ShardAt::InDataset(&layout, name)
-            } else {
-                ShardAt::File(shard)
+            let mut stream = open_shard(match &source {
+                Some(source) => ShardAt::InDataset(source, name),
+                None => ShardAt::File(shard),
             })?;
             let mut keep = |key: &str| match request.key {
                 Some(wanted) => key == wanted,
@@ -277,8 +281,8 @@ pub fn run(request: &Request) -> anyhow::Result<ExitStatus> {
             }
         }
         found.truncate(want);
-        if request.undeformed {
-            undeform(input, &mut found)?;
+        if let (true, Some(source)) = (request.undeformed, &source) {
+            undeform(source, &mut found)?;
         }
         if found.is_empty() {
             match request.key {

@@ -5,7 +5,6 @@
 use crate::commands::ExitStatus;
 use crate::printer::Printer;
 use anyhow::{bail, Context};
-use bettimill_format::DatasetDir;
 use bettimill_preview::{labels_in_stream, plot, BuildTime, Stats};
 use std::path::Path;
 
@@ -16,49 +15,43 @@ pub fn run(
     plot_path: Option<&Path>,
     printer: Printer,
 ) -> anyhow::Result<ExitStatus> {
-    if !dir.is_dir() {
-        bail!(
-            "{} is not a directory: give a dataset directory written by `bettimill build --out DIR`",
-            dir.display()
-        );
-    }
+    let source = crate::preview::open_source(dir)?;
     if let Some(path) = plot_path {
         refuse_inside_dataset(path, "--plot")?;
         require_extension(path, "--plot", "png")?;
     }
-    let shards = crate::preview::dataset_shards(dir)?;
-    let layout = DatasetDir::new(dir);
+    let shards = crate::preview::dataset_shards(&source)?;
     let bar = printer.bar(shards.len() as u64, "shards", "reading labels");
     let mut labels = Vec::new();
-    for (split, name) in &shards {
+    for shard in &shards {
         bar.inc(1);
         let mut stream =
-            crate::preview::open_shard(crate::preview::ShardAt::InDataset(&layout, name))
+            crate::preview::open_shard(crate::preview::ShardAt::InDataset(&source, &shard.name))
                 .inspect_err(|_| bar.finish_and_clear())?;
         let shard_labels = labels_in_stream(&mut stream).with_context(|| {
             format!(
                 "cannot read the labels of {}",
-                layout.tar_path(name).display()
+                source.tar_location(&shard.name).display()
             )
         })?;
-        labels.extend(shard_labels.into_iter().map(|l| (split.clone(), l)));
+        labels.extend(shard_labels.into_iter().map(|l| (shard.split.clone(), l)));
     }
     // The records and timings of the shards read, not every file in records/: a leftover
     // (a stray file, a record no shard names) is never data (docs/format.md), so it must
     // neither stop stats nor be counted as a shard.
     let mut records = Vec::new();
     let mut timings = Vec::new();
-    for (_, name) in &shards {
-        if let Some(record) = layout.read_record(name)? {
+    for shard in &shards {
+        if let Some(record) = source.read_record(&shard.name)? {
             records.push(record);
-            if let Some(t) = layout.read_timing(name) {
+            if let Some(t) = source.read_timing(&shard.name) {
                 timings.push((t.started_unix, t.seconds, t.samples));
             }
         }
     }
     bar.finish_and_clear();
     let mut stats = Stats::collect(&labels, &records, shards.len() as u64);
-    stats.build_time = BuildTime::from_timings(&timings, layout.is_finalized());
+    stats.build_time = BuildTime::from_timings(&timings, source.is_finalized()?);
     let output = if json {
         serde_json::to_string_pretty(&stats)? + "\n"
     } else {

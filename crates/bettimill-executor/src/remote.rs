@@ -500,3 +500,39 @@ pub fn bucket_bind(
 ) -> Result<String, BuildError> {
     BucketBuild::bind(url, manifest_text, manifest, options).map(|b| b.dataset.plan.name.clone())
 }
+
+/// A dataset in a bucket opened for the checks that compare it with its plan (`audit`):
+/// a local copy of everything but its shards and timings (the manifest, `build.json`, the
+/// records, the finished files; see [`BucketDir::copy_metadata`]) opened as a dataset
+/// directory, and the bucket, from which the shards are read by ranges. Nothing in the
+/// bucket is written; the copy is removed when this is dropped.
+pub struct BucketCopy {
+    /// The dataset of the local copy: the plan, from the stored manifest, checked against
+    /// the stored `build.json`.
+    pub dataset: Dataset,
+    /// The bucket, to read the shards from.
+    pub source: bettimill_format::DatasetSource,
+    /// The copy's directory (held for its removal).
+    _copy: tempfile::TempDir,
+}
+
+/// Opens `url` with `endpoint` and the AWS variables and copies its metadata into a
+/// temporary directory (see [`BucketCopy`]).
+pub fn bucket_copy(url: &str, endpoint: Option<&str>) -> Result<BucketCopy, BuildError> {
+    let bucket = open_bucket(url, endpoint).map_err(FormatError::from)?;
+    bucket.read_build_info()?;
+    let copy = tempfile::Builder::new()
+        .prefix("bettimill-bucket-copy-")
+        .tempdir()
+        .map_err(|source| BuildError::Io {
+            path: std::env::temp_dir(),
+            source,
+        })?;
+    bucket.copy_metadata(copy.path())?;
+    let dataset = Dataset::open(copy.path())?;
+    Ok(BucketCopy {
+        dataset,
+        source: bettimill_format::DatasetSource::Bucket(bucket),
+        _copy: copy,
+    })
+}

@@ -10,6 +10,8 @@
 //!   one member at a time).
 //! - [`bucket`]: a dataset under `s3://BUCKET/PREFIX`, the same names as objects, and
 //!   [`lease`], its lock: create-only writes, the identity checked as on disk.
+//! - [`source`]: a dataset to read, a directory or a bucket ([`DatasetSource`]): the one
+//!   place where the reading commands tell the two apart.
 //! - `tar_check`: the one streaming "does this tar match its record" check, which
 //!   [`DatasetDir::check_tar`] stops at the first problem of and [`verify()`] reports whole.
 //! - [`label`]: the label stored as `KEY.json` ([`Label`], [`ResolutionLabel`]).
@@ -38,6 +40,7 @@ pub mod label;
 pub mod lease;
 pub mod lock;
 pub mod member;
+pub mod source;
 mod tar_check;
 pub mod verify;
 
@@ -53,6 +56,7 @@ pub use index::{
 };
 pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};
+pub use source::{DatasetSource, SourceShard};
 pub use tar_check::{check_tar_file, TarMismatch};
 pub use verify::{
     verify, verify_with_progress, NoRecord, Problem, RecordSource, Region, VerifyReport,

@@ -21,8 +21,8 @@ pub use layout::{
     TIMINGS_DIR, TIMINGS_SOURCE,
 };
 pub use records::{CompletionRecord, ShardTiming};
-pub(crate) use shard_state::regular_file_len;
 pub use shard_state::{open_tar_file, ShardState, ShardStream, TarCheck};
+pub(crate) use shard_state::{regular_file_len, stream_checked};
 
 use crate::FormatError;
 use std::path::{Path, PathBuf};

@@ -33,6 +33,15 @@ pub struct CompletionRecord {
     pub regenerations: Vec<(String, u64)>,
 }
 
+impl ShardTiming {
+    /// A timing file's bytes read, `None` when they are not a timing with finite times.
+    pub fn from_json(bytes: &[u8]) -> Option<ShardTiming> {
+        let timing: ShardTiming = serde_json::from_slice(bytes).ok()?;
+        (timing.started_unix.is_finite() && timing.seconds.is_finite() && timing.seconds >= 0.0)
+            .then_some(timing)
+    }
+}
+
 impl CompletionRecord {
     /// The record's file bytes: pretty JSON and a newline.
     pub fn to_json_bytes(&self) -> Vec<u8> {
@@ -99,9 +108,6 @@ impl DatasetDir {
     /// statistics, never data: a shard built before timings existed, or whose builder was
     /// killed between its record and its timing, simply has none).
     pub fn read_timing(&self, shard: &str) -> Option<ShardTiming> {
-        let bytes = std::fs::read(self.timing_path(shard)).ok()?;
-        let timing: ShardTiming = serde_json::from_slice(&bytes).ok()?;
-        (timing.started_unix.is_finite() && timing.seconds.is_finite() && timing.seconds >= 0.0)
-            .then_some(timing)
+        ShardTiming::from_json(&std::fs::read(self.timing_path(shard)).ok()?)
     }
 }

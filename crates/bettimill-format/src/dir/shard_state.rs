@@ -109,7 +109,11 @@ impl DatasetDir {
     /// reader holds one member at a time, bounded by the record, whatever the file holds.
     /// Without a record (a tar renamed into place whose record was not written yet) the
     /// file's own size bounds the reading and a member may have `max_member_bytes`.
-    pub fn open_tar(&self, shard: &str, max_member_bytes: u64) -> Result<ShardStream, FormatError> {
+    pub fn open_tar(
+        &self,
+        shard: &str,
+        max_member_bytes: u64,
+    ) -> Result<ShardStream<'static>, FormatError> {
         let record = self.read_record(shard)?;
         let path = self.tar_path(shard);
         match record {
@@ -123,9 +127,10 @@ impl DatasetDir {
     }
 }
 
-/// A shard opened by [`DatasetDir::open_tar`] or [`open_tar_file`]: its members one at a
-/// time through a fixed buffer, reading bounded by the expected size.
-pub type ShardStream = shard::TarStream<std::io::Take<std::io::BufReader<std::fs::File>>>;
+/// A shard opened by [`DatasetDir::open_tar`], [`open_tar_file`] or
+/// [`crate::DatasetSource::open_tar`]: its members one at a time through a fixed buffer,
+/// reading bounded by the expected size. The reader is a file's or an object's (by ranges).
+pub type ShardStream<'a> = shard::TarStream<Box<dyn std::io::Read + Send + 'a>>;
 
 /// The size of the regular file at `path`; an error naming it for anything else (a device
 /// such as `/dev/zero`, which reports no size and never ends, a directory, a FIFO). The
@@ -148,13 +153,28 @@ pub fn open_tar_file(
     path: &Path,
     record: Option<(&ShardRecord, &Path)>,
     max_member_bytes: u64,
-) -> Result<ShardStream, FormatError> {
+) -> Result<ShardStream<'static>, FormatError> {
     let size = regular_file_len(path)?;
+    let file = std::fs::File::open(path).map_err(io(path))?;
+    let reader = std::io::BufReader::with_capacity(1 << 16, file);
+    stream_checked(reader, size, path, record, max_member_bytes)
+}
+
+/// The one check before a shard is streamed, for a file and an object alike: with
+/// `record`, the tar (`size` bytes, named `location`) must have the record's size and each
+/// member at most the record's largest and `max_member_bytes`; without, `size` bounds it.
+pub(crate) fn stream_checked<'a>(
+    reader: impl std::io::Read + Send + 'a,
+    size: u64,
+    location: &Path,
+    record: Option<(&ShardRecord, &Path)>,
+    max_member_bytes: u64,
+) -> Result<ShardStream<'a>, FormatError> {
     let (expected, limit) = match record {
         Some((record, record_path)) => {
             if size != record.bytes {
                 return Err(FormatError::Corrupt {
-                    path: path.to_path_buf(),
+                    path: location.to_path_buf(),
                     reason: format!(
                         "has {size} bytes, its completion record {} says {}; it was not read (`bettimill verify` says where it differs, `bettimill build` rebuilds it)",
                         record_path.display(),
@@ -167,7 +187,7 @@ pub fn open_tar_file(
         }
         None => (size, max_member_bytes),
     };
-    let file = std::fs::File::open(path).map_err(io(path))?;
-    let reader = std::io::Read::take(std::io::BufReader::with_capacity(1 << 16, file), expected);
-    Ok(shard::TarStream::new(reader, path, limit))
+    let reader: Box<dyn std::io::Read + Send + 'a> =
+        Box::new(std::io::Read::take(reader, expected));
+    Ok(shard::TarStream::new(reader, location, limit))
 }
