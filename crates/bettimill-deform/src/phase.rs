@@ -166,14 +166,6 @@ impl Layout {
         }
     }
 
-    /// Whether `v` has a face neighbour of value `value` (anywhere in the image; `v` is in
-    /// the box, so all its neighbours exist).
-    #[inline]
-    pub(crate) fn touches(&self, data: &[u8], v: usize, value: u8) -> bool {
-        (0..self.d)
-            .any(|a| data[v - self.strides[a]] == value || data[v + self.strides[a]] == value)
-    }
-
     /// Calls `f` with every voxel of the box, in increasing flat order, a row of the last
     /// axis at a time.
     pub(crate) fn for_each_row(&self, mut f: impl FnMut(usize, usize)) {
@@ -220,6 +212,14 @@ impl Layout {
             .map(|row| row[span.clone()].contains(&other))
             .collect();
         let row_strides: Vec<usize> = (0..d - 1).map(|a| self.strides[a] / row_len).collect();
+        // Eight voxels at a time, one byte each in a u64: voxels are 0 or 1, so a byte of
+        // `word ^ from` is 1 exactly where the voxel holds the other value. A voxel is on
+        // the frontier when its own byte is 0 there and some face neighbour's is 1; the
+        // neighbours of eight consecutive voxels along an axis are the eight consecutive
+        // bytes one stride away, so each neighbour is one unaligned read.
+        let from = u64::from(flip_from) * LOW_BYTES;
+        let mut offsets: Vec<usize> = self.strides[..d].to_vec();
+        offsets[d - 1] = 1;
         let mut out = Vec::new();
         self.for_each_row(|first, last| {
             let row_index = first / row_len;
@@ -235,11 +235,23 @@ impl Layout {
             if !row.contains(&flip_from) {
                 return;
             }
-            for (k, &value) in row.iter().enumerate() {
-                let v = first + k;
-                if value == flip_from && self.touches(data, v, other) {
-                    out.push(v);
+            let mut k = first;
+            while k <= last {
+                let mut touching = 0u64;
+                for &s in &offsets {
+                    touching |= (word_at(data, k - s) ^ from) | (word_at(data, k + s) ^ from);
                 }
+                let mut found = touching & !(word_at(data, k) ^ from) & LOW_BYTES;
+                // Bytes past the row's last voxel belong to the next row or the border.
+                let n = last + 1 - k;
+                if n < 8 {
+                    found &= (1u64 << (8 * n)) - 1;
+                }
+                while found != 0 {
+                    out.push(k + found.trailing_zeros() as usize / 8);
+                    found &= found - 1;
+                }
+                k += 8;
             }
         });
         out
@@ -250,6 +262,24 @@ impl Layout {
     pub(crate) fn subfield(&self, v: usize) -> usize {
         let c = self.coords(v);
         (0..self.d).fold(0, |acc, a| acc * 3 + c[a] % 3)
+    }
+}
+
+/// The lowest bit of every byte of a u64.
+const LOW_BYTES: u64 = 0x0101_0101_0101_0101;
+
+/// The eight voxels from flat index `i` on as the bytes of a u64 (voxel `i` lowest); past
+/// the end of the image, bytes of 0.
+#[inline]
+fn word_at(data: &[u8], i: usize) -> u64 {
+    match data.get(i..i + 8) {
+        Some(bytes) => u64::from_le_bytes(bytes.try_into().expect("eight bytes")),
+        None => {
+            let mut bytes = [0u8; 8];
+            let tail = &data[i.min(data.len())..];
+            bytes[..tail.len()].copy_from_slice(tail);
+            u64::from_le_bytes(bytes)
+        }
     }
 }
 
@@ -314,6 +344,52 @@ mod tests {
                 .collect();
             assert_eq!(seen, expected, "{shape:?}");
             assert!(expected.iter().all(|&v| layout.in_box(v)));
+        }
+    }
+
+    #[test]
+    fn the_frontier_is_what_the_definition_names() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for shape in [
+            vec![5usize, 7],
+            vec![9, 21],
+            vec![6, 5, 13],
+            vec![7, 8, 34],
+            vec![5, 6, 4, 11],
+            vec![6, 5, 7, 19],
+        ] {
+            for density in [2u64, 5, 17] {
+                let mut image = BinaryImage::zeros(&shape).unwrap();
+                for v in image.data_mut() {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    *v = state.is_multiple_of(density) as u8;
+                }
+                let d = shape.len();
+                let mut phase = Phase::foreground(&image);
+                phase.lo[d - 1] = 2;
+                phase.hi[0] = shape[0] - 3;
+                let layout = Layout::new(&image, &phase);
+                let data = image.data();
+                for flip_from in [0u8, 1] {
+                    let want: Vec<usize> = (0..image.len())
+                        .filter(|&v| {
+                            layout.in_box(v)
+                                && data[v] == flip_from
+                                && (0..d).any(|a| {
+                                    let s = image.strides()[a];
+                                    data[v - s] != flip_from || data[v + s] != flip_from
+                                })
+                        })
+                        .collect();
+                    assert_eq!(
+                        layout.frontier(&image, flip_from),
+                        want,
+                        "{shape:?} 1/{density} from {flip_from}"
+                    );
+                }
+            }
         }
     }
 
