@@ -79,6 +79,29 @@ fn rank_by_noise(
     keyed.into_iter().map(|(_, v)| v).collect()
 }
 
+/// The `keep` candidates that come first in [`rank_by_noise`]'s order, in no particular
+/// order. An iteration of growth or shrinking needs only which voxels are kept: they are
+/// split into subfields whose decisions are independent of their order, and the next
+/// frontier is the same set whatever order it is collected in (the next ranking is a
+/// total order). So a selection, linear in the frontier, replaces the sort.
+fn best_by_noise(
+    candidates: &[usize],
+    fractal: &Fractal,
+    layout: &Layout,
+    highest_first: bool,
+    keep: usize,
+) -> Vec<usize> {
+    let mut keyed: Vec<(u32, usize)> = candidates
+        .par_iter()
+        .map(|&v| (rank_key(fractal.sample(layout.coords(v)), highest_first), v))
+        .collect();
+    if keep < keyed.len() {
+        keyed.select_nth_unstable(keep);
+        keyed.truncate(keep);
+    }
+    keyed.into_iter().map(|(_, v)| v).collect()
+}
+
 /// What one growth or shrinking run needs besides the image.
 pub(crate) struct Morphology<'a> {
     pub(crate) phase: &'a Phase,
@@ -127,9 +150,9 @@ pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformRep
             break;
         }
         let kept: Vec<usize> = if job.growth_probability < 1.0 {
-            let ranked = rank_by_noise(&candidates, &fractal, &layout, job.grow);
-            let keep = libm::ceil(job.growth_probability * ranked.len() as f64) as usize;
-            ranked[..keep.clamp(1, ranked.len())].to_vec()
+            let keep = libm::ceil(job.growth_probability * candidates.len() as f64) as usize;
+            let keep = keep.clamp(1, candidates.len());
+            best_by_noise(&candidates, &fractal, &layout, job.grow, keep)
         } else {
             candidates.clone()
         };
