@@ -53,7 +53,18 @@ fn two_builds_of_the_demo_are_byte_identical() {
     // The demo verifies.
     let out = run(&["verify", a.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(0), "{}", stdout(&out));
+    // index.json names every other file's size and blake3 (timings aside), so its own hash
+    // pins every byte of the demo: a change of output bytes fails here until it is a new
+    // version with its CHANGELOG entry and this hash updated.
+    assert_eq!(
+        bettimill_shard::file::blake3_hex(&sa[Path::new("index.json")]),
+        DEMO_INDEX_BLAKE3,
+        "the demo's bytes changed: a new version (CHANGELOG.md) and a new pinned hash"
+    );
 }
+
+/// The blake3 of the embedded demo manifest's `index.json` as version 0.4.0 writes it.
+const DEMO_INDEX_BLAKE3: &str = "7e659e96317c62decf33eca6a162d8a2fb93ccca2b99238a765c2876a34cc4b8";
 
 /// The dataset card opens with the YAML front matter the Hugging Face Hub reads, and each
 /// split's `data_files` pattern matches exactly that split's shards in index.json (so
