@@ -156,11 +156,14 @@ def _console_script():
     return shutil.which("bettimill")
 
 
-def build(manifest, out, workers=None):
+def build(manifest, out, workers=None, endpoint=None):
     """Builds (or resumes) the dataset of ``manifest`` in directory ``out``, as
     ``bettimill build MANIFEST --out OUT`` does, and returns its totals as a dict.
 
     ``manifest``: a path, TOML text, or None for the embedded demo manifest.
+    ``out``: a directory, or ``s3://BUCKET/PREFIX`` (built in this process, credentials
+    from the ``AWS_*`` variables, the server from ``endpoint`` or ``AWS_ENDPOINT_URL``, as
+    ``bettimill build --out s3://... --endpoint URL``).
     ``workers``: None or 1 builds in this process (one core); more starts that many worker
     processes of the ``bettimill`` console script this package installs.
     """
@@ -172,10 +175,13 @@ def build(manifest, out, workers=None):
                 "workers > 1 runs the `bettimill` console script, which is not installed "
                 f"next to {sys.executable}; reinstall the package or use workers=1"
             )
-    return _bettimill.build(manifest, os.fspath(out), workers, program)
+    return _bettimill.build(manifest, os.fspath(out), workers, program, endpoint)
 
 
-def verify(dir):
+def verify(dir, endpoint=None):
     """Checks every shard of a built dataset against its ``index.json``; returns what
-    ``bettimill verify DIR --json`` prints (``problems`` is empty when all is well)."""
-    return _bettimill.verify(os.fspath(dir))
+    ``bettimill verify DIR --json`` prints (``problems`` is empty when all is well).
+
+    ``dir``: a directory, or ``s3://BUCKET/PREFIX``, read by ranges with the ``AWS_*``
+    variables and ``endpoint`` (default ``AWS_ENDPOINT_URL``), as the CLI reads it."""
+    return _bettimill.verify(os.fspath(dir), endpoint)

@@ -573,14 +573,17 @@ fn _plan_from_text(text: String, origin: PathBuf) -> PyResult<PyPlan> {
 /// `bettimill_executor::build`, with its memory check). With `workers` None or 1 the shards
 /// are built in this process; with more, by that many worker processes of `worker_program`
 /// (the package's `bettimill` console script). Returns the totals.
+/// An `s3://` `out` is built in this process whatever `workers` says, with the AWS
+/// variables and `endpoint` (else `AWS_ENDPOINT_URL`), as `bettimill build --out s3://...`.
 #[pyfunction]
-#[pyo3(signature = (manifest, out, workers = None, worker_program = None))]
+#[pyo3(signature = (manifest, out, workers = None, worker_program = None, endpoint = None))]
 fn build<'py>(
     py: Python<'py>,
     manifest: Option<&Bound<'py, PyAny>>,
     out: PathBuf,
     workers: Option<usize>,
     worker_program: Option<PathBuf>,
+    endpoint: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let source = manifest_source(manifest)?;
     let parsed = parse_manifest(&source)?;
@@ -602,7 +605,10 @@ fn build<'py>(
         max_memory: None,
         max_shard_failures: coordinator::DEFAULT_MAX_SHARD_FAILURES,
         worker_timeout: coordinator::DEFAULT_WORKER_TIMEOUT,
-        object: bettimill_executor::remote::ObjectOptions::default(),
+        object: bettimill_executor::remote::ObjectOptions {
+            endpoint,
+            ..Default::default()
+        },
     };
     // Ctrl-C in Python: the interpreter's handler only sets a flag, so a build by worker
     // processes asks for it every 100 ms and stops its workers (resumable, like the CLI's).
@@ -659,14 +665,31 @@ fn build<'py>(
     Ok(dict)
 }
 
-/// `bettimill.verify(dir)`: what `bettimill verify DIR --json` prints, as a dict; its
-/// `problems` list is empty when every shard matches `index.json`.
+/// `bettimill.verify(dir, endpoint=None)`: what `bettimill verify DIR --json` prints, as a
+/// dict; its `problems` list is empty when every shard matches `index.json`. `dir` may be
+/// `s3://BUCKET/PREFIX`, read by ranges with the AWS variables and `endpoint` (else
+/// `AWS_ENDPOINT_URL`), as the CLI reads it; a server, bucket or key that does not answer
+/// is an `OSError` naming the URL.
 #[pyfunction]
-fn verify<'py>(py: Python<'py>, dir: PathBuf) -> PyResult<Bound<'py, PyAny>> {
-    let report = detach_in_pool(py, || {
-        bettimill_format::DatasetDir::new(&dir).verify(&mut |_, _| {})
-    })?
-    .map_err(value_error)?;
+#[pyo3(signature = (dir, endpoint = None))]
+fn verify<'py>(
+    py: Python<'py>,
+    dir: PathBuf,
+    endpoint: Option<String>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let url = dir
+        .to_str()
+        .filter(|d| bettimill_shard::object::is_object_url(d))
+        .map(str::to_string);
+    let report = detach_in_pool(py, || match &url {
+        Some(url) => bettimill_executor::remote::open_bucket(url, endpoint.as_deref())
+            .map_err(|err| PyOSError::new_err(err.to_string()))?
+            .verify(&mut |_, _| {})
+            .map_err(value_error),
+        None => bettimill_format::DatasetDir::new(&dir)
+            .verify(&mut |_, _| {})
+            .map_err(value_error),
+    })??;
     let json = serde_json::to_string(&report).map_err(value_error)?;
     json_to_py(py, &json)
 }
