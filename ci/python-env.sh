@@ -57,7 +57,7 @@ if [[ -f "$STAMP" && "$(cat "$STAMP")" == "$want" ]]; then
 fi
 say "checking the imports and a torch DataLoader with num_workers=2"
 "$VENV/bin/python" - <<'PY'
-import numpy, torch, webdataset, wids, datasets, zstandard, pytest
+import numpy, torch, webdataset, wids, datasets, zstandard, pytest, s3fs
 from torch.utils.data import DataLoader
 
 seen = sorted(int(x) for batch in DataLoader(list(range(10)), batch_size=3, num_workers=2) for x in batch)

@@ -45,8 +45,8 @@ if [ -x ci/python-clients.sh ]; then
 fi
 
 if [ -x ci/python-package.sh ]; then
-  echo "== Python package (python/tests)"
-  ci/python-package.sh
+  echo "== Python package (python/tests, system tests included: the local S3 server)"
+  BETTIMILL_SYSTEM_TESTS=1 ci/python-package.sh
 fi
 
 echo "== all tests passed"
