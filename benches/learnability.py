@@ -43,6 +43,14 @@ score on a held-out kind it never saw moves by up to about 0.1 with its seed alo
 ``--repeats N`` trains each row N times from different seeds and shows the mean (and the
 range on the independent generator).
 
+Probes of what limits the transfer: ``--fresh`` trains a single kind on ``--train`` x
+``--epochs`` distinct samples, each seen once (as an on-the-fly loader would), instead of
+the same ``--train`` samples every epoch; ``--augment`` shows each batch in a random
+symmetry of the 4D cube; ``--side 24`` gives the constructions room to vary (at side 16 a
+handle needs a bounding radius of 5.25 voxels and the image offers 5.5), with the
+independent generator's shapes scaled to keep their proportions; ``--kinds`` makes only
+the listed kinds (a side-24 run of every kind takes hours).
+
 Run by hand (not in CI), from the repository root, with bettimill and torch installed
 (``ci/python-env.sh`` makes a venv with torch; build the package into it with
 ``pip install ./python`` or ``ci/python-package.sh``):
@@ -52,6 +60,7 @@ Run by hand (not in CI), from the repository root, with bettimill and torch inst
     python benches/learnability.py --quick             # 48 samples a kind, 2 epochs: a smoke run
     python benches/learnability.py --train 2400 --mix 4800 --repeats 3 \
         --rows canonical,binned,binned-chain,families,independent,all   # the transfer table
+    python benches/learnability.py --train 2400 --rows families --fresh   # a probe
 
 On a shared 2-core machine the default run takes about 20 minutes with the three older
 deformations, nearly all of it training (one torch thread; a training of 480 samples
@@ -223,17 +232,28 @@ def plan_samples(text, count, threads):
 
 # ---------------------------------------------------------------- the independent generator
 
-# Integer offsets of the voxels near a point's floor, from -2 to 3 on each axis (enough
-# for radius 2.4), with how near each can come to a point inside the floor's unit cell.
-_OFFSETS = np.stack(np.meshgrid(*[np.arange(-2, 4)] * 4, indexing="ij"), -1).reshape(-1, 4)
-_REACH = np.sqrt((np.maximum(0, np.maximum(-_OFFSETS, _OFFSETS - 1)) ** 2).sum(1))
+def scale():
+    """The generator's lengths are written for side 16; at another side every length
+    (positions, radii, gaps) is multiplied by SIDE / 16, so its shapes keep their
+    proportions to the image."""
+    return SIDE / 16
+
+
+def grid():
+    """Every voxel's coordinates in the generator's side-16 units, [SIDE]*4 + [4]."""
+    return np.stack(np.meshgrid(*[np.arange(SIDE) / scale()] * 4, indexing="ij"), -1)
 
 
 def splat(points, radii):
     """A boolean image: the voxels (centres at integer coordinates) within radii[i] of
-    points[i] for some i."""
+    points[i] for some i (both in side-16 units)."""
+    points, radii = points * scale(), radii * scale()
     image = np.zeros((SIDE,) * 4, bool)
-    offsets = _OFFSETS[_REACH <= radii.max()]
+    # Integer offsets of the voxels near a point's floor, far enough for the largest radius.
+    reach = int(np.ceil(radii.max())) + 1
+    every = np.stack(np.meshgrid(*[np.arange(-reach, reach + 2)] * 4, indexing="ij"), -1).reshape(-1, 4)
+    gap = np.sqrt((np.maximum(0, np.maximum(-every, every - 1)) ** 2).sum(1))
+    offsets = every[gap <= radii.max()]
     for start in range(0, len(points), 512):
         p = points[start:start + 512]
         r = radii[start:start + 512]
@@ -282,19 +302,16 @@ def walk(rng, lo, hi):
 
 def blob(rng, lo, hi):
     """A chain of 1-4 overlapping, randomly oriented ellipsoids inside [lo, hi]^4."""
-    grid = np.stack(np.meshgrid(*[np.arange(SIDE)] * 4, indexing="ij"), -1).astype(float)
+    points = grid()
     image = np.zeros((SIDE,) * 4, bool)
     centre = rng.uniform(lo + 1, hi - 1, 4)
     for _ in range(rng.integers(1, 5)):
         axes = frame(rng)
         semi = rng.uniform(1.3, 3.5, 4)
-        local = (grid - centre) @ axes.T / semi
+        local = (points - centre) @ axes.T / semi
         image |= (local ** 2).sum(-1) <= 1
         centre = np.clip(centre + rng.normal(size=4) * 1.5, lo + 1, hi - 1)
-    box = np.zeros((SIDE,) * 4, bool)
-    a, b = int(np.ceil(lo)), int(np.floor(hi)) + 1
-    box[a:b, a:b, a:b, a:b] = True
-    return image & box
+    return image & ((points >= np.ceil(lo)) & (points <= np.floor(hi))).all(-1)
 
 
 def loop(rng):
@@ -336,8 +353,7 @@ def sphere(rng):
 def shell(rng):
     """A hollow blob: the voxels between two nested bumpy, stretched 3-spheres about a
     point, in a random frame."""
-    grid = np.stack(np.meshgrid(*[np.arange(SIDE)] * 4, indexing="ij"), -1).astype(float)
-    y = (grid - rng.uniform(7.0, 8.0, 4)) @ frame(rng).T / rng.uniform(0.85, 1.15, 4)
+    y = (grid() - rng.uniform(7.0, 8.0, 4)) @ frame(rng).T / rng.uniform(0.85, 1.15, 4)
     rho = np.sqrt((y ** 2).sum(-1)) + 1e-9
     u = y / rho[..., None]
     bumps = rng.normal(size=(4, 4)) * 0.08
@@ -354,8 +370,8 @@ def candidate(rng, target):
         parts = []
         for lo, hi in ((1.5, gap - 1.2), (gap + 1.2, 13.5)):
             part = walk(rng, 1.5, 13.5) if rng.random() < 0.5 else blob(rng, 1, 14)
-            keep = np.zeros(SIDE, bool)
-            keep[int(np.ceil(lo)):int(np.floor(hi)) + 1] = True
+            coordinate = np.arange(SIDE) / scale()
+            keep = (coordinate >= np.ceil(lo)) & (coordinate <= np.floor(hi))
             shape = [1, 1, 1, 1]
             shape[axis] = SIDE
             parts.append(part & keep.reshape(shape))
@@ -448,44 +464,63 @@ def family_samples(mode, classes, count, seed, threads):
     return voxels, betti
 
 
-def datasets(args):
-    """{kind: (train voxels, train betti, test voxels, test betti)}, the deformation kinds,
-    and whether the installed bettimill's `[deform]` is one table."""
-    classes = feasible(args.mode)
-    deforms, single = deformations(args.mode, classes)
+def kind_recipes(mode):
+    """{kind: how bettimill makes it} for the kinds the installed bettimill knows, the
+    feasible classes, and whether its `[deform]` is one table."""
+    classes = feasible(mode)
+    deforms, single = deformations(mode, classes)
     kinds = {"canonical": (None, None), **{name: (steps, None) for name, steps in deforms.items()}}
     if not single:
-        kinds["binned"] = (None, bins(args.mode))
-        kinds["binned-chain"] = (CHAIN, bins(args.mode))
-    count = args.train + args.test
-    data = {}
-    for name, (deform, kind_bins) in kinds.items():
-        text = manifest(deform, args.mode, count, args.seed, single, classes, kind_bins)
-        start = time.perf_counter()
+        kinds["binned"] = (None, bins(mode))
+        kinds["binned-chain"] = (CHAIN, bins(mode))
+        kinds["families"] = None
+    kinds["independent"] = None
+    return kinds, classes, list(deforms), single
+
+
+def kind_samples(name, recipe, args, classes, single, count, seed):
+    """`count` samples of kind `name` made from `seed` (cached), voxels and Betti vectors."""
+    start = time.perf_counter()
+    # Keys of side-16 runs stay as they were, so their caches stay valid.
+    side = "" if SIDE == 16 else f" side {SIDE}"
+    accepted = []
+    if name == "families":
+        key = f"families {bettimill.__version__} {args.mode} {count} {seed} {classes} {FAMILIES} {CHAIN} {BINS}{side}"
+        voxels, betti = cached(args.cache, key,
+                               lambda: family_samples(args.mode, classes, count, seed, args.threads))
+    elif name == "independent":
+        def make():
+            voxels, betti, share = independent_samples(count, args.mode, seed, classes)
+            accepted.append(share)
+            return voxels, betti
+
+        voxels, betti = cached(args.cache, f"independent v1 {args.mode} {count} {seed} {classes}{side}", make)
+    else:
+        deform, kind_bins = recipe
+        text = manifest(deform, args.mode, count, seed, single, classes, kind_bins)
         voxels, betti = cached(args.cache, f"{bettimill.__version__}\n{text}",
                                lambda: plan_samples(text, count, args.threads))
-        log(f"{name}: {count} samples in {time.perf_counter() - start:.1f} s")
+    log(f"{name}: {count} samples in {time.perf_counter() - start:.1f} s"
+        + (f", {accepted[0]:.0%} of the candidates accepted" if accepted else ""))
+    return voxels, betti
+
+
+def datasets(args):
+    """{kind: (train voxels, train betti, test voxels, test betti)}, the deformation kinds,
+    whether the installed bettimill's `[deform]` is one table, and a maker of more samples
+    of a kind (`make(name, count, seed)`)."""
+    kinds, classes, deforms, single = kind_recipes(args.mode)
+
+    def make(name, count, seed):
+        return kind_samples(name, kinds[name], args, classes, single, count, seed)
+
+    data = {}
+    for name in kinds:
+        if args.kinds and name not in args.kinds.split(","):
+            continue
+        voxels, betti = make(name, args.train + args.test, args.seed)
         data[name] = (voxels[:args.train], betti[:args.train], voxels[args.train:], betti[args.train:])
-    if not single:
-        start = time.perf_counter()
-        key = f"families {bettimill.__version__} {args.mode} {count} {args.seed} {classes} {FAMILIES} {CHAIN} {BINS}"
-        voxels, betti = cached(args.cache, key,
-                               lambda: family_samples(args.mode, classes, count, args.seed, args.threads))
-        log(f"families: {count} samples in {time.perf_counter() - start:.1f} s")
-        data["families"] = (voxels[:args.train], betti[:args.train], voxels[args.train:], betti[args.train:])
-    start = time.perf_counter()
-    accepted = []
-
-    def make():
-        voxels, betti, share = independent_samples(count, args.mode, args.seed, classes)
-        accepted.append(share)
-        return voxels, betti
-
-    voxels, betti = cached(args.cache, f"independent v1 {args.mode} {count} {args.seed} {classes}", make)
-    log(f"independent: {count} samples in {time.perf_counter() - start:.1f} s"
-        + (f", {accepted[0]:.0%} of the candidates accepted" if accepted else " (cached)"))
-    data["independent"] = (voxels[:args.train], betti[:args.train], voxels[args.train:], betti[args.train:])
-    return data, list(deforms), single
+    return data, deforms, single, make
 
 
 def mix(data, kinds, size):
@@ -507,6 +542,7 @@ def train(voxels, betti, args, seed):
     x = torch.from_numpy(voxels)
     y = torch.from_numpy(betti).clamp(max=MAX_BETTI)
     order_rng = torch.Generator().manual_seed(seed)
+    symmetry_rng = np.random.default_rng(seed)
     # The learning rate falls to zero along a cosine: the last epochs settle the weights,
     # so the score does not depend on where the last step happened to land.
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, args.epochs * -(-len(x) // args.batch))
@@ -515,7 +551,15 @@ def train(voxels, betti, args, seed):
         order = torch.randperm(len(x), generator=order_rng)
         for start in range(0, len(x), args.batch):
             pick = order[start:start + args.batch]
-            logits = model(x[pick].unsqueeze(1).float())
+            batch = x[pick]
+            if args.augment:
+                # One of the 384 symmetries of the 4D cube per batch (a permutation of the
+                # axes and flips of some): the Betti numbers do not change, the picture does.
+                batch = batch.permute(0, *(1 + symmetry_rng.permutation(4)).tolist())
+                flips = [1 + axis for axis in range(4) if symmetry_rng.random() < 0.5]
+                if flips:
+                    batch = batch.flip(flips)
+            logits = model(batch.unsqueeze(1).float())
             loss = torch.nn.functional.cross_entropy(logits.reshape(-1, MAX_BETTI + 1), y[pick].reshape(-1))
             optimiser.zero_grad()
             loss.backward()
@@ -572,7 +616,17 @@ def main():
     parser.add_argument("--repeats", type=int, default=1,
                         help="trainings per row, each from its own seed; the table shows their mean")
     parser.add_argument("--rows", help="comma-separated trainings to run (e.g. canonical,mix); default all")
+    parser.add_argument("--kinds", help="comma-separated kinds to make (held-out columns); default all")
+    parser.add_argument("--side", type=int, default=16,
+                        help="the images' side (the independent generator scales its shapes with it)")
+    parser.add_argument("--augment", action="store_true",
+                        help="train on a random symmetry of the 4D cube of each batch")
+    parser.add_argument("--fresh", action="store_true",
+                        help="a single kind's training sees every sample once: --train x --epochs "
+                             "distinct samples (from another seed than the held-out ones), one epoch")
     args = parser.parse_args()
+    global SIDE
+    SIDE = args.side
     if args.quick:
         args.train, args.test, args.mix, args.epochs = 50, 20, 100, 2
     if args.cache:
@@ -582,12 +636,14 @@ def main():
     np.random.seed(args.seed)
 
     started = time.perf_counter()
-    data, deforms, single = datasets(args)
+    data, deforms, single, make = datasets(args)
     columns = list(data)
     runs = [(k, [k]) for k in columns]
-    runs.append(("mix", ["canonical", *deforms]))
-    for left in deforms:
-        runs.append((f"mix-no-{left}", ["canonical", *[d for d in deforms if d != left]]))
+    # The mixes need every kind they are made of (all of them unless --kinds leaves some out).
+    if {"canonical", *deforms} <= set(columns):
+        runs.append(("mix", ["canonical", *deforms]))
+        for left in deforms:
+            runs.append((f"mix-no-{left}", ["canonical", *[d for d in deforms if d != left]]))
     ours = [k for k in columns if k != "independent"]
     if len(ours) > 1 + len(deforms):
         runs.append(("all", ours))
@@ -610,10 +666,14 @@ def main():
         # repeat r adds r * 1000 (repeat 0 is the single run's training).
         number = int.from_bytes(hashlib.blake2b(name.encode(), digest_size=4).digest(), "little")
         voxels, betti = (data[name][0], data[name][1]) if len(kinds) == 1 else mix(data, kinds, args.mix)
+        schedule = args
+        if args.fresh and len(kinds) == 1:
+            voxels, betti = make(name, args.train * args.epochs, args.seed + 1)
+            schedule = argparse.Namespace(**{**vars(args), "epochs": 1})
         start = time.perf_counter()
         runs_scores = []
         for repeat in range(args.repeats):
-            model = train(voxels, betti, args, args.seed + number + 1000 * repeat)
+            model = train(voxels, betti, schedule, args.seed + number + 1000 * repeat)
             runs_scores.append({k: exact_accuracy(model, data[k][2], data[k][3]) for k in columns})
         seconds = (time.perf_counter() - start) / args.repeats
         scores = {k: float(np.mean([r[k] for r in runs_scores])) for k in columns}
@@ -628,7 +688,9 @@ def main():
     print(f"Learnability, {args.mode} mode, 4D side {SIDE}: exact Betti vector accuracy "
           f"(bettimill {bettimill.__version__}, {schema}; {args.train} training samples a kind, "
           f"{args.mix} in a mix, {args.test} held out a kind, {args.epochs} epochs, "
-          f"BettiNet4d width {args.width}).\n")
+          f"BettiNet4d width {args.width}"
+          + ("; a single kind's training sees each of its samples once" if args.fresh else "")
+          + ("; each batch in a random symmetry of the cube" if args.augment else "") + ").\n")
     ranged = args.repeats > 1
     print("| trained on | samples | " + " | ".join(f"held-out {k}" for k in columns)
           + (" | independent, range over trainings" if ranged else "") + " | training s |")
