@@ -418,7 +418,7 @@ fn bucket_shards(
 }
 
 /// `status` of a dataset in a bucket: every planned shard complete (its record, and a tar
-/// of the record's size), missing or invalid (see [`bucket_shards`]).
+/// of the record's size), missing or invalid (a record that disagrees with the plan).
 pub fn bucket_status(
     url: &str,
     endpoint: Option<&str>,
