@@ -15,7 +15,7 @@ mod common;
 
 use bettimill_shard::object::{ObjectDir, S3Config};
 use bettimill_testkit::s3::S3Server;
-use bettimill_testkit::{skip_unless_ci, system_test};
+use bettimill_testkit::system_test;
 use common::{assert_exit, ball_and_handle, bettimill, stderr, Dir};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -634,27 +634,9 @@ fn slurm_array_tasks_upload_to_the_bucket_and_finalize_writes_the_index() {
 /// Peak resident set (KiB, GNU time's `%M`) of `bettimill ARGS` run against the server;
 /// `None` (the test returns) when /usr/bin/time is missing outside CI.
 fn peak_kib(server: &Server, args: &[&str]) -> Option<(Output, u64)> {
-    const TIME: &str = "/usr/bin/time";
-    if !Path::new(TIME).exists() {
-        skip_unless_ci("GNU time", "/usr/bin/time is not installed");
-        return None;
-    }
-    let report = tempfile::NamedTempFile::new().unwrap();
-    let mut command = Command::new(TIME);
-    command
-        .args(["-f", "%M", "-o"])
-        .arg(report.path())
-        .arg(common::BETTIMILL)
-        .args(args);
-    command.envs(server.0.vars());
-    let output = command.output().unwrap();
-    let text = std::fs::read_to_string(report.path()).unwrap();
-    let kib = text
-        .lines()
-        .filter_map(|l| l.trim().parse::<u64>().ok())
-        .next_back()
-        .unwrap_or_else(|| panic!("no peak in GNU time's report: {text:?}"));
-    Some((output, kib))
+    common::run_with_peak_in(args, |command| {
+        command.envs(server.0.vars());
+    })
 }
 
 #[test]

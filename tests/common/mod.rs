@@ -272,21 +272,31 @@ pub fn wait_until(what: &str, limit: Duration, mut check: impl FnMut() -> bool) 
 /// resident set in KiB (getrusage of the child, `%M`); `None` (the test returns) when
 /// /usr/bin/time is missing outside CI.
 pub fn run_with_peak(args: &[&str]) -> Option<(Output, u64)> {
+    run_with_peak_in(args, |_| {})
+}
+
+/// [`run_with_peak`] with the command set up by `configure` first (for example a local S3
+/// server's environment).
+pub fn run_with_peak_in(
+    args: &[&str],
+    configure: impl FnOnce(&mut Command),
+) -> Option<(Output, u64)> {
     const TIME: &str = "/usr/bin/time";
     if !Path::new(TIME).exists() {
         bettimill_testkit::skip_unless_ci("GNU time", "/usr/bin/time is not installed");
         return None;
     }
     let report = tempfile::NamedTempFile::new().expect("a temporary file");
-    let output = Command::new(TIME)
+    let mut command = Command::new(TIME);
+    command
         .arg("-f")
         .arg("%M")
         .arg("-o")
         .arg(report.path())
         .arg(BETTIMILL)
-        .args(args)
-        .output()
-        .expect("time runs bettimill");
+        .args(args);
+    configure(&mut command);
+    let output = command.output().expect("time runs bettimill");
     let text = std::fs::read_to_string(report.path()).expect("time wrote its report");
     // GNU time writes "Command exited with non-zero status N" before the figures.
     let kib = text
