@@ -346,12 +346,16 @@ pub fn rebuild_with_progress(
     shards: &[ShardPlan],
     progress: &(dyn Fn() + Sync),
 ) -> Result<AuditReport, AuditError> {
-    bettimill_format::DatasetDir::new(dir)
-        .check_index()
-        .map_err(BuildError::from)?;
-    let stored = Dataset::open(dir)?;
-    let source = DatasetSource::Dir(bettimill_format::DatasetDir::new(dir));
+    let (stored, source) = open_local(dir)?;
     rebuild_from(&stored, &source, shards, progress)
+}
+
+/// A local dataset directory whose index is checked first, and the same directory as the
+/// source its shards are read from.
+fn open_local(dir: &Path) -> Result<(Dataset, DatasetSource), AuditError> {
+    let local = bettimill_format::DatasetDir::new(dir);
+    local.check_index().map_err(BuildError::from)?;
+    Ok((Dataset::open(dir)?, DatasetSource::Dir(local)))
 }
 
 /// [`rebuild_with_progress`] of the shards of `source` (a directory or a bucket), whose
@@ -477,11 +481,7 @@ pub fn relabel_with_progress(
     shards: &[ShardPlan],
     progress: &(dyn Fn() + Sync),
 ) -> Result<AuditReport, AuditError> {
-    bettimill_format::DatasetDir::new(dir)
-        .check_index()
-        .map_err(BuildError::from)?;
-    let dataset = Dataset::open(dir)?;
-    let source = DatasetSource::Dir(bettimill_format::DatasetDir::new(dir));
+    let (dataset, source) = open_local(dir)?;
     relabel_from(&dataset, &source, shards, progress)
 }
 
