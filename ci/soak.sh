@@ -26,6 +26,8 @@ BIN=${2:-${CARGO_TARGET_DIR:-$ROOT/target}/debug/bettimill}
 RANDOM=${SOAK_SEED:-2026}
 WORKERS=${SOAK_WORKERS:-2}
 DEMOS=${SOAK_DEMOS:-"demo-2d demo-3d demo-4d"}
+# 1 during a disk-full round (set for one one_run call), where exit 2 with ENOSPC is allowed.
+DISK_FULL=0
 [ -x "$BIN" ] || { echo "no bettimill binary at $BIN (cargo build -p bettimill-cli)"; exit 2; }
 
 work=$(mktemp -d /tmp/bettimill-soak.XXXXXX)
@@ -104,7 +106,7 @@ one_run() {
             grep -q -e "failed 3 times" -e "exited before its handshake" "$work/stderr" && ok=yes ;;
     esac
     # On a full disk a build stops with exit 2 and says why, whatever the signal did.
-    if [ $ok = no ] && [ $code = 2 ] && [ "${DISK_FULL:-0}" = 1 ] && grep -q "No space left on device" "$work/stderr"; then ok=yes; fi
+    if [ $ok = no ] && [ $code = 2 ] && [ "$DISK_FULL" = 1 ] && grep -q "No space left on device" "$work/stderr"; then ok=yes; fi
     [ $ok = yes ] || fail "$target $signal after ${delay} ms: exit $code"
     if [ $sent = yes ] && [ $code != 0 ] || { [ $sent = yes ] && [ $target = worker ]; }; then
         tried=$((tried + 1))

@@ -14,7 +14,7 @@ use common::{repo_root, run_in, text, Dir, BETTIMILL};
 
 fn check_snapshot(name: &str, actual: &str) {
     let path = repo_root().join("tests/snapshots").join(name);
-    if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
+    if bettimill_env::var(bettimill_env::EnvVars::UPDATE_SNAPSHOTS).is_some() {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         std::fs::write(&path, actual).unwrap();
         return;

@@ -239,10 +239,8 @@ fn slurm_checks_one_array_task_and_asks_for_its_memory() {
 /// `bettimill ARGS` with the Slurm variables `vars` set (and no other SLURM_* variable).
 fn in_slurm_job(args: &[&str], vars: &[(&str, &str)]) -> Output {
     let mut command = common::bettimill();
-    for (name, _) in std::env::vars() {
-        if name.starts_with("SLURM_") {
-            command.env_remove(name);
-        }
+    for name in bettimill_env::names_starting_with("SLURM_") {
+        command.env_remove(name);
     }
     command.args(args).envs(vars.iter().copied());
     command.output().unwrap()

@@ -1689,14 +1689,14 @@ fn soak_test(dimension: u32, side: u32, samples: u32, shard_size: u32, kills: u3
 /// -- random_kills --nocapture`. Without it, 8 kills over 300 samples.
 #[test]
 fn random_kills_of_coordinator_and_workers_end_byte_identical() {
-    match std::env::var("BETTIMILL_SOAK_KILLS") {
-        Ok(kills) => {
+    match bettimill_env::var(bettimill_env::EnvVars::BETTIMILL_SOAK_KILLS) {
+        Some(kills) => {
             let kills = kills
                 .parse()
                 .unwrap_or_else(|e| panic!("BETTIMILL_SOAK_KILLS={kills:?}: {e}"));
             soak_test(2, 32, 2000, 20, kills, 7);
         }
-        Err(_) => soak_test(2, 32, 300, 10, 8, 2026),
+        None => soak_test(2, 32, 300, 10, 8, 2026),
     }
 }
 

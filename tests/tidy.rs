@@ -7,7 +7,8 @@
 //!   allows them anywhere in its sources.
 //! - Every Rust file opens with a `//!` doc; the crates are on the code map.
 //! - The environment is read in one file (`bettimill-env`'s `env.rs`), whose variables
-//!   docs/environment.md names, test hooks marked internal and hidden; and the build is
+//!   docs/environment.md names, test hooks marked internal and hidden; every variable the
+//!   tests, ci/ scripts and Python files read is listed there too; and the build is
 //!   driven from one place (the executor's `build`): the CLI and the Python binding neither
 //!   make build options nor read scheduler variables.
 //! - One `rust-version` for the workspace, at least every resolved dependency's.
@@ -18,6 +19,7 @@
 //! - A check shared by several commands (a plain file, a file against its record, a tar
 //!   against its record) is defined once, by the file that owns it.
 
+use bettimill_env::EnvVars;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -64,7 +66,7 @@ impl Package {
 
 /// The workspace members, from `cargo metadata --format-version 1 --offline --no-deps`.
 fn packages() -> Vec<Package> {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let cargo = bettimill_env::var(EnvVars::CARGO).unwrap_or_else(|| "cargo".into());
     let out = std::process::Command::new(cargo)
         .args([
             "metadata",
@@ -373,7 +375,7 @@ fn rust_version(text: &str) -> (u64, u64, u64) {
 /// are caught by clippy's `incompatible_msrv`, which reads the same field.)
 #[test]
 fn the_declared_rust_version_is_the_workspaces_and_covers_every_dependency() {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let cargo = bettimill_env::var(EnvVars::CARGO).unwrap_or_else(|| "cargo".into());
     let out = std::process::Command::new(cargo)
         .args(["metadata", "--format-version", "1", "--offline", "--locked"])
         .arg("--manifest-path")
@@ -444,27 +446,15 @@ fn uses(sources: &[(PathBuf, String)], needles: &[&str]) -> Vec<String> {
     found
 }
 
-/// The Rust sources under `src/` of every workspace member, with their text.
-fn member_sources() -> Vec<(PathBuf, String)> {
-    let mut files = Vec::new();
-    for p in packages() {
-        rust_files(&p.dir.join("src"), &mut files);
-    }
-    files.sort();
-    files
-        .into_iter()
-        .map(|f| {
-            let text = std::fs::read_to_string(&f).unwrap();
-            (f, text)
-        })
-        .collect()
-}
-
 /// Whether `line` reads the environment itself: `std::env::var`, `var_os`, `vars` (also
-/// as `env::var` after `use std::env`), not through `bettimill_env::var`.
+/// as `env::var` after `use std::env`), not through `bettimill_env::var`, and not inside a
+/// string literal (an example in a checker's own test is not a read).
 fn reads_env(line: &str) -> bool {
-    line.match_indices("env::var")
-        .any(|(at, _)| !line[..at].ends_with("bettimill_"))
+    line.match_indices("env::var").any(|(at, _)| {
+        let before = &line[..at];
+        let quotes = before.matches('"').count() - before.matches("\\\"").count();
+        !before.ends_with("bettimill_") && quotes.is_multiple_of(2)
+    })
 }
 
 #[test]
@@ -500,22 +490,58 @@ fn use_checker_names_file_line_and_needle_outside_comments() {
     );
 }
 
+/// The files under the repository (not `target/`, `.git/` or a virtual environment) whose
+/// names end in `suffix`, sorted.
+fn repo_files(suffix: &str) -> Vec<PathBuf> {
+    fn walk(dir: &Path, suffix: &str, out: &mut Vec<PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for entry in entries {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            if path.is_dir() {
+                if !matches!(name.as_str(), "target" | ".git" | ".venv" | "node_modules")
+                    && !name.starts_with("target-")
+                {
+                    walk(&path, suffix, out);
+                }
+            } else if name.ends_with(suffix) {
+                out.push(path);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(&repo_root(), suffix, &mut out);
+    out.sort();
+    out
+}
+
 /// Every environment variable is read in `bettimill-env`'s `env.rs`, the one list of them
-/// (docs/environment.md is its users' copy): no other source file of a crate reads one.
+/// (docs/environment.md is its users' copy): no other Rust file of the repository reads one,
+/// not a crate's sources, tests, examples or benchmarks, nor the workspace's tests.
 #[test]
 fn the_environment_is_read_only_in_env_rs() {
-    let sources = member_sources();
-    assert!(sources.len() > 50, "only {} sources", sources.len());
     let env_rs = Path::new("crates/bettimill-env/src/env.rs");
-    let others: Vec<_> = sources
+    let files: Vec<_> = repo_files(".rs")
         .into_iter()
-        .filter(|(path, _)| !path.ends_with(env_rs))
+        .filter(|path| !path.ends_with(env_rs))
         .collect();
+    assert!(
+        files.iter().any(|f| f.ends_with("tests/common/mod.rs")),
+        "the workspace's tests are not scanned: {files:?}"
+    );
+    assert!(files.len() > 100, "only {} Rust files", files.len());
     let mut found = Vec::new();
-    for (path, text) in &others {
-        for (number, line) in code_lines(text) {
+    for path in &files {
+        let text = std::fs::read_to_string(path).unwrap();
+        for (number, line) in code_lines(&text) {
             if reads_env(line) {
-                found.push(format!("{}:{number}: {}", path.display(), line.trim()));
+                found.push(format!(
+                    "{}:{number}: {}",
+                    relative(&repo_root(), path),
+                    line.trim()
+                ));
             }
         }
     }
@@ -526,6 +552,213 @@ fn the_environment_is_read_only_in_env_rs() {
     );
 }
 
+/// Variables a shell script may read without listing them: the shell's own.
+const SHELL_VARIABLES: &[&str] = &[
+    "BASH_REMATCH",
+    "BASH_SOURCE",
+    "EUID",
+    "HOME",
+    "IFS",
+    "LINENO",
+    "PATH",
+    "PIPESTATUS",
+    "PWD",
+    "RANDOM",
+    "SECONDS",
+    "UID",
+];
+
+/// The upper-case names a shell script `text` expands (`$NAME`, `${NAME...}`, escaped
+/// `\$NAME` in a script it writes included), each with whether the expansion gives a
+/// default or an alternative (`${NAME:-...}`, `${NAME-...}`, `=`, `?`, `+`): that form reads
+/// the environment even in a script that assigns the name.
+fn shell_expansions(text: &str) -> Vec<(String, bool)> {
+    let mut out = Vec::new();
+    for line in text.lines().filter(|l| !l.trim_start().starts_with('#')) {
+        let bytes = line.as_bytes();
+        for (at, _) in line.match_indices('$') {
+            let braced = bytes.get(at + 1) == Some(&b'{');
+            let start = at + 1 + usize::from(braced);
+            let len = line[start..]
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .unwrap_or(line.len() - start);
+            let name = &line[start..start + len];
+            let upper = name.chars().all(|c| !c.is_ascii_lowercase());
+            if !upper || !name.starts_with(|c: char| c.is_ascii_uppercase()) {
+                continue;
+            }
+            let rest = &line[start + len..];
+            let defaulted = braced
+                && ["-", "=", "?", "+"]
+                    .iter()
+                    .any(|op| rest.starts_with(op) || rest.starts_with(&format!(":{op}")));
+            out.push((name.to_string(), defaulted));
+        }
+    }
+    out
+}
+
+/// Whether the shell script `text` assigns `name` itself (`NAME=`, `export NAME=`,
+/// `local NAME`, `for NAME in`, `read ... NAME`).
+fn shell_assigns(text: &str, name: &str) -> bool {
+    text.lines().any(|line| {
+        let words: Vec<&str> = line
+            .split(|c: char| c.is_whitespace() || c == ';' || c == '(')
+            .collect();
+        words.iter().enumerate().any(|(i, w)| {
+            w.strip_prefix(name).is_some_and(|r| r.starts_with('='))
+                || (*w == name
+                    && i > 0
+                    && ["for", "local", "read", "-r", "declare", "-a", "-A"]
+                        .iter()
+                        .any(|k| words[..i].contains(k)))
+        })
+    })
+}
+
+/// The environment variables the shell script `text` reads: those it expands with a
+/// default or an alternative, and those it expands without assigning them (in itself or in
+/// `sourced`, the scripts it sources), but the shell's own.
+fn shell_env_reads(text: &str, sourced: &[String]) -> Vec<String> {
+    let mut out: Vec<String> = shell_expansions(text)
+        .into_iter()
+        .filter(|(name, defaulted)| {
+            *defaulted
+                || !(SHELL_VARIABLES.contains(&name.as_str())
+                    || shell_assigns(text, name)
+                    || sourced.iter().any(|s| shell_assigns(s, name)))
+        })
+        .map(|(name, _)| name)
+        .collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
+#[test]
+fn shell_env_checker_finds_defaults_and_unassigned_names() {
+    let script = "#!/bin/sh\n# $COMMENTED is not code\nDIR=${SLURM_CI_DIR:-/tmp/x}\n\
+                  OUT=$DIR/out\necho \"$OUT $HOME ${KEEP-0} $B\"\nfor N in 1 2; do echo $N; done\n\
+                  cat <<EOF\necho \\$SLURM_ARRAY_JOB_ID ${lower} ${Version}\nEOF\n";
+    assert_eq!(
+        shell_env_reads(script, &[]),
+        ["B", "KEEP", "SLURM_ARRAY_JOB_ID", "SLURM_CI_DIR"]
+    );
+    assert_eq!(
+        shell_env_reads(script, &["B=/bin/true\n".to_string()]),
+        ["KEEP", "SLURM_ARRAY_JOB_ID", "SLURM_CI_DIR"]
+    );
+}
+
+/// The environment variables the Python source `text` reads (`os.environ.get("NAME"`,
+/// `os.environ["NAME"]`, `os.getenv("NAME"`, `"NAME" in os.environ`).
+fn python_env_reads(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for line in text.lines().filter(|l| !l.trim_start().starts_with('#')) {
+        for opener in ["environ.get(", "environ[", "getenv("] {
+            for (at, _) in line.match_indices(opener) {
+                let rest = line[at + opener.len()..].trim_start();
+                if let Some(q) = rest.chars().next().filter(|c| *c == '"' || *c == '\'') {
+                    if let Some(end) = rest[1..].find(q) {
+                        out.push(rest[1..1 + end].to_string());
+                    }
+                }
+            }
+        }
+        for (at, _) in line.match_indices(" in os.environ") {
+            let before = line[..at].trim_end();
+            if let Some(q) = before.chars().last().filter(|c| *c == '"' || *c == '\'') {
+                if let Some(start) = before[..before.len() - 1].rfind(q) {
+                    out.push(before[start + 1..before.len() - 1].to_string());
+                }
+            }
+        }
+    }
+    out.sort();
+    out.dedup();
+    out
+}
+
+#[test]
+fn python_env_checker_finds_every_form_of_read() {
+    let code = "import os\n# os.environ.get(\"COMMENT\")\na = os.environ.get(\"CI\") == \"true\"\n\
+                b = os.environ['S3_CI_DIR']\nc = os.getenv(\"BETTIMILL_CLI\", \"x\")\n\
+                if \"HOME\" in os.environ:\n    env = dict(os.environ, HF_HOME=\"h\")\n";
+    assert_eq!(
+        python_env_reads(code),
+        ["BETTIMILL_CLI", "CI", "HOME", "S3_CI_DIR"]
+    );
+}
+
+/// The one list covers the tests and the scripts too: every variable a script under `ci/`
+/// (`.ci/run` included) or a Python file under `python/` reads is a variable of `env.rs`,
+/// so a new variable anywhere fails here until it is listed (marked by who reads it).
+#[test]
+fn every_variable_scripts_and_python_read_is_in_env_rs() {
+    let root = repo_root();
+    let env_rs = std::fs::read_to_string(root.join("crates/bettimill-env/src/env.rs")).unwrap();
+    let listed = env_vars(&env_rs);
+    let mut reads: Vec<(String, Vec<String>)> = Vec::new();
+    let mut scripts = Vec::new();
+    for dir in ["ci", ".ci"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            scripts.push(entry.unwrap().path());
+        }
+    }
+    scripts.retain(|p| {
+        std::fs::read_to_string(p).is_ok_and(|t| t.starts_with("#!") && t.contains("sh"))
+    });
+    scripts.sort();
+    assert!(
+        scripts.len() > 10,
+        "only {} scripts: {scripts:?}",
+        scripts.len()
+    );
+    for script in &scripts {
+        let text = std::fs::read_to_string(script).unwrap();
+        let sourced: Vec<String> = text
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("source "))
+            .map(|s| std::fs::read_to_string(root.join(s.trim())).unwrap())
+            .collect();
+        reads.push((relative(&root, script), shell_env_reads(&text, &sourced)));
+    }
+    let python: Vec<_> = repo_files(".py")
+        .into_iter()
+        .filter(|p| p.starts_with(root.join("python")))
+        .collect();
+    assert!(python.len() > 5, "only {} Python files", python.len());
+    for file in &python {
+        let text = std::fs::read_to_string(file).unwrap();
+        reads.push((relative(&root, file), python_env_reads(&text)));
+    }
+    let mut wrong = Vec::new();
+    for (file, names) in &reads {
+        // Who reads it, as its doc must say: a script by its place, the Python tests by name.
+        let reader = if file.starts_with("python/") {
+            "Python"
+        } else {
+            "ci/"
+        };
+        for name in names {
+            match listed.iter().find(|v| v.name == *name) {
+                None => wrong.push(format!("{file}: {name} is not in env.rs")),
+                // A variable of the tool itself is documented for users; the scripts may
+                // read it too.
+                Some(var) if var.internal && !var.doc.contains(reader) => wrong.push(format!(
+                    "{file}: {name}'s doc in env.rs does not say {reader} reads it"
+                )),
+                Some(_) => {}
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "environment variables read but not listed in bettimill-env's env.rs (add each to \
+         EnvVars, its doc saying who reads it): {wrong:#?}"
+    );
+}
+
 /// One variable of `EnvVars`: its name, whether it is hidden from the documentation, and
 /// whether its doc comment says it is internal.
 #[derive(Debug, PartialEq)]
@@ -533,6 +766,8 @@ struct EnvVar {
     name: String,
     hidden: bool,
     internal: bool,
+    /// Its doc comment, which says who reads it.
+    doc: String,
 }
 
 /// The variables `env.rs` declares (`pub const NAME: &'static str = "NAME";`, the value
@@ -544,6 +779,7 @@ fn env_vars(env_rs: &str) -> Vec<EnvVar> {
     for line in env_rs.lines().map(str::trim) {
         if let Some(doc) = line.strip_prefix("///") {
             docs.push_str(doc);
+            docs.push(' ');
         } else if line == "#[doc(hidden)]" {
             hidden = true;
         } else if let Some(rest) = line.strip_prefix("pub const ") {
@@ -552,6 +788,7 @@ fn env_vars(env_rs: &str) -> Vec<EnvVar> {
                 name,
                 hidden,
                 internal: docs.trim_start().starts_with("Internal"),
+                doc: docs.trim().to_string(),
             });
             docs.clear();
             hidden = false;

@@ -70,7 +70,8 @@ fn carved_sample(dir: &Path) -> bettimill_preview::SampleView {
 
 /// The browser, or `None` (skipped) outside CI when there is none.
 fn chromium() -> Option<String> {
-    let name = std::env::var("BETTIMILL_CHROMIUM").unwrap_or_else(|_| "chromium".to_string());
+    let name = bettimill_env::var(bettimill_env::EnvVars::BETTIMILL_CHROMIUM)
+        .unwrap_or_else(|| "chromium".to_string());
     match Command::new(&name).arg("--version").output() {
         Ok(out) if out.status.success() => Some(name),
         Ok(out) => {
@@ -292,7 +293,7 @@ fn the_viewer_page_is_self_contained_and_a_browser_draws_every_voxel_of_its_slic
         text(&refused.stderr)
     );
 
-    if std::env::var("BETTIMILL_SYSTEM_TESTS").as_deref() != Ok("1") {
+    if !bettimill_testkit::system_tests() {
         #[allow(clippy::print_stderr)]
         {
             eprintln!("SKIPPED: the browser part runs with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh)");

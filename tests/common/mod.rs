@@ -347,7 +347,8 @@ pub fn slurm_up() -> bool {
         Err(err) => format!("cannot run {}: {err}", script.display()),
     };
     assert!(
-        !std::env::var("BETTIMILL_SLURM_REQUIRED").is_ok_and(|v| v == "1"),
+        bettimill_env::var(bettimill_env::EnvVars::BETTIMILL_SLURM_REQUIRED)
+            .is_none_or(|v| v != "1"),
         "Slurm is required here (BETTIMILL_SLURM_REQUIRED=1) but unavailable: {reason}"
     );
     bettimill_testkit::skip_unless_ci("Slurm", &reason);

@@ -163,7 +163,7 @@ fn build_every_stratum(text: &str) -> Result<Option<u32>, TestCaseError> {
     let plan = match Plan::parse(text, std::path::Path::new("case.toml")) {
         Ok(plan) => plan,
         Err(err) => {
-            if std::env::var_os("SHOW_REFUSALS").is_some() {
+            if bettimill_env::var(bettimill_env::EnvVars::SHOW_REFUSALS).is_some() {
                 eprintln!("refused: {err}");
             }
             return Ok(None);
@@ -193,10 +193,7 @@ fn build_every_stratum(text: &str) -> Result<Option<u32>, TestCaseError> {
 
 #[test]
 fn every_manifest_that_plans_builds_the_first_sample_of_every_stratum() {
-    let scale: u32 = std::env::var("BETTIMILL_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1);
+    let scale = bettimill_testkit::fuzz_scale();
     let mut runner = TestRunner::new_with_rng(
         Config {
             cases: 40 * scale,

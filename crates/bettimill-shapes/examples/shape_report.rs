@@ -116,10 +116,7 @@ fn large_4d_instances() -> u64 {
 }
 
 fn count_from_env(default: u64) -> u64 {
-    std::env::var("SHAPES_RATE_COUNT")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(default)
+    bettimill_env::number(bettimill_env::EnvVars::SHAPES_RATE_COUNT).unwrap_or(default)
 }
 
 fn mismatch_rates() -> u64 {
