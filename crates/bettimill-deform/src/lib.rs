@@ -249,15 +249,19 @@ pub fn target_hypervolume(
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
     let phase = Phase::foreground(image);
-    morphology::target(image, lo, hi, &phase, seed)
+    let goal = morphology::nearest_end(image.count_foreground(), lo, hi);
+    morphology::target(image, lo, hi, goal, &phase, seed)
 }
 
 /// Brings the foreground count into `[lo, hi]` by topology-preserving growth or
 /// shrinking of `phase` (the cavities of carve mode shrink to raise the count and grow to
 /// lower it), flipping frontier voxels of the phase's box one at a time in order of noise
 /// (highest first when the phase grows, lowest first when it shrinks; noise of
-/// [`DEFAULT_TARGET_FREQUENCY`] and [`DEFAULT_TARGET_OCTAVES`] seeded by `seed`). It stops
-/// as soon as the count reaches the range, so it lands exactly on `lo` or `hi`.
+/// [`DEFAULT_TARGET_FREQUENCY`] and [`DEFAULT_TARGET_OCTAVES`] seeded by `seed`). A count
+/// outside the range moves to `goal` (clamped into the range) and stops there, or earlier
+/// inside the range if the phase runs out of simple frontier voxels; a count inside the
+/// range stays. A goal drawn per sample spreads a bin's samples over the bin, where
+/// stopping at the first count inside would pile them on its ends.
 ///
 /// Fails, leaving the image unchanged, when `lo > hi` or when no simple frontier voxel is
 /// left before the range is reached (an empty phase cannot grow; a closed curve cannot
@@ -266,10 +270,11 @@ pub fn target_hypervolume_phase(
     image: &mut BinaryImage,
     lo: u64,
     hi: u64,
+    goal: u64,
     phase: &Phase,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
-    morphology::target(image, lo, hi, phase, seed)
+    morphology::target(image, lo, hi, goal, phase, seed)
 }
 
 #[cfg(test)]

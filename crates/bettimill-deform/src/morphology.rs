@@ -220,16 +220,28 @@ pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformRep
     Ok(report)
 }
 
+/// The nearest end of `[lo, hi]` to `count`: where targeting that only has to reach the
+/// range stops.
+pub(crate) fn nearest_end(count: u64, lo: u64, hi: u64) -> u64 {
+    if count < lo {
+        lo
+    } else {
+        hi.min(count)
+    }
+}
+
 pub(crate) fn target(
     image: &mut BinaryImage,
     lo: u64,
     hi: u64,
+    goal: u64,
     phase: &Phase,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
     if lo > hi {
         return Err(DeformError::EmptyRange { lo, hi });
     }
+    let goal = goal.clamp(lo, hi);
     let start = image.count_foreground();
     let mut report = DeformReport {
         applied: 0,
@@ -243,7 +255,6 @@ pub(crate) fn target(
     }
     // The foreground grows by flipping background voxels, whichever side the phase is.
     let grow_foreground = start < lo;
-    let goal = if grow_foreground { lo } else { hi };
     let (inside, flip_to) = if grow_foreground {
         (0u8, 1u8)
     } else {
@@ -326,6 +337,12 @@ pub(crate) fn target(
             report.foreground_after = count;
             return Ok(report);
         }
+        if flipped == 0 && (lo..=hi).contains(&count) {
+            // The frontier ran out of simple voxels short of the goal but inside the
+            // range: the range is what the caller needs.
+            report.foreground_after = count;
+            return Ok(report);
+        }
         if flipped == 0 {
             let data = image.data_mut();
             for &v in &flipped_list {
@@ -401,6 +418,7 @@ mod tests {
         image: &mut BinaryImage,
         lo: u64,
         hi: u64,
+        goal: u64,
         phase: &Phase,
         seed: u64,
     ) -> Result<DeformReport, DeformError> {
@@ -416,7 +434,6 @@ mod tests {
             return Ok(report);
         }
         let grow = start < lo;
-        let goal = if grow { lo } else { hi };
         let inside = if grow { 0 } else { 1 };
         let highest_first = 1 - inside == phase.value;
         let mut noise = NoiseCache::new(
@@ -447,6 +464,10 @@ mod tests {
             }
             report.applied += flipped;
             if count == goal {
+                report.foreground_after = count;
+                return Ok(report);
+            }
+            if flipped == 0 && (lo..=hi).contains(&count) {
                 report.foreground_after = count;
                 return Ok(report);
             }
@@ -602,16 +623,18 @@ mod tests {
                 let (image, phase) = case(shape, round, &mut rng);
                 let start = image.count_foreground();
                 let len = image.len() as u64;
-                let (lo, hi) = match round % 4 {
-                    0 | 1 => (start / 3, start / 3 + 5),
-                    2 => ((start + len) / 2, (start + len) / 2 + 3),
-                    _ => (start + 3, start + 9),
+                // Wide ranges with a goal inside, and narrow ones reached at their end.
+                let (lo, hi, goal) = match round % 4 {
+                    0 => (start / 4, start / 2, start / 3),
+                    1 => (start / 3, start / 3 + 5, start / 3 + 5),
+                    2 => ((start + len) / 2, (start + len) / 2 + 3, (start + len) / 2),
+                    _ => (start + 3, start * 2 + 9, start + start / 2),
                 };
                 let mut expected = image.clone();
-                let want = target_reference(&mut expected, lo, hi, &phase, round);
+                let want = target_reference(&mut expected, lo, hi, goal, &phase, round);
                 for pool in &pools {
                     let mut found = image.clone();
-                    let got = pool.install(|| target(&mut found, lo, hi, &phase, round));
+                    let got = pool.install(|| target(&mut found, lo, hi, goal, &phase, round));
                     assert_eq!(got, want, "{shape:?} round {round}");
                     assert_eq!(found.data(), expected.data(), "{shape:?} round {round}");
                     if got.is_ok() {

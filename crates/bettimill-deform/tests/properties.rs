@@ -91,7 +91,7 @@ fn check_cavities(img: BinaryImage, method: Method, steps: u32, p: f64, seed: u6
     }
     let goal = img.count_foreground() + 5;
     let mut targeted = img.clone();
-    match target_hypervolume_phase(&mut targeted, goal, goal, &phase, seed) {
+    match target_hypervolume_phase(&mut targeted, goal, goal, goal, &phase, seed) {
         Ok(_) => {
             assert_eq!(targeted.count_foreground(), goal);
             assert_eq!(topology(&targeted), before);

@@ -348,8 +348,12 @@ pub fn make_sample_observed(
         if let Some((lo, hi)) = stratum.hypervolume {
             report(Stage::Hypervolume, 0.0);
             let seed = sub_seed("bettimill hypervolume seed v1", &task.seed, attempt);
+            // A count outside the bin moves to a point of the bin drawn per sample, so
+            // that a bin's samples spread over it instead of piling on its nearer end.
+            let draw = sub_seed("bettimill hypervolume goal v1", &task.seed, attempt);
+            let goal = lo + ((u128::from(draw) * (u128::from(hi - lo) + 1)) >> 64) as u64;
             if let Err(err) =
-                bettimill_deform::target_hypervolume_phase(&mut image, lo, hi, &phase, seed)
+                bettimill_deform::target_hypervolume_phase(&mut image, lo, hi, goal, &phase, seed)
             {
                 last = format!("hypervolume targeting failed: {err}");
                 continue;

@@ -285,3 +285,55 @@ family = ["ball", "handle"]
         assert!(beyond > 0, "{dimension}D: no solid beyond the reach");
     }
 }
+
+#[test]
+fn deformed_samples_spread_over_their_bin() {
+    // Growth by the deformations carries most samples out of their bin; targeting brings
+    // each back to a count drawn in the bin, so the counts cover the bin instead of
+    // sitting on its ends.
+    let text = r#"
+schema_version = 1
+name = "spread"
+dimension = 3
+side = 24
+mode = "embed"
+samples = 24
+shard_size = 24
+seed = 7
+
+[[deform]]
+method = "dilate"
+steps = [1, 3]
+growth_probability = [0.3, 0.8]
+
+[[deform]]
+method = "tentacles"
+count = [1, 3]
+steps = [2, 8]
+
+[[classes]]
+family = "handle"
+
+[hypervolume]
+unit = "fraction"
+bins = [[0.03, 0.06]]
+"#;
+    let (plan, samples) = build(text);
+    let (lo, hi) = plan.strata[0].hypervolume.expect("binned");
+    let counts: Vec<u64> = samples.iter().map(|s| s.label.hypervolume).collect();
+    assert!(counts.iter().all(|c| (lo..=hi).contains(c)), "{counts:?}");
+    let on_ends = counts.iter().filter(|&&c| c == lo || c == hi).count();
+    assert!(
+        on_ends <= 4,
+        "{on_ends} of 24 on the bin's ends: {counts:?}"
+    );
+    let third = (hi - lo) / 3;
+    let middle = counts
+        .iter()
+        .filter(|&&c| c > lo + third && c < hi - third)
+        .count();
+    assert!(
+        middle >= 4,
+        "{middle} of 24 in the bin's middle third: {counts:?}"
+    );
+}
