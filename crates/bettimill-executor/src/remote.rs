@@ -8,7 +8,10 @@
 //! directory, and uploaded from there by up to `max_uploads` threads while the next shard
 //! is made. A shard's tar leaves the staging directory as soon as its objects are in the
 //! bucket, so local disk holds at most `max_uploads + 1` shards; the records (small) stay
-//! there until `index.json` is written from them, as a local finalize writes it.
+//! there until `index.json` is written from them, as a local finalize writes it. Tars are
+//! streamed from the staging files by multipart uploads (see
+//! [`bettimill_shard::object::ObjectDir::put_file_new`]), so the uploads hold a few parts
+//! each in memory, not shards.
 
 use crate::{BuildError, BuildSummary, Dataset};
 use bettimill_env::EnvVars;
@@ -300,6 +303,9 @@ impl BucketBuild {
                 ),
             });
         }
+        // Every shard is complete: a temporary of a streamed upload left now is a killed
+        // writer's.
+        self.bucket.remove_upload_leftovers()?;
         // The finalized files from the plan and the records, as a local finalize makes
         // them; index.json comes last, so its presence means the dataset is complete.
         let root = dataset.dir.clone();
@@ -316,7 +322,8 @@ impl BucketBuild {
         Ok(())
     }
 
-    /// Uploads a staged shard: its tar, then its record, then (statistics only) its timing;
+    /// Uploads a staged shard: its tar (streamed from the staging file: memory holds a few
+    /// parts of it, not the shard), then its record, then (statistics only) its timing;
     /// then removes its tar and timing from the staging directory.
     fn upload(&self, shard: &ShardPlan) -> Result<(), BuildError> {
         let layout = self.dataset.layout();
@@ -329,7 +336,7 @@ impl BucketBuild {
         let tar = layout.tar_path(&shard.name);
         self.check_lease()?;
         self.bucket
-            .put_same(&BucketDir::tar_name(&shard.name), read(&tar)?)?;
+            .put_file_same(&BucketDir::tar_name(&shard.name), &tar)?;
         self.check_lease()?;
         self.bucket.put_same(
             &BucketDir::record_name(&shard.name),

@@ -3,14 +3,15 @@
 //! so that a dataset in a bucket and one on disk hold the same names and the same bytes.
 //!
 //! Object storage has no rename, so the directory's guarantees are kept by other means: an
-//! object appears only complete (one put), every put is create-only, and an object that
+//! object appears only complete (one put, or for a large file the server's create-only copy
+//! of a finished multipart upload), every write is create-only, and an object that
 //! exists already is compared with what would be written instead of being overwritten
 //! ([`BucketDir::put_same`]). A shard is complete when its record exists and its tar has the
 //! record's size (a tar object cannot be half-written); `verify` hashes every byte.
 
 use crate::dir::{BUILD_INFO_FILE, MANIFEST_FILE, RECORDS_DIR, TIMINGS_DIR};
 use crate::{check_build_info, BuildInfo, CompletionRecord, DatasetDir, FormatError};
-use bettimill_shard::object::{ObjectDir, ObjectEntry, ObjectError, S3Config};
+use bettimill_shard::object::{ObjectDir, ObjectEntry, ObjectError, S3Config, UPLOADS_DIR};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -113,6 +114,45 @@ impl BucketDir {
             }
             other => Ok(other?),
         }
+    }
+
+    /// Writes the file `file` as the object `name`, create-only, streamed (see
+    /// [`ObjectDir::put_file_new`]: memory holds a few parts of it, whatever its size). An
+    /// object that exists already is accepted when it holds the file's bytes (both hashed by
+    /// blake3, streamed) and refused otherwise, as by [`BucketDir::put_same`].
+    pub fn put_file_same(&self, name: &str, file: &std::path::Path) -> Result<(), FormatError> {
+        match self.objects.put_file_new(name, file) {
+            Err(ObjectError::Exists { url }) => {
+                let io = |source| FormatError::Io {
+                    path: file.to_path_buf(),
+                    source,
+                };
+                let mut hasher = blake3::Hasher::new();
+                let size = std::io::copy(&mut std::fs::File::open(file).map_err(io)?, &mut hasher)
+                    .map_err(io)?;
+                if self.hash(name)? == Some((size, hasher.finalize())) {
+                    Ok(())
+                } else {
+                    Err(FormatError::Corrupt {
+                        path: PathBuf::from(url),
+                        reason: "exists and differs from what this build writes; objects are \
+                                 never overwritten: delete it and build again"
+                            .into(),
+                    })
+                }
+            }
+            other => Ok(other?),
+        }
+    }
+
+    /// Deletes the temporary objects of streamed uploads that a killed writer left (see
+    /// [`ObjectDir::put_file_new`]). Only for a writer that holds the lease with every
+    /// shard complete (finalize): a writer still uploading would lose its temporary.
+    pub fn remove_upload_leftovers(&self) -> Result<(), FormatError> {
+        for entry in self.objects.list_under(UPLOADS_DIR)? {
+            self.objects.delete(&entry.name)?;
+        }
+        Ok(())
     }
 
     /// The size and blake3 of the object `name` (streamed by ranges), or `None`.

@@ -2,21 +2,34 @@
 //! S3 client: signing, retries, conditional and multipart puts), behind a blocking facade
 //! so that the rest of bettimill stays synchronous.
 //!
-//! The guarantees of [`crate::atomic`] carry over: an object is written by a single put,
-//! so a reader sees all of it or none, and every put here is create-only
-//! ([`PutMode::Create`]), so two writers never overwrite each other: the second is told the
-//! object exists ([`ObjectError::Exists`]) and compares instead.
+//! The guarantees of [`crate::atomic`] carry over: an object appears whole or not at all
+//! (a single put, or a completed multipart upload), and every write here is create-only,
+//! so two writers never overwrite each other: the second is told the object exists
+//! ([`ObjectError::Exists`]) and compares instead.
+//!
+//! A file larger than one part ([`ObjectDir::put_file_new`]) is streamed, never held in
+//! memory whole: S3 has no create-only completion of a multipart upload in `object_store`'s
+//! API, so the file goes by a multipart upload to a temporary object of its own (under
+//! [`UPLOADS_DIR`], named by the writer), which is then copied to its name create-only
+//! (`object_store`'s copy-if-not-exists: a server-side multipart copy completed with
+//! `If-None-Match: *`) and deleted. A writer killed in between leaves a temporary object
+//! (removed by the next finalize) or an unfinished multipart upload (invisible; a bucket
+//! lifecycle rule that aborts unfinished uploads removes its parts), never a partial
+//! object under a real name.
 //!
 //! Nothing here reads the environment: the caller passes the endpoint and credentials
 //! ([`S3Config`]), read where every variable is read.
 
 use futures_util::TryStreamExt;
-use object_store::aws::{AmazonS3, AmazonS3Builder};
+use object_store::aws::{AmazonS3, AmazonS3Builder, S3CopyIfNotExists};
 use object_store::path::Path as ObjectPath;
 use object_store::{
     ClientOptions, ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload, RetryConfig,
+    WriteMultipart,
 };
+use std::io::Read;
 use std::ops::Range;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The scheme of an object-storage URL.
@@ -81,6 +94,14 @@ pub enum ObjectError {
     Exists {
         /// The object's URL.
         url: String,
+    },
+    /// A local file to upload cannot be read.
+    #[error("{}: {source}", path.display())]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
     },
     /// The object does not exist.
     #[error("{url}: no such object")]
@@ -165,6 +186,9 @@ impl ObjectDir {
         let mut builder = AmazonS3Builder::new()
             .with_bucket_name(&bucket)
             .with_region(&region)
+            // The create-only copy that gives a streamed upload its name (see the module
+            // documentation): a multipart copy completed with `If-None-Match: *`.
+            .with_copy_if_not_exists(S3CopyIfNotExists::Multipart)
             // A few quick retries: an unreachable server is reported in seconds, not after
             // the client's default three minutes.
             .with_retry(RetryConfig {
@@ -314,6 +338,118 @@ impl ObjectDir {
             .map_err(|err| self.error(&self.object_url(name), err))
     }
 
+    /// Writes the file `file` as the object `name`, create-only, holding at most
+    /// [`PARTS_IN_FLIGHT`]` + 1` parts of it in memory whatever its size: a file of at most
+    /// one part in one put ([`ObjectDir::put_new`]), a larger one streamed by a multipart
+    /// upload to a temporary object under [`UPLOADS_DIR`], then copied to `name` by the
+    /// server, create-only, and the temporary deleted (see the module documentation). An
+    /// existing object is left as it is and reported as [`ObjectError::Exists`].
+    pub fn put_file_new(&self, name: &str, file: &Path) -> Result<(), ObjectError> {
+        let io = |source| ObjectError::File {
+            path: file.to_path_buf(),
+            source,
+        };
+        let mut reader = std::fs::File::open(file).map_err(io)?;
+        let size = reader.metadata().map_err(io)?.len();
+        if size <= PART_BYTES as u64 {
+            let mut bytes = Vec::with_capacity(size as usize);
+            reader.read_to_end(&mut bytes).map_err(io)?;
+            return self.put_new(name, bytes);
+        }
+        // An object there already (a resumed build's, or another writer's) is found with
+        // one request rather than after uploading the whole file.
+        if self.size(name)?.is_some() {
+            return Err(ObjectError::Exists {
+                url: self.object_url(name),
+            });
+        }
+        self.put_file_streamed(name, file)
+    }
+
+    /// The streamed path of [`ObjectDir::put_file_new`] for a file of any size, without its
+    /// early check for an existing object: a multipart upload to a temporary object, a
+    /// create-only copy to `name` by the server ([`ObjectError::Exists`] when `name`
+    /// exists by then), and the temporary's deletion.
+    pub fn put_file_streamed(&self, name: &str, file: &Path) -> Result<(), ObjectError> {
+        let io = |source| ObjectError::File {
+            path: file.to_path_buf(),
+            source,
+        };
+        let mut reader = std::fs::File::open(file).map_err(io)?;
+        let size = reader.metadata().map_err(io)?.len();
+        let temporary = temporary_name(name);
+        let uploaded = self.upload_parts(&temporary, &mut reader, size, file);
+        let copied = uploaded.and_then(|()| {
+            self.runtime
+                .block_on(
+                    self.store
+                        .copy_if_not_exists(&self.path(&temporary), &self.path(name)),
+                )
+                .map_err(|err| self.error(&self.object_url(name), err))
+        });
+        // Best effort: a temporary left here is removed by the next finalize.
+        let _ = self.delete(&temporary);
+        copied
+    }
+
+    /// Uploads `size` bytes of `reader` (the file `file`) as the object `name` by a
+    /// multipart upload of parts of [`part_bytes`], at most [`PARTS_IN_FLIGHT`] at once;
+    /// the upload is aborted when anything fails.
+    fn upload_parts(
+        &self,
+        name: &str,
+        reader: &mut std::fs::File,
+        size: u64,
+        file: &Path,
+    ) -> Result<(), ObjectError> {
+        let url = self.object_url(name);
+        let part = part_bytes(size);
+        self.runtime.block_on(async {
+            let upload = self
+                .store
+                .put_multipart(&self.path(name))
+                .await
+                .map_err(|err| self.error(&url, err))?;
+            let mut writer = WriteMultipart::new_with_chunk_size(upload, part);
+            let mut buffer = vec![0u8; part];
+            let mut sent = 0u64;
+            let failure = loop {
+                if let Err(err) = writer.wait_for_capacity(PARTS_IN_FLIGHT).await {
+                    break self.error(&url, err);
+                }
+                let read = match read_full(reader, &mut buffer) {
+                    Ok(read) => read,
+                    Err(source) => {
+                        break ObjectError::File {
+                            path: file.to_path_buf(),
+                            source,
+                        }
+                    }
+                };
+                if read == 0 {
+                    if sent != size {
+                        break ObjectError::File {
+                            path: file.to_path_buf(),
+                            source: std::io::Error::new(
+                                std::io::ErrorKind::UnexpectedEof,
+                                format!("changed while uploaded: {sent} bytes, not {size}"),
+                            ),
+                        };
+                    }
+                    return writer
+                        .finish()
+                        .await
+                        .map(|_| ())
+                        .map_err(|err| self.error(&url, err));
+                }
+                writer.write(&buffer[..read]);
+                sent += read as u64;
+            };
+            let _ = writer.abort().await;
+            Err(failure)
+        })
+    }
+
     /// The whole object `name`, or `None` when it does not exist.
     pub fn get(&self, name: &str) -> Result<Option<Vec<u8>>, ObjectError> {
         let path = self.path(name);
@@ -380,6 +516,57 @@ impl ObjectDir {
         entries.sort_by(|a, b| a.name.cmp(&b.name));
         Ok(entries)
     }
+}
+
+/// The parts of a streamed upload ([`ObjectDir::put_file_new`]): files up to this size go
+/// in one put. Above S3's minimum part (5 MiB); small enough that a few uploads at once
+/// hold little memory.
+pub const PART_BYTES: usize = 8 << 20;
+
+/// Parts of one streamed upload sent at once.
+pub const PARTS_IN_FLIGHT: usize = 2;
+
+/// S3's largest number of parts in a multipart upload.
+const MAX_PARTS: u64 = 10_000;
+
+/// The directory, under the prefix, of the temporary objects of streamed uploads. Its name
+/// starts with a dot: readers and copies skip it, as they skip a directory's temporaries.
+pub const UPLOADS_DIR: &str = ".uploads";
+
+/// The part size for a file of `size` bytes: [`PART_BYTES`], or larger (whole MiB) when
+/// the file needs more than S3's 10 000 parts of it.
+pub fn part_bytes(size: u64) -> usize {
+    let least = size.div_ceil(MAX_PARTS).next_multiple_of(1 << 20);
+    least.max(PART_BYTES as u64) as usize
+}
+
+/// A temporary object's name for a streamed upload of `name`: unique to this writer (its
+/// process, the time, a counter), so that two writers never share one.
+fn temporary_name(name: &str) -> String {
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
+    let count = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    format!(
+        "{UPLOADS_DIR}/{name}.{}-{nanos}-{count}",
+        std::process::id()
+    )
+}
+
+/// Reads until `buffer` is full or the file ends; returns the bytes read.
+fn read_full(reader: &mut impl Read, buffer: &mut [u8]) -> std::io::Result<usize> {
+    let mut filled = 0;
+    while filled < buffer.len() {
+        match reader.read(&mut buffer[filled..]) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(err) if err.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(err) => return Err(err),
+        }
+    }
+    Ok(filled)
 }
 
 /// A reader of one object that fetches it by ranges of at most [`RANGE_BYTES`]: memory stays

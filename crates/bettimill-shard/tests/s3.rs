@@ -1,12 +1,12 @@
 //! Object storage against a real local S3 server (moto_server, started by ci/s3-up.sh):
-//! create-only puts, ranged reads, listings, and one clear error naming the URL for wrong
+//! create-only puts (single and streamed), ranged reads, listings, and one clear error naming the URL for wrong
 //! credentials, a missing bucket and an unreachable server, all at open, before any work.
 //!
 //! A system test: it runs only with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it), because
 //! it installs and starts the server (idempotent; a no-op when it is up). When the server
 //! cannot be started it fails in CI (CI=true) and is skipped with a message elsewhere.
 
-use bettimill_shard::object::{ObjectDir, ObjectError, S3Config};
+use bettimill_shard::object::{ObjectDir, ObjectError, S3Config, PART_BYTES, UPLOADS_DIR};
 use bettimill_testkit::s3::S3Server;
 use bettimill_testkit::system_test;
 
@@ -164,4 +164,56 @@ fn urls_name_a_bucket_and_a_clean_prefix() {
             "{err}"
         );
     }
+}
+
+#[test]
+fn streamed_uploads_are_create_only_and_leave_no_temporary() {
+    if !system_test("object storage on a local S3 server") {
+        return;
+    }
+    let Some((server, config)) = s3_up() else {
+        return;
+    };
+    let url = format!(
+        "s3://{}/{}",
+        server.bucket,
+        server.fresh_prefix("shard-tests", "streamed")
+    );
+    let dir = ObjectDir::open(&url, &config).unwrap();
+    // Two files of three parts and a bit, different in every byte.
+    let scratch = tempfile::tempdir().unwrap();
+    let size = 3 * PART_BYTES + 1000;
+    let file = |fill: u8| {
+        let path = scratch.path().join(format!("{fill}.tar"));
+        std::fs::write(&path, vec![fill; size]).unwrap();
+        path
+    };
+    let (first, second) = (file(1), file(2));
+    dir.put_file_new("shards/a.tar", &first).unwrap();
+    assert!(dir.get("shards/a.tar").unwrap().unwrap() == vec![1u8; size]);
+    // A second writer is refused at once, before uploading.
+    let err = dir.put_file_new("shards/a.tar", &second).unwrap_err();
+    assert!(matches!(err, ObjectError::Exists { .. }), "{err:?}");
+    // One that found no object and uploaded meanwhile is refused by the create-only copy
+    // that would give its upload the name.
+    let err = dir.put_file_streamed("shards/a.tar", &second).unwrap_err();
+    assert!(matches!(err, ObjectError::Exists { .. }), "{err:?}");
+    assert!(
+        dir.get("shards/a.tar").unwrap().unwrap() == vec![1u8; size],
+        "the first writer's object stays, whole"
+    );
+    // A file of one part or less goes in one put, create-only as well.
+    let small = scratch.path().join("small");
+    std::fs::write(&small, b"small").unwrap();
+    dir.put_file_new("records/a.json", &small).unwrap();
+    assert!(matches!(
+        dir.put_file_new("records/a.json", &small),
+        Err(ObjectError::Exists { .. })
+    ));
+    let names: Vec<String> = dir.list().unwrap().into_iter().map(|e| e.name).collect();
+    assert_eq!(
+        names,
+        ["records/a.json", "shards/a.tar"],
+        "no {UPLOADS_DIR}/ left"
+    );
 }
