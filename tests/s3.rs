@@ -138,8 +138,20 @@ fn a_build_to_a_bucket_equals_a_local_build_object_for_object() {
     let local = dir.join("local");
     assert_exit(&common::build(&manifest, &local, 2), 0);
     let url = server.fresh_url("equal");
-    let out = server.build(&manifest, &url, &["--max-uploads", "2"]);
+    let out = server
+        .command()
+        .args(["build", manifest.to_str().unwrap(), "--out", &url])
+        .args(["--max-uploads", "2"])
+        .env("RAYON_NUM_THREADS", "3")
+        .output()
+        .unwrap();
     assert_exit(&out, 0);
+    // The summary says what made the shards: this process's threads, not worker processes.
+    assert!(
+        stderr(&out).contains(", 3 threads in one process, up to 2 uploads at a time), "),
+        "{}",
+        stderr(&out)
+    );
     assert!(
         stderr(&out).contains(&format!("{url}/index.json")),
         "{}",

@@ -52,6 +52,7 @@ pub fn build(
     if workers == 0 {
         bail!("--workers must be at least 1");
     }
+    let max_uploads = limits.object.max_uploads.max(1);
     let request = BuildRequest {
         out: out.to_path_buf(),
         manifest_text: text,
@@ -158,6 +159,17 @@ pub fn build(
         Printer::always(format_args!("fix the cause, then resume with: {resume}"));
         return Ok(ExitStatus::Failure);
     }
+    // Worker processes make a local build's shards; an s3:// build makes them in this
+    // process, on rayon's pool (`--workers` does not apply), while its uploads run.
+    let makers = if to_bucket {
+        format!(
+            "{} in one process, up to {} at a time",
+            count(rayon::current_num_threads() as u64, "thread"),
+            count(max_uploads as u64, "upload")
+        )
+    } else {
+        count(display.workers as u64, "worker")
+    };
     printer.note(format_args!(
         "built {}, skipped {} complete; {} in {} ({}, {}), {}, {}\n{}",
         count(report.built, "shard"),
@@ -165,7 +177,7 @@ pub fn build(
         count(report.samples_built, "sample"),
         crate::build_display::human_seconds(seconds),
         crate::build_display::rate(report.samples_built, seconds),
-        count(display.workers as u64, "worker"),
+        makers,
         count(report.regenerations, "regeneration"),
         count(report.retries, "retried shard attempt"),
         index.display()
