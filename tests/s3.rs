@@ -1,8 +1,10 @@
 //! `bettimill build --out s3://BUCKET/PREFIX` against a real local S3 server (moto_server,
 //! started by ci/s3-up.sh): the objects equal a local build's files byte for byte; a build
 //! killed (kill -9 of the real binary) resumes against the bucket to the same bytes; a
-//! build whose server stops fails in one line (exit 2) and, once the server is back with its
-//! objects, resumes to the same bytes; a second writer is refused while the first holds the
+//! build killed while its shards go by multipart uploads resumes to the same bytes and
+//! leaves no temporary; a build whose server stops fails in one line (exit 2), as do array
+//! tasks, finalize and status, and, once the server is back with its objects, resumes to the
+//! same bytes; a second writer is refused while the first holds the
 //! lease and nothing is overwritten; a bad endpoint, a missing bucket and wrong credentials
 //! are one line naming the URL, exit 2; Slurm array tasks (a real Slurm, ci/slurm-up.sh)
 //! upload their shards and the finalize job writes the index.
@@ -260,6 +262,63 @@ fn a_killed_build_resumes_against_the_bucket_to_the_same_bytes() {
 }
 
 #[test]
+fn a_build_killed_during_streamed_uploads_resumes_to_the_same_bytes() {
+    if !system_test("builds to a local S3 server") {
+        return;
+    }
+    let Some(server) = Server::up() else { return };
+    let dir = Dir::new();
+    // Four shards of 48 plain samples of 64^3 voxels: about 12.6 MiB each, so each tar goes
+    // by a multipart upload of two parts and a create-only copy.
+    let manifest = dir.join("streamed.toml");
+    std::fs::write(
+        &manifest,
+        "schema_version = 1\nname = \"streamed\"\ndimension = 3\nside = 64\nmode = [\"embed\"]\n\
+         samples = 192\nshard_size = 48\nseed = 5\n\n[[classes]]\nfamily = \"ball\"\n",
+    )
+    .unwrap();
+    let local = dir.join("local");
+    assert_exit(&common::build(&manifest, &local, 2), 0);
+    let shard = std::fs::metadata(local.join("shards/streamed-000000.tar"))
+        .unwrap()
+        .len();
+    assert!(
+        shard > bettimill_shard::object::PART_BYTES as u64,
+        "{shard} bytes: one part"
+    );
+    let url = server.fresh_url("killed-streamed");
+    let objects = server.objects(&url);
+    // Killed as its first tar arrives, while the next shards are made and uploaded.
+    let mut child = server
+        .command()
+        .args(["build", manifest.to_str().unwrap(), "--out", &url])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    common::wait_until("a tar in the bucket", Duration::from_secs(300), || {
+        objects.list_under("shards").is_ok_and(|l| !l.is_empty())
+    });
+    assert!(common::kill("-9", child.id()));
+    child.wait().unwrap();
+    assert_eq!(objects.size("index.json").unwrap(), None);
+    // A writer killed between its upload and the copy leaves its temporary object.
+    objects
+        .put_new(
+            &format!(
+                "{}/shards/streamed-000003.tar.1-2-3",
+                bettimill_shard::object::UPLOADS_DIR
+            ),
+            vec![7; 1000],
+        )
+        .unwrap();
+    let resumed = server.build(&manifest, &url, &[]);
+    assert_exit(&resumed, 0);
+    // Every object the local file's bytes, and the temporary gone.
+    assert_same_as_local(&server, &url, &local);
+}
+
+#[test]
 fn a_build_whose_server_stops_fails_and_resumes_after_the_restart_to_the_same_bytes() {
     if !system_test("builds to a local S3 server") {
         return;
@@ -307,6 +366,32 @@ fn a_build_whose_server_stops_fails_and_resumes_after_the_restart_to_the_same_by
             && error[0].contains(&format!("cannot reach the server {} ", server.0.endpoint)),
         "{text}"
     );
+
+    // Array tasks, finalize and status against the stopped server: one line each, naming
+    // the URL and the server, exit 2, after a few quick retries.
+    for args in [
+        vec![
+            "worker",
+            "--dir",
+            &url,
+            "--task-index",
+            "0",
+            "--task-count",
+            "2",
+        ],
+        vec!["finalize", &url],
+        vec!["status", &url],
+    ] {
+        let out = server.command().args(&args).output().unwrap();
+        assert_exit(&out, 2);
+        let text = stderr(&out);
+        assert_eq!(text.trim_end().lines().count(), 1, "{args:?}: {text}");
+        assert!(
+            text.starts_with(&format!("error: {url}"))
+                && text.contains(&format!("cannot reach the server {} ", server.0.endpoint)),
+            "{args:?}: {text}"
+        );
+    }
 
     // Restarted, the server has what it had; the build resumes from it.
     server.0.start();
