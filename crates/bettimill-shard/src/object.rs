@@ -339,7 +339,7 @@ impl ObjectDir {
     }
 
     /// Writes the file `file` as the object `name`, create-only, holding at most
-    /// [`PARTS_IN_FLIGHT`]` + 1` parts of it in memory whatever its size: a file of at most
+    /// [`PARTS_IN_FLIGHT`] parts of it in memory whatever its size: a file of at most
     /// one part in one put ([`ObjectDir::put_new`]), a larger one streamed by a multipart
     /// upload to a temporary object under [`UPLOADS_DIR`], then copied to `name` by the
     /// server, create-only, and the temporary deleted (see the module documentation). An
@@ -393,7 +393,8 @@ impl ObjectDir {
     }
 
     /// Uploads `size` bytes of `reader` (the file `file`) as the object `name` by a
-    /// multipart upload of parts of [`part_bytes`], at most [`PARTS_IN_FLIGHT`] at once;
+    /// multipart upload of parts of [`part_bytes`], at most [`PARTS_IN_FLIGHT`] held at once
+    /// (in flight, or being read);
     /// the upload is aborted when anything fails.
     fn upload_parts(
         &self,
@@ -411,12 +412,14 @@ impl ObjectDir {
                 .await
                 .map_err(|err| self.error(&url, err))?;
             let mut writer = WriteMultipart::new_with_chunk_size(upload, part);
-            let mut buffer = vec![0u8; part];
             let mut sent = 0u64;
             let failure = loop {
+                // Each part is read into a buffer of its own and handed over without a copy;
+                // fewer than PARTS_IN_FLIGHT are in flight while the next one is read.
                 if let Err(err) = writer.wait_for_capacity(PARTS_IN_FLIGHT).await {
                     break self.error(&url, err);
                 }
+                let mut buffer = vec![0u8; part.min((size - sent.min(size)) as usize)];
                 let read = match read_full(reader, &mut buffer) {
                     Ok(read) => read,
                     Err(source) => {
@@ -427,12 +430,12 @@ impl ObjectDir {
                     }
                 };
                 if read == 0 {
-                    if sent != size {
+                    if sent != size || reader.read(&mut [0u8; 1]).map_or(true, |n| n != 0) {
                         break ObjectError::File {
                             path: file.to_path_buf(),
                             source: std::io::Error::new(
                                 std::io::ErrorKind::UnexpectedEof,
-                                format!("changed while uploaded: {sent} bytes, not {size}"),
+                                format!("changed while uploaded: not {size} bytes"),
                             ),
                         };
                     }
@@ -442,7 +445,8 @@ impl ObjectDir {
                         .map(|_| ())
                         .map_err(|err| self.error(&url, err));
                 }
-                writer.write(&buffer[..read]);
+                buffer.truncate(read);
+                writer.put(bytes::Bytes::from(buffer));
                 sent += read as u64;
             };
             let _ = writer.abort().await;
@@ -523,7 +527,8 @@ impl ObjectDir {
 /// hold little memory.
 pub const PART_BYTES: usize = 8 << 20;
 
-/// Parts of one streamed upload sent at once.
+/// Parts of one streamed upload held in memory at once: those in flight and the one being
+/// read (two: the next part is read while one is sent).
 pub const PARTS_IN_FLIGHT: usize = 2;
 
 /// S3's largest number of parts in a multipart upload.
