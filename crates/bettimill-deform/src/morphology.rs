@@ -13,8 +13,9 @@
 //! Only the frontier is ever visited: it is found by one scan of the box, then kept up to
 //! date from the flips (a voxel joins it when a face neighbour flips, and leaves it when
 //! it flips itself), so an iteration costs what its frontier costs, not what the image
-//! does. The noise of a candidate is computed when it is ranked (in parallel: each value
-//! depends only on its coordinates), never stored for the whole image.
+//! does. The noise of a candidate is computed once, when it is first ranked (in parallel:
+//! each value depends only on its coordinates), and kept with it for as long as it stays
+//! on the frontier; it is never stored for the whole image.
 //!
 //! Order of the flips within an iteration: the kept voxels are split into the 3^d parity
 //! subfields (coordinates modulo 3), visited in an order shuffled per iteration by the
@@ -62,39 +63,35 @@ fn rank_key(noise: f64, highest_first: bool) -> u32 {
     }
 }
 
-/// The candidates in rank order: by noise, highest first when `highest_first`, ties to
+/// Keyed candidates in rank order: by noise, highest first when the keys say so, ties to
 /// the lower index (a total order, so the result does not depend on the input order or
 /// the thread count).
-fn rank_by_noise(
-    candidates: &[usize],
-    fractal: &Fractal,
-    layout: &Layout,
-    highest_first: bool,
-) -> Vec<usize> {
-    let mut keyed: Vec<(u32, usize)> = candidates
-        .par_iter()
-        .map(|&v| (rank_key(fractal.sample(layout.coords(v)), highest_first), v))
-        .collect();
+fn rank_by_key(mut keyed: Vec<(u32, usize)>) -> Vec<(u32, usize)> {
     keyed.par_sort_unstable();
-    keyed.into_iter().map(|(_, v)| v).collect()
+    keyed
 }
 
-/// The `keep` candidates that come first in [`rank_by_noise`]'s order, in no particular
-/// order. An iteration of growth or shrinking needs only which voxels are kept: they are
-/// split into subfields whose decisions are independent of their order, and the next
-/// frontier is the same set whatever order it is collected in (the next ranking is a
-/// total order). So a selection, linear in the frontier, replaces the sort.
-fn best_by_noise(
+/// The candidates with their rank keys ([`rank_key`] of their noise), computed in
+/// parallel: each value depends only on its voxel's coordinates.
+fn keyed_by_noise(
     candidates: &[usize],
     fractal: &Fractal,
     layout: &Layout,
     highest_first: bool,
-    keep: usize,
-) -> Vec<usize> {
-    let mut keyed: Vec<(u32, usize)> = candidates
+) -> Vec<(u32, usize)> {
+    candidates
         .par_iter()
         .map(|&v| (rank_key(fractal.sample(layout.coords(v)), highest_first), v))
-        .collect();
+        .collect()
+}
+
+/// The `keep` keyed candidates that come first in [`rank_by_noise`]'s order, in no
+/// particular order. An iteration of growth or shrinking needs only which voxels are kept:
+/// they are split into subfields whose decisions are independent of their order, and the
+/// next frontier is the same set whatever order it is collected in (the next ranking is a
+/// total order). So a selection, linear in the frontier, replaces the sort.
+fn best_by_key(keyed: &[(u32, usize)], keep: usize) -> Vec<usize> {
+    let mut keyed = keyed.to_vec();
     if keep < keyed.len() {
         keyed.select_nth_unstable(keep);
         keyed.truncate(keep);
@@ -140,21 +137,36 @@ pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformRep
     };
     let flip_to = 1 - flip_from;
     let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); n_subfields];
-    let mut candidates = layout.frontier(image, flip_from);
+    // The candidates with their rank keys: a candidate that does not flip stays one, and
+    // its key, a function of its coordinates, is carried to the next iteration rather
+    // than computed again. Without ranking (every candidate kept) the keys are 0.
+    let ranked = job.growth_probability < 1.0;
+    let with_keys = |voxels: &[usize]| -> Vec<(u32, usize)> {
+        if ranked {
+            keyed_by_noise(voxels, &fractal, &layout, job.grow)
+        } else {
+            voxels.iter().map(|&v| (0, v)).collect()
+        }
+    };
+    // Voxels that joined the frontier and have no key yet: keyed when an iteration needs
+    // them, so the frontier after the last iteration costs no noise.
+    let mut joined = layout.frontier(image, flip_from);
     let mut queued = BitSet::new(image.len());
-    for &v in &candidates {
+    for &v in &joined {
         queued.insert(v);
     }
+    let mut candidates: Vec<(u32, usize)> = Vec::new();
     for _ in 0..job.steps {
+        candidates.extend(with_keys(&joined));
         if candidates.is_empty() {
             break;
         }
-        let kept: Vec<usize> = if job.growth_probability < 1.0 {
+        let kept: Vec<usize> = if ranked {
             let keep = libm::ceil(job.growth_probability * candidates.len() as f64) as usize;
             let keep = keep.clamp(1, candidates.len());
-            best_by_noise(&candidates, &fractal, &layout, job.grow, keep)
+            best_by_key(&candidates, keep)
         } else {
-            candidates.clone()
+            candidates.iter().map(|&(_, v)| v).collect()
         };
         for bucket in buckets.iter_mut() {
             bucket.clear();
@@ -200,16 +212,17 @@ pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformRep
         // frontier is still there: growth and shrinking are monotone), and the face
         // neighbours of flipped voxels that are still on the flipping side.
         let data = image.data();
-        let mut next: Vec<usize> = candidates
+        let next: Vec<(u32, usize)> = candidates
             .iter()
             .copied()
-            .filter(|&v| data[v] == flip_from)
+            .filter(|&(_, v)| data[v] == flip_from)
             .collect();
+        joined.clear();
         for &v in &kept {
             if data[v] == flip_to {
                 layout.for_each_face_neighbour_in_box(v, |u| {
                     if data[u] == flip_from && queued.insert(u) {
-                        next.push(u);
+                        joined.push(u);
                     }
                 });
             }
@@ -281,19 +294,31 @@ pub(crate) fn target(
     let mut flipped_list: Vec<usize> = Vec::new();
     let mut queued = BitSet::new(image.len());
     let mut count = start;
+    // The candidates with their rank keys; a candidate rejected in one iteration carries
+    // its key (a function of its coordinates) to the next.
     let mut candidates = if layout.is_empty() {
         Vec::new()
     } else {
-        layout.frontier(image, inside)
+        keyed_by_noise(
+            &layout.frontier(image, inside),
+            &fractal,
+            &layout,
+            grows_phase,
+        )
     };
     loop {
-        let order = rank_by_noise(&candidates, &fractal, &layout, grows_phase);
+        for &(_, v) in &candidates {
+            queued.remove(v);
+        }
+        let order = rank_by_key(candidates);
         report.iterations += 1;
         let mut flipped = 0u64;
+        // The next frontier: voxels that join it (keys still to compute) and rejected
+        // candidates (keys known).
         let mut next = Vec::new();
-        queued.remove_all(&candidates);
+        let mut carried = Vec::new();
         // One at a time, in noise order, so the count stops exactly on the goal.
-        for (k, &v) in order.iter().enumerate() {
+        for (k, &(key, v)) in order.iter().enumerate() {
             if count == goal {
                 break;
             }
@@ -303,7 +328,7 @@ pub(crate) fn target(
                 let data = image.data();
                 let ahead = &order[(k + LOOKAHEAD).min(order.len())..];
                 let mut sink = 0u128;
-                for &u in ahead.iter().take(LOOKAHEAD) {
+                for &(_, u) in ahead.iter().take(LOOKAHEAD) {
                     sink ^= tester.configuration_in(data, &strides, u);
                 }
                 std::hint::black_box(sink);
@@ -328,7 +353,7 @@ pub(crate) fn target(
                 report.rejected += 1;
                 // Still on the inside with a face neighbour outside: still frontier.
                 if queued.insert(v) {
-                    next.push(v);
+                    carried.push((key, v));
                 }
             }
         }
@@ -360,7 +385,8 @@ pub(crate) fn target(
         // box on the inside with a face neighbour outside, as a full scan would find.
         let data = image.data();
         next.retain(|&u| data[u] == inside);
-        candidates = next;
+        candidates = keyed_by_noise(&next, &fractal, &layout, grows_phase);
+        candidates.extend(carried);
     }
 }
 

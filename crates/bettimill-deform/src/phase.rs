@@ -312,13 +312,6 @@ impl BitSet {
         self.words[w] &= !bit;
         was
     }
-
-    /// Removes every index in `list` (cheaper than clearing a large set).
-    pub(crate) fn remove_all(&mut self, list: &[usize]) {
-        for &i in list {
-            self.remove(i);
-        }
-    }
 }
 
 #[cfg(test)]
