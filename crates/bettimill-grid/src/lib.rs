@@ -485,6 +485,96 @@ impl BinaryImage {
             }
         })
     }
+
+    /// The inclusive box of the whole image: `([0; 4], shape - 1)` on the first `d` axes
+    /// (0 on the others), the form [`BinaryImage::value_box`] takes.
+    pub fn whole_box(&self) -> ([usize; 4], [usize; 4]) {
+        let d = self.dim.get();
+        let hi = std::array::from_fn(|a| if a < d { self.shape[a] - 1 } else { 0 });
+        ([0; 4], hi)
+    }
+
+    /// The bounding box (inclusive, on the first `d` axes) of the voxels of `value`, 0 or
+    /// 1, within the inclusive box `lo ..= hi`, or `None` when there are none. A row along
+    /// the last axis at a time, eight voxels a step.
+    pub fn value_box(
+        &self,
+        value: u8,
+        lo: &[usize; 4],
+        hi: &[usize; 4],
+    ) -> Option<([usize; 4], [usize; 4])> {
+        let d = self.dim.get();
+        let strides = &self.strides;
+        let mut found_lo = [usize::MAX; 4];
+        let mut found_hi = [0usize; 4];
+        let mut c = *lo;
+        loop {
+            let start: usize = (0..d - 1).map(|a| c[a] * strides[a]).sum::<usize>() + lo[d - 1];
+            let row = &self.data[start..=start + (hi[d - 1] - lo[d - 1])];
+            if let Some((first, last)) = row_ends(row, value) {
+                for axis in 0..d - 1 {
+                    found_lo[axis] = found_lo[axis].min(c[axis]);
+                    found_hi[axis] = found_hi[axis].max(c[axis]);
+                }
+                found_lo[d - 1] = found_lo[d - 1].min(lo[d - 1] + first);
+                found_hi[d - 1] = found_hi[d - 1].max(lo[d - 1] + last);
+            }
+            // The next row: odometer over the first d - 1 axes.
+            let mut axis = d - 1;
+            loop {
+                if axis == 0 {
+                    return (found_lo[0] != usize::MAX).then_some((found_lo, found_hi));
+                }
+                axis -= 1;
+                if c[axis] < hi[axis] {
+                    c[axis] += 1;
+                    break;
+                }
+                c[axis] = lo[axis];
+            }
+        }
+    }
+}
+
+/// The first and last positions of `value` in a row of voxels (0 or 1), or `None`. Eight
+/// voxels at a time, one byte each in a u64 (the last eight overlapping the ones before
+/// when the length is not a multiple of eight): a byte of `word ^ other` is nonzero
+/// exactly where the voxel holds `value`, so a row without it (empty space, solid wall)
+/// costs a few instructions a word.
+pub fn row_ends(row: &[u8], value: u8) -> Option<(usize, usize)> {
+    const LOW_BYTES: u64 = 0x0101_0101_0101_0101;
+    let n = row.len();
+    if n < 8 {
+        let first = row.iter().position(|&v| v == value)?;
+        let last = row.iter().rposition(|&v| v == value)?;
+        return Some((first, last));
+    }
+    let other = u64::from(1 - value) * LOW_BYTES;
+    let hit = |at: usize| {
+        let word: [u8; 8] = row[at..at + 8].try_into().expect("eight bytes");
+        u64::from_le_bytes(word) ^ other
+    };
+    let mut at = 0;
+    let first = loop {
+        let h = hit(at);
+        if h != 0 {
+            break at + h.trailing_zeros() as usize / 8;
+        }
+        if at + 8 >= n {
+            return None;
+        }
+        at = (at + 8).min(n - 8);
+    };
+    // A word from the end down: the one holding `first` stops it at the latest.
+    let mut at = n - 8;
+    let last = loop {
+        let h = hit(at);
+        if h != 0 {
+            break at + 7 - h.leading_zeros() as usize / 8;
+        }
+        at = at.saturating_sub(8);
+    };
+    Some((first, last))
 }
 
 /// Room for `extra` more voxels of an image of at most `total`: doubling as data arrives
@@ -513,6 +603,30 @@ pub(crate) fn out_of_memory(bytes: usize) -> npy::NpyError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_ends_of_a_row_are_its_first_and_last_voxels_of_the_value() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for len in 1..40 {
+            for density in [1u64, 2, 9, 40] {
+                let row: Vec<u8> = (0..len)
+                    .map(|_| {
+                        state ^= state << 13;
+                        state ^= state >> 7;
+                        state ^= state << 17;
+                        state.is_multiple_of(density) as u8
+                    })
+                    .collect();
+                for value in [0u8, 1] {
+                    let want = row
+                        .iter()
+                        .position(|&v| v == value)
+                        .zip(row.iter().rposition(|&v| v == value));
+                    assert_eq!(row_ends(&row, value), want, "{row:?} {value}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn the_border_is_background_unless_a_voxel_on_it_is_set() {

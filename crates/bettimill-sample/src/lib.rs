@@ -123,7 +123,8 @@ pub fn pooling_for(mode: Mode) -> Pooling {
 /// Betti numbers, is the same, and homology does not have to thin the thick background
 /// shell around a solid box (binned carve samples).
 pub fn foreground_window(image: &BinaryImage) -> std::borrow::Cow<'_, BinaryImage> {
-    match value_box(image, 1, None) {
+    let (lo, hi) = image.whole_box();
+    match image.value_box(1, &lo, &hi) {
         Some((lo, hi)) => crop(image, &lo, &hi),
         None => std::borrow::Cow::Borrowed(image),
     }
@@ -149,11 +150,12 @@ pub fn foreground_window(image: &BinaryImage) -> std::borrow::Cow<'_, BinaryImag
 /// characteristic follows. Otherwise (objects in empty space, cavities reaching the wall's
 /// surface) it is the foreground window.
 pub fn verification_window(image: &BinaryImage) -> std::borrow::Cow<'_, BinaryImage> {
-    let Some((lo, hi)) = value_box(image, 1, None) else {
+    let (lo, hi) = image.whole_box();
+    let Some((lo, hi)) = image.value_box(1, &lo, &hi) else {
         return std::borrow::Cow::Borrowed(image);
     };
     let d = image.dim().get();
-    if let Some((blo, bhi)) = value_box(image, 0, Some((&lo, &hi))) {
+    if let Some((blo, bhi)) = image.value_box(0, &lo, &hi) {
         if (0..d).all(|a| blo[a] >= lo[a] + 2 && bhi[a] + 2 <= hi[a]) {
             let grown_lo: [usize; 4] = std::array::from_fn(|a| blo[a].saturating_sub(1));
             let grown_hi: [usize; 4] = std::array::from_fn(|a| bhi[a] + 1);
@@ -161,70 +163,6 @@ pub fn verification_window(image: &BinaryImage) -> std::borrow::Cow<'_, BinaryIm
         }
     }
     crop(image, &lo, &hi)
-}
-
-/// The bounding box (inclusive, first `d` axes) of the voxels of `value` within `within`
-/// (the whole image when `None`), or `None` when there are none.
-fn value_box(
-    image: &BinaryImage,
-    value: u8,
-    within: Option<(&[usize; 4], &[usize; 4])>,
-) -> Option<([usize; 4], [usize; 4])> {
-    let d = image.dim().get();
-    let shape = image.shape();
-    let (from, to) = match within {
-        Some((lo, hi)) => (*lo, *hi),
-        None => (
-            [0usize; 4],
-            std::array::from_fn(|a| if a < d { shape[a] - 1 } else { 0 }),
-        ),
-    };
-    let strides = image.strides();
-    let data = image.data();
-    let mut lo = [usize::MAX; 4];
-    let mut hi = [0usize; 4];
-    let mut c = from;
-    loop {
-        let start: usize = (0..d - 1).map(|a| c[a] * strides[a]).sum::<usize>() + from[d - 1];
-        let row = &data[start..=start + (to[d - 1] - from[d - 1])];
-        // Most rows hold none of `value` (empty space, or solid wall): one OR (or AND) over
-        // the row, which vectorises where a search for the first such voxel does not, finds
-        // them.
-        let any = if value == 1 {
-            row.iter().fold(0u8, |acc, &v| acc | v) != 0
-        } else {
-            row.iter().fold(1u8, |acc, &v| acc & v) == 0
-        };
-        if any {
-            let first = row
-                .iter()
-                .position(|&v| v == value)
-                .expect("the row holds one");
-            let last = row
-                .iter()
-                .rposition(|&v| v == value)
-                .expect("the row holds one");
-            for axis in 0..d - 1 {
-                lo[axis] = lo[axis].min(c[axis]);
-                hi[axis] = hi[axis].max(c[axis]);
-            }
-            lo[d - 1] = lo[d - 1].min(from[d - 1] + first);
-            hi[d - 1] = hi[d - 1].max(from[d - 1] + last);
-        }
-        // The next row: odometer over the first d - 1 axes.
-        let mut axis = d - 1;
-        loop {
-            if axis == 0 {
-                return (lo[0] != usize::MAX).then_some((lo, hi));
-            }
-            axis -= 1;
-            if c[axis] < to[axis] {
-                c[axis] += 1;
-                break;
-            }
-            c[axis] = from[axis];
-        }
-    }
 }
 
 /// The voxels of the inclusive box `lo ..= hi` as an image of their own (the image itself
