@@ -184,7 +184,7 @@ impl Manifest {
             path: self.origin.path.clone(),
             line,
             field: "classes".to_string(),
-            reason: reason.into(),
+            reason: printable(&reason.into()),
         }
     }
 
@@ -357,10 +357,30 @@ impl Origin {
 }
 
 impl Source<'_> {
+    /// The 0-based line of a quoted key with any characters, escapes and dots too
+    /// (`"v\u0000al" = 2`, `"v.al" = 2`), that TOML reads as exactly `field`.
+    fn quoted_key_line(&self, field: &str) -> Option<usize> {
+        self.text.lines().position(|line| {
+            let line = line.trim_start();
+            (line.starts_with('"') || line.starts_with('\''))
+                && line.split_once('=').is_some_and(|(key, _)| {
+                    toml::from_str::<toml::Table>(&format!("{} = 0", key.trim()))
+                        .is_ok_and(|table| table.len() == 1 && table.contains_key(field))
+                })
+        })
+    }
+
     /// The 1-based line where `field` is assigned (`field = ...`), or 0 if it is absent.
     /// A field of the i-th entry of an array of tables (`deform[1].steps`) is searched from
     /// that entry's `[[deform]]` header on.
     fn line_of(&self, field: &str) -> usize {
+        // A key written quoted (`"v.al" = 2`) is the whole field, not a dotted path whose
+        // leaf (`al`) names another line.
+        if !field.contains('[') {
+            if let Some(at) = self.quoted_key_line(field) {
+                return at + 1;
+            }
+        }
         let leaf = field.rsplit('.').next().unwrap_or(field);
         let skip = field
             .split_once('[')
@@ -387,16 +407,7 @@ impl Source<'_> {
                     || line == format!("[[{leaf}]]")
             })
             .map(|i| skip + i)
-            .or_else(|| {
-                // A quoted key with any characters, escapes too (`"v\u0000al" = 2`): the
-                // key as TOML reads it.
-                self.text.lines().position(|line| {
-                    line.split_once('=').is_some_and(|(key, _)| {
-                        toml::from_str::<toml::Table>(&format!("{} = 0", key.trim()))
-                            .is_ok_and(|table| table.len() == 1 && table.contains_key(field))
-                    })
-                })
-            })
+            .or_else(|| self.quoted_key_line(field))
             .or_else(|| {
                 // A key of an inline table (`splits = { train = 8, "v al" = 2 }`).
                 self.text.lines().position(|line| {

@@ -427,3 +427,28 @@ fn messages_escape_control_characters_shorten_floats_and_locate_split_names() {
         "{err:?}"
     );
 }
+
+/// A split name with a dot (`"bad.name" = 8`) was located at the line of `name = ...`,
+/// the leaf of a dotted path it is not.
+#[test]
+fn a_split_name_with_a_dot_is_located_at_its_own_line() {
+    let text = GOOD.replace(
+        "seed = 1",
+        "seed = 1\n[splits]\ntrain = 2\n\"bad.name\" = 8",
+    );
+    check_refused(&text, "bad.name", 11);
+    let text = GOOD.replace("seed = 1", "seed = 1\n[splits]\ntrain = 2\n'v.al' = 8");
+    check_refused(&text, "v.al", 11);
+}
+
+/// A class's error quoted a hostile key with its NUL byte raw (`unknown field `a\0b``).
+#[test]
+fn a_class_error_escapes_control_characters() {
+    let manifest = parse(GOOD).unwrap();
+    let err = manifest
+        .class_error(1, "class 1: unknown field `a\0b` for family ball")
+        .to_string();
+    assert!(!err.contains('\0'), "{err:?}");
+    assert!(err.contains("a\\u{0}b"), "{err}");
+    assert!(err.contains("test.toml:10:"), "{err}");
+}
