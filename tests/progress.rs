@@ -166,11 +166,12 @@ fn progress_lines_advance_within_a_sample_before_it_completes() {
             assert!((0.0..1.0).contains(&done), "{line}");
         }
     }
-    // The stage reached counts: verify starts at 0.3 of a sample (docs/cluster.md).
+    // The stage reached counts: encoding starts at 0.9 of a sample (docs/cluster.md; the
+    // carved solid's verification, at 0.3, is over between two lines).
     assert!(
         lines
             .iter()
-            .any(|l| l.starts_with("progress: 0.3/1 samples") && l.ends_with(" verify")),
+            .any(|l| l.starts_with("progress: 0.9/1 samples") && l.ends_with(" encode")),
         "{err}"
     );
     // Once the sample is done, no line names it any more.

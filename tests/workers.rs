@@ -73,9 +73,9 @@ fn one_and_two_workers_build_identical_bytes() {
 #[test]
 fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identical() {
     let tmp = Dir::new();
-    // Shards of twelve 4D samples are slow enough for the kill to land inside a shard
-    // (about 0.05 CPU-s per sample, so a shard takes several times the 15 ticks below).
-    let m = manifest(tmp.path(), 4, 32, 24, 12);
+    // Shards of twenty-four 4D samples are slow enough for the kill to land inside a shard
+    // (about 0.03 CPU-s per sample, so a shard takes several times the 15 ticks below).
+    let m = manifest(tmp.path(), 4, 32, 48, 24);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
 
