@@ -99,20 +99,29 @@ impl BucketDir {
     pub fn put_same(&self, name: &str, bytes: Vec<u8>) -> Result<(), FormatError> {
         let expected = (bytes.len() as u64, blake3::hash(&bytes));
         match self.objects.put_new(name, bytes) {
-            Err(ObjectError::Exists { url }) => {
-                let found = self.hash(name)?;
-                if found == Some(expected) {
-                    Ok(())
-                } else {
-                    Err(FormatError::Corrupt {
-                        path: PathBuf::from(url),
-                        reason: "exists and differs from what this build writes; objects are \
-                                 never overwritten: delete it and build again"
-                            .into(),
-                    })
-                }
-            }
+            Err(ObjectError::Exists { url }) => self.same_or_refused(name, url, expected),
             other => Ok(other?),
+        }
+    }
+
+    /// The answer to a create-only write that found `name` existing (at `url`): accepted
+    /// when the object holds the bytes this build writes (`expected`: size and blake3),
+    /// refused otherwise, since objects are never overwritten.
+    fn same_or_refused(
+        &self,
+        name: &str,
+        url: String,
+        expected: (u64, blake3::Hash),
+    ) -> Result<(), FormatError> {
+        if self.hash(name)? == Some(expected) {
+            Ok(())
+        } else {
+            Err(FormatError::Corrupt {
+                path: PathBuf::from(url),
+                reason: "exists and differs from what this build writes; objects are never \
+                         overwritten: delete it and build again"
+                    .into(),
+            })
         }
     }
 
@@ -130,16 +139,7 @@ impl BucketDir {
                 let mut hasher = blake3::Hasher::new();
                 let size = std::io::copy(&mut std::fs::File::open(file).map_err(io)?, &mut hasher)
                     .map_err(io)?;
-                if self.hash(name)? == Some((size, hasher.finalize())) {
-                    Ok(())
-                } else {
-                    Err(FormatError::Corrupt {
-                        path: PathBuf::from(url),
-                        reason: "exists and differs from what this build writes; objects are \
-                                 never overwritten: delete it and build again"
-                            .into(),
-                    })
-                }
+                self.same_or_refused(name, url, (size, hasher.finalize()))
             }
             other => Ok(other?),
         }
