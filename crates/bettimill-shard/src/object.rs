@@ -363,7 +363,7 @@ impl ObjectDir {
                 url: self.object_url(name),
             });
         }
-        self.put_file_streamed(name, file)
+        self.stream_to(name, file, &mut reader, size)
     }
 
     /// The streamed path of [`ObjectDir::put_file_new`] for a file of any size, without its
@@ -377,8 +377,19 @@ impl ObjectDir {
         };
         let mut reader = std::fs::File::open(file).map_err(io)?;
         let size = reader.metadata().map_err(io)?.len();
+        self.stream_to(name, file, &mut reader, size)
+    }
+
+    /// [`ObjectDir::put_file_streamed`] from the open file `reader` of `size` bytes.
+    fn stream_to(
+        &self,
+        name: &str,
+        file: &Path,
+        reader: &mut std::fs::File,
+        size: u64,
+    ) -> Result<(), ObjectError> {
         let temporary = temporary_name(name);
-        let uploaded = self.upload_parts(&temporary, &mut reader, size, file);
+        let uploaded = self.upload_parts(&temporary, reader, size, file);
         let copied = uploaded.and_then(|()| {
             self.runtime
                 .block_on(
