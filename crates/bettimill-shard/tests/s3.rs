@@ -6,23 +6,11 @@
 //! it installs and starts the server (idempotent; a no-op when it is up). When the server
 //! cannot be started it fails in CI (CI=true) and is skipped with a message elsewhere.
 
-use bettimill_shard::object::{ObjectDir, ObjectError, S3Config, PART_BYTES, UPLOADS_DIR};
-use bettimill_testkit::s3::S3Server;
-use bettimill_testkit::system_test;
+mod common;
 
-/// The shared server's endpoint, credentials and bucket, after starting it; `None` (skip)
-/// only outside CI.
-fn s3_up() -> Option<(S3Server, S3Config)> {
-    let server = S3Server::shared()?;
-    let config = S3Config {
-        endpoint: Some(server.endpoint.clone()),
-        access_key_id: Some(server.access_key_id.clone()),
-        secret_access_key: Some(server.secret_access_key.clone()),
-        session_token: None,
-        region: Some(server.region.clone()),
-    };
-    Some((server, config))
-}
+use bettimill_shard::object::{ObjectDir, ObjectError, S3Config, PART_BYTES, UPLOADS_DIR};
+use bettimill_testkit::system_test;
+use common::s3_up;
 
 #[test]
 fn puts_are_create_only_and_reads_take_ranges() {

@@ -7,8 +7,9 @@
 //! BETTIMILL_SYSTEM_TESTS=1, fails in CI (CI=true) when the server cannot be started and
 //! is skipped with a message elsewhere.
 
-use bettimill_shard::object::{ObjectDir, S3Config, PARTS_IN_FLIGHT, PART_BYTES, UPLOADS_DIR};
-use bettimill_testkit::s3::S3Server;
+mod common;
+
+use bettimill_shard::object::{ObjectDir, PARTS_IN_FLIGHT, PART_BYTES, UPLOADS_DIR};
 use bettimill_testkit::system_test;
 use std::io::Write;
 
@@ -37,15 +38,8 @@ fn a_file_of_many_parts_uploads_in_bounded_memory_and_arrives_whole() {
     if !system_test("object storage on a local S3 server") {
         return;
     }
-    let Some(server) = S3Server::shared() else {
+    let Some((server, config)) = common::s3_up() else {
         return;
-    };
-    let config = S3Config {
-        endpoint: Some(server.endpoint.clone()),
-        access_key_id: Some(server.access_key_id.clone()),
-        secret_access_key: Some(server.secret_access_key.clone()),
-        session_token: None,
-        region: Some(server.region.clone()),
     };
     let url = format!(
         "s3://{}/{}",
