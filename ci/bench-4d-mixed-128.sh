@@ -13,7 +13,7 @@ source ci/bench-lib.sh
 bench_setup release bench128
 # The plan deals 8 samples to 8 strata; the seed decides which. Take the first seed from
 # the preset's (128) on whose 8 samples every family kind (ball, handle, s2_x_b2, t2_x_b2,
-# connected_sum) and every bin appear (seed 237 with this version's plan).
+# connected_sum) and every bin appear (seed 146 with this version's plan).
 reduce() { # seed
     sed -e 's/^samples = 9600$/samples = 8/' -e 's/^train = 8000$/train = 6/' \
         -e 's/^val = 800$/val = 1/' -e 's/^test = 800$/test = 1/' -e "s/^seed = 128$/seed = $1/" \
