@@ -1,10 +1,12 @@
 """Datasets in a bucket from Python, against the local S3 server of ci/s3-up.sh: the
 ``python s3`` snippets of docs/python.md run as written (webdataset through
-``pipe:bettimill cat``, Hugging Face datasets through s3fs, ``bettimill.verify``), and
+``pipe:bettimill cat``, Hugging Face datasets streaming through s3fs, ``bettimill.verify``),
+and
 ``bettimill.build`` and ``bettimill.verify`` on ``s3://`` with the CLI's endpoint handling.
 
 System tests: they run only with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it for this
-suite). A server that cannot be started fails them in CI (CI=true) and skips them elsewhere.
+suite). A server that cannot be started, or a missing s3fs (pinned in
+ci/python-requirements.txt), fails them in CI (CI=true) and skips them elsewhere.
 """
 
 import os
@@ -25,7 +27,7 @@ AWS = ["AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY", "AWS_SESSION_TOKEN", "AWS_R
        "AWS_DEFAULT_REGION", "AWS_ENDPOINT_URL", "AWS_PROFILE", "AWS_CONFIG_FILE",
        "AWS_SHARED_CREDENTIALS_FILE"]
 MANIFEST = """schema_version = 1
-name = "pys3"
+name = "ds"
 dimension = 3
 side = 16
 mode = ["embed", "carve"]
@@ -57,6 +59,10 @@ def server():
     """The shared server's variables and bucket (ci/s3-up.sh starts it, idempotent)."""
     if os.environ.get("BETTIMILL_SYSTEM_TESTS") != "1":
         pytest.skip("a system test: run with BETTIMILL_SYSTEM_TESTS=1 (ci/test.sh sets it)")
+    try:
+        import s3fs  # noqa: F401  (what HF datasets reads s3:// with)
+    except ImportError as err:
+        _unavailable(f"s3fs is not installed ({err}); ci/python-env.sh installs it")
     script = REPO / "ci" / "s3-up.sh"
     up = subprocess.run(["bash", str(script)], capture_output=True, text=True)
     if up.returncode != 0:
@@ -101,11 +107,18 @@ def test_the_bucket_snippets_of_python_md_run_as_written(aws):
     assert sample["image"].dtype.name == "uint8" and list(sample["image"].shape) == sample["label"]["shape"]
     assert set(sample["image"].ravel().tolist()) <= {0, 1}
     assert len(namespace["train"]) == 3
-    # HF datasets: every training sample, the first the same, read by s3fs.
-    assert len(namespace["hf_train"]) == 9
+    # HF datasets, streaming: every training sample in the order of the shards, the first
+    # the same as webdataset's, and no shard stored under HF_HOME on the way.
+    wds_keys = [s["__key__"] for s in namespace["stream"]]
+    assert len(wds_keys) == 9, wds_keys
+    hf_rows = list(namespace["hf_train"])
+    assert [r["__key__"] for r in hf_rows] == wds_keys
     first = namespace["first"]
     assert first["__key__"] == "s000000"
     assert first["json"]["betti"] == sample["label"]["betti"]
+    assert first["json"]["shape"] == sample["label"]["shape"]
+    downloads = Path(os.environ["HF_HOME"]) / "datasets" / "downloads"
+    assert not downloads.exists() or not any(downloads.iterdir()), list(downloads.iterdir())
     assert namespace["report"]["shards_checked"] == 4
 
 
@@ -125,12 +138,12 @@ def test_verify_of_a_bucket_finds_a_flipped_byte_and_names_a_bad_server(aws, mon
     import s3fs
 
     fs = s3fs.S3FileSystem()
-    shard = f"{url}/shards/pys3-train-000001.tar"
+    shard = f"{url}/shards/ds-train-000001.tar"
     data = bytearray(fs.cat_file(shard))
     data[2000] ^= 1
     fs.pipe_file(shard, bytes(data))
     problems = bettimill.verify(url)["problems"]
-    assert problems and all("pys3-train-000001" in str(p) for p in problems), problems
+    assert problems and all("ds-train-000001" in str(p) for p in problems), problems
 
     missing = "s3://no-such-bucket-bettimill/ds"
     with pytest.raises(OSError, match=re.escape(missing)):
