@@ -154,6 +154,45 @@ fn typical_mistakes_fail_with_exit_code_2_and_one_line() {
     assert!(text(&out.stderr).contains("unrecognized subcommand"));
 }
 
+#[test]
+fn shards_that_could_pass_5_gib_are_refused_for_s3_by_plan_build_and_k8s_before_any_work() {
+    let tmp = Dir::new();
+    let dir = tmp.path();
+    // 16 MiB samples, 400 to a shard: up to 6.3 GiB, more than one create-only copy on S3.
+    std::fs::write(
+        dir.join("big.toml"),
+        "schema_version = 1\nname = \"big\"\ndimension = 3\nside = 256\nmode = \"embed\"\n\
+         samples = 800\nshard_size = 400\nseed = 1\n\n[[classes]]\nfamily = \"ball\"\n",
+    )
+    .unwrap();
+    let needles = [
+        "big.toml:7",
+        "shard_size",
+        "5 GiB",
+        "use at most shard_size = 3",
+    ];
+    let url = "s3://no-such-bucket-bettimill/big";
+    check_one_line_error(dir, &["plan", "big.toml", "--out", url], &needles);
+    // The server (a closed port) is never asked: the manifest is refused first.
+    let endpoint = "http://127.0.0.1:1";
+    check_one_line_error(
+        dir,
+        &["build", "big.toml", "--out", url, "--endpoint", endpoint],
+        &needles,
+    );
+    check_one_line_error(
+        dir,
+        &[
+            "k8s", "big.toml", "--out", url, "--image", "x", "--tasks", "2",
+        ],
+        &needles,
+    );
+    // To a directory the same manifest plans: the limit is object storage's.
+    let out = run_in(dir, &["plan", "big.toml", "--out", "local", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(!dir.join("local").exists(), "plan wrote its --out");
+}
+
 /// A fast manifest in `dir`.
 fn small_manifest(dir: &Path, dimension: u32, side: u32) -> PathBuf {
     let path = dir.join(format!("small-{dimension}d.toml"));

@@ -145,6 +145,11 @@ enum Command {
         /// beside the model's estimate. Nothing is written.
         #[arg(long, value_name = "STRATA", num_args = 0..=1, default_missing_value = "0")]
         pilot: Option<usize>,
+        /// Where the dataset will be built (a directory or s3://BUCKET/PREFIX), to refuse
+        /// here what `build --out` would refuse there: on s3://, shards that could be larger
+        /// than 5 GiB (exit 2). Nothing is written.
+        #[arg(long, value_name = "DIR|URL")]
+        out: Option<PathBuf>,
     },
     /// Draw a sample, or a contact sheet of several, as a PNG with its label, or open one
     /// sample in a browser viewer.
@@ -291,10 +296,12 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitStatus> {
             json,
             max_memory,
             pilot,
+            out,
         } => {
             let (_, manifest) = load_manifest(manifest.as_deref())?;
             let pilot = pilot.map(|n| (n > 0).then_some(n));
-            crate::plan::show(&manifest, json, max_memory, pilot)?;
+            let to_bucket = out.as_deref().and_then(object_url).is_some();
+            crate::plan::show(&manifest, json, max_memory, pilot, to_bucket)?;
             Ok(ExitStatus::Success)
         }
         Command::Preview {

@@ -145,14 +145,19 @@ pub fn pilot(plan: &Plan, model: &Estimate, strata: Option<usize>) -> anyhow::Re
 /// and size estimates and, with `pilot` (`Some(None)`: every stratum; `Some(Some(n))`: the
 /// first n), the figures of samples built and measured here. A plan whose worker would not
 /// fit the memory limit (`max_memory`, or the machine's default for one worker) is printed
-/// and then refused.
+/// and then refused. With `to_bucket` (`--out s3://...`), a plan whose shards could be
+/// larger than an object bettimill can write there is refused before anything is printed.
 pub fn show(
     manifest: &Manifest,
     json: bool,
     max_memory: Option<u64>,
     pilot_strata: Option<Option<usize>>,
+    to_bucket: bool,
 ) -> anyhow::Result<()> {
     let plan = Plan::new(manifest)?;
+    if to_bucket {
+        plan.check_object_storage(manifest)?;
+    }
     let worker_memory = WorkerMemory::of(&plan);
     let bytes = plan.sample_bytes.saturating_mul(plan.samples);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;

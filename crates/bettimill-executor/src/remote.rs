@@ -98,6 +98,14 @@ fn remove_dead_staging() {
     }
 }
 
+/// Refuses, before the bucket is touched, a manifest whose shards could be larger than an
+/// object a streamed upload can name (see
+/// [`bettimill_plan::Plan::check_object_storage`]).
+fn check_plan(manifest: &Manifest) -> Result<(), BuildError> {
+    bettimill_plan::Plan::new(manifest)?.check_object_storage(manifest)?;
+    Ok(())
+}
+
 /// A bucket bound to a build, with its lease (none for an array task) and its staging
 /// directory.
 pub(crate) struct BucketBuild {
@@ -118,6 +126,7 @@ impl BucketBuild {
         manifest: Manifest,
         options: &ObjectOptions,
     ) -> Result<BucketBuild, BuildError> {
+        check_plan(&manifest)?;
         let bucket = open_bucket(url, options.endpoint.as_deref()).map_err(FormatError::from)?;
         let lease = Some(Lease::acquire(&bucket)?);
         Self::bind_opened(bucket, lease, manifest_text, manifest, options)
@@ -141,6 +150,7 @@ impl BucketBuild {
                     .object_url(bettimill_format::dir::MANIFEST_FILE),
             ),
         )?;
+        check_plan(&manifest)?;
         let lease = if leased {
             Some(Lease::acquire(&bucket)?)
         } else {

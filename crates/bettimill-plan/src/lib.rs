@@ -180,13 +180,36 @@ pub use bettimill_manifest::AUTO_COMPRESSION_THRESHOLD;
 /// Upper bound of one sample's bytes in a shard, uncompressed: tar headers and padding of
 /// every member, the arrays (with downscaled copies) and a generous label.
 fn sample_bytes_estimate(manifest: &Manifest) -> u64 {
-    let member = bettimill_shard::ustar::member_bytes;
-    let voxels = |side: u32| (side as u64).pow(manifest.dimension.get() as u32);
-    let arrays: u64 = std::iter::once(manifest.side)
-        .chain(manifest.resolutions.iter().copied())
+    sample_bound(
+        manifest.dimension,
+        manifest.side,
+        &manifest.resolutions,
+        bettimill_shard::Compression::None,
+    )
+}
+
+/// [`sample_bytes_estimate`] with every member's data grown to the largest `compression`
+/// can make of it ([`bettimill_shard::compress::max_compressed_bytes`]).
+fn sample_bound(
+    dimension: Dim,
+    side: u32,
+    resolutions: &[u32],
+    compression: bettimill_shard::Compression,
+) -> u64 {
+    let member = |data: u64| {
+        bettimill_shard::ustar::member_bytes(bettimill_shard::compress::max_compressed_bytes(
+            data,
+            compression,
+        ))
+    };
+    let voxels = |side: u32| (side as u64).saturating_pow(dimension.get() as u32);
+    let arrays: u64 = std::iter::once(side)
+        .chain(resolutions.iter().copied())
         .map(|side| member(128 + voxels(side)))
-        .sum();
-    arrays + member(8192) + member(16)
+        .fold(0, u64::saturating_add);
+    arrays
+        .saturating_add(member(8192))
+        .saturating_add(member(16))
 }
 
 /// The member compression a manifest asks for, `auto` resolved by the array size.
@@ -202,6 +225,72 @@ fn member_compression(manifest: &Manifest) -> bettimill_shard::Compression {
 }
 
 impl Plan {
+    /// Upper bound of the bytes of the largest shard, whatever the samples' voxels: its
+    /// members at their largest compressed size, tar headers, padding and the end of the
+    /// archive.
+    pub fn shard_bytes_bound(&self) -> u64 {
+        self.shard_bound(self.largest_shard())
+    }
+
+    fn shard_bound(&self, samples: u64) -> u64 {
+        let sample = sample_bound(
+            self.dimension,
+            self.side,
+            &self.resolutions,
+            self.compression,
+        );
+        samples
+            .saturating_mul(sample)
+            .saturating_add(2 * bettimill_shard::ustar::BLOCK)
+    }
+
+    /// Refuses a plan for object storage (`--out s3://...`) when a shard could be larger
+    /// than an object a streamed upload can name
+    /// ([`bettimill_shard::object::MAX_STREAMED_OBJECT_BYTES`], 5 GiB): the error names the
+    /// manifest's `shard_size` or `shard_bytes` and the largest value that fits. `manifest`
+    /// is the one this plan was made from. A build to a directory has no such limit.
+    pub fn check_object_storage(&self, manifest: &Manifest) -> Result<(), PlanError> {
+        use bettimill_shard::object::MAX_STREAMED_OBJECT_BYTES as LIMIT;
+        let bound = self.shard_bytes_bound();
+        if bound <= LIMIT {
+            return Ok(());
+        }
+        // The largest shard_size whose shards stay within the limit.
+        let sample = self.shard_bound(1) - self.shard_bound(0);
+        let fitting = (LIMIT.saturating_sub(self.shard_bound(0))) / sample.max(1);
+        let field = if manifest.shard_size.is_some() {
+            "shard_size"
+        } else {
+            "shard_bytes"
+        };
+        let largest = if field == "shard_size" {
+            format!("shard_size = {fitting}")
+        } else {
+            format!(
+                "shard_bytes = {}",
+                fitting.saturating_mul(self.sample_bytes)
+            )
+        };
+        let reason = if fitting == 0 {
+            format!(
+                "a shard of one sample can reach {bound1} bytes, more than the {LIMIT} bytes \
+                 (5 GiB) an object on S3 can have when bettimill writes it create-only (a \
+                 server-side copy of one part); lower `side` or `resolutions`, or build to a \
+                 directory",
+                bound1 = self.shard_bound(1)
+            )
+        } else {
+            format!(
+                "shards of {} samples can reach {bound} bytes ({}), more than the {LIMIT} bytes \
+                 (5 GiB) an object on S3 can have when bettimill writes it create-only (a \
+                 server-side copy of one part); for an s3:// output use at most {largest}",
+                self.largest_shard(),
+                memory::human_bytes(bound),
+            )
+        };
+        Err(manifest.error(field, reason).into())
+    }
+
     /// Reads, validates and resolves the manifest file at `path`.
     pub fn from_path(path: &std::path::Path) -> Result<Plan, PlanError> {
         Plan::new(&Manifest::from_path(path)?)

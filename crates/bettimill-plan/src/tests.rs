@@ -409,3 +409,100 @@ proptest::proptest! {
         proptest::prop_assert!(c.iter().max().unwrap() - c.iter().min().unwrap() <= 1);
     }
 }
+
+/// GOOD at side 256 (16 MiB a sample) with `shard` in place of `shard_size = 4` and
+/// `compression`.
+fn big(shard: &str, compression: &str) -> Manifest {
+    let text = GOOD
+        .replace("side = 24", "side = 256")
+        .replace("samples = 10", "samples = 1000")
+        .replace(
+            "shard_size = 4",
+            &format!("{shard}\ncompression = \"{compression}\""),
+        );
+    Manifest::parse(&text, Path::new("test.toml")).unwrap()
+}
+
+fn object_storage_refusal(manifest: &Manifest) -> Option<(String, usize, String)> {
+    match Plan::new(manifest).unwrap().check_object_storage(manifest) {
+        Ok(()) => None,
+        Err(PlanError::Manifest(ManifestError::Invalid {
+            line,
+            field,
+            reason,
+            path,
+        })) => {
+            assert_eq!(path, Path::new("test.toml"));
+            Some((field, line, reason))
+        }
+        Err(other) => panic!("expected a refusal naming the field, got {other:?}"),
+    }
+}
+
+#[test]
+fn shards_that_can_pass_5_gib_are_refused_for_object_storage_naming_the_largest_that_fits() {
+    use bettimill_shard::object::MAX_STREAMED_OBJECT_BYTES as LIMIT;
+    for compression in ["none", "gzip", "zstd"] {
+        let manifest = big("shard_size = 400", compression);
+        let plan = Plan::new(&manifest).unwrap();
+        assert!(plan.shard_bytes_bound() > LIMIT, "{compression}");
+        let (field, line, reason) = object_storage_refusal(&manifest).expect(compression);
+        assert_eq!((field.as_str(), line), ("shard_size", 7), "{reason}");
+        assert!(
+            reason.contains("5 GiB") && reason.contains("s3://"),
+            "{reason}"
+        );
+        // The value the message offers is the largest that fits: it passes, one more not.
+        let fits: u64 = reason
+            .rsplit("shard_size = ")
+            .next()
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no shard_size offered: {reason}"));
+        assert!((300..400).contains(&fits), "{compression}: {fits}");
+        let at = big(&format!("shard_size = {fits}"), compression);
+        assert_eq!(object_storage_refusal(&at), None, "{compression}");
+        assert!(Plan::new(&at).unwrap().shard_bytes_bound() <= LIMIT);
+        let over = big(&format!("shard_size = {}", fits + 1), compression);
+        assert!(object_storage_refusal(&over).is_some(), "{compression}");
+    }
+    // Compressed members can outgrow their input, so the bound of a compressed shard is
+    // the larger one.
+    let none = Plan::new(&big("shard_size = 300", "none")).unwrap();
+    let zstd = Plan::new(&big("shard_size = 300", "zstd")).unwrap();
+    assert!(zstd.shard_bytes_bound() > none.shard_bytes_bound());
+}
+
+#[test]
+fn shard_bytes_over_5_gib_are_refused_for_object_storage_and_the_offer_fits() {
+    let manifest = big("shard_bytes = 6442450944", "none");
+    let (field, line, reason) = object_storage_refusal(&manifest).unwrap();
+    assert_eq!((field.as_str(), line), ("shard_bytes", 7), "{reason}");
+    let offered = reason.rsplit("shard_bytes = ").next().unwrap();
+    let at = big(&format!("shard_bytes = {offered}"), "none");
+    assert_eq!(object_storage_refusal(&at), None, "{reason}");
+    // A split smaller than the shard size makes the shards: 10 samples of 16 MiB fit.
+    let small = GOOD
+        .replace("side = 24", "side = 256")
+        .replace("shard_size = 4", "shard_size = 100000");
+    let small = Manifest::parse(&small, Path::new("test.toml")).unwrap();
+    assert_eq!(object_storage_refusal(&small), None);
+    // A local build has no such limit: planning alone accepts them all.
+    assert!(Plan::new(&manifest).is_ok());
+}
+
+#[test]
+fn the_shipped_manifests_fit_object_storage() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../manifests");
+    for name in [
+        "4d-mixed-128",
+        "demo-2d",
+        "demo-3d",
+        "demo-4d",
+        "paper-figures",
+    ] {
+        let manifest = Manifest::from_path(&dir.join(format!("{name}.toml"))).unwrap();
+        let plan = Plan::new(&manifest).unwrap();
+        plan.check_object_storage(&manifest)
+            .unwrap_or_else(|err| panic!("{name}: {err}"));
+    }
+}

@@ -119,6 +119,20 @@ pub fn compress(data: &[u8], compression: Compression) -> Result<Vec<u8>, ShardE
     }
 }
 
+/// Upper bound of the bytes [`compress`] makes of `bytes` bytes of any content, so that a
+/// shard's largest size follows from its plan whatever the voxels are. Incompressible input
+/// grows a little: zstd's frame bound (`ZSTD_compressBound`) adds 1/256 and a few dozen
+/// bytes, DEFLATE's stored blocks 5 bytes a block of at most 64 KiB, gzip 18 more; 1/128 and
+/// 1 KiB cover both with room to spare.
+pub fn max_compressed_bytes(bytes: u64, compression: Compression) -> u64 {
+    match compression {
+        Compression::None => bytes,
+        Compression::Gzip | Compression::Zstd => {
+            bytes.saturating_add(bytes / 128).saturating_add(1024)
+        }
+    }
+}
+
 /// The codec a stream starts with, told by its magic bytes (gzip `1f 8b`, zstd
 /// `28 b5 2f fd`); anything else is [`Compression::None`].
 pub fn sniff(prefix: &[u8]) -> Compression {
@@ -217,6 +231,31 @@ mod tests {
                 Err(ShardError::DecompressedTooLarge { limit: 4999, .. })
             ));
             assert_eq!(Compression::from_name(c.name()), Some(c));
+        }
+    }
+
+    #[test]
+    fn compressed_members_stay_within_their_bound_even_for_incompressible_input() {
+        // xorshift64: bytes no codec can shrink.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let noise: Vec<u8> = (0..300_000)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 24) as u8
+            })
+            .collect();
+        for c in [Compression::None, Compression::Gzip, Compression::Zstd] {
+            for len in [0, 1, 100, 65_535, 65_536, 300_000] {
+                let out = compress(&noise[..len], c).unwrap().len() as u64;
+                let bound = max_compressed_bytes(len as u64, c);
+                assert!(out <= bound, "{c} of {len} random bytes: {out} > {bound}");
+                if c != Compression::None && len >= 65_536 {
+                    // The bound is not loose by orders: random bytes do not shrink.
+                    assert!(out >= len as u64, "{c} of {len} random bytes: {out}");
+                }
+            }
         }
     }
 

@@ -388,6 +388,17 @@ impl ObjectDir {
         reader: &mut std::fs::File,
         size: u64,
     ) -> Result<(), ObjectError> {
+        if size > MAX_STREAMED_OBJECT_BYTES {
+            return Err(ObjectError::Failed {
+                url: self.object_url(name),
+                reason: format!(
+                    "{} is {size} bytes; an object written create-only by a streamed upload \
+                     holds at most {MAX_STREAMED_OBJECT_BYTES} bytes (5 GiB, S3's largest \
+                     server-side copy)",
+                    file.display()
+                ),
+            });
+        }
         let temporary = temporary_name(name);
         let uploaded = self.upload_parts(&temporary, reader, size, file);
         let copied = uploaded.and_then(|()| {
@@ -552,6 +563,13 @@ pub const PARTS_IN_FLIGHT: usize = 2;
 
 /// S3's largest number of parts in a multipart upload.
 const MAX_PARTS: u64 = 10_000;
+
+/// The largest object a streamed upload can name: its create-only copy to the real name is
+/// one `UploadPartCopy` of the whole temporary object, which S3 caps at 5 GiB (the copy of
+/// `object_store`, the only create-only completion it offers for a multipart upload, is a
+/// single part). Plans that could make a larger shard are refused for object storage before
+/// any work.
+pub const MAX_STREAMED_OBJECT_BYTES: u64 = 5 << 30;
 
 /// The directory, under the prefix, of the temporary objects of streamed uploads. Its name
 /// starts with a dot: readers and copies skip it, as they skip a directory's temporaries.
