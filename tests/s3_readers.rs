@@ -174,8 +174,48 @@ fn stats_preview_and_audit_of_a_bucket_say_what_they_say_of_a_local_copy() {
         .collect();
     assert!(names.iter().all(|n| !n.contains(".audit")), "{names:?}");
 
-    // Damage: one flipped byte in a shard's array, and an edited class table.
+    // An edited class table whose hash in index.json is rewritten too, as an attacker
+    // would: verify of the bucket regenerates the plan's files and names the edit, as
+    // verify of the directory does, in the same words.
     let objects = server.objects(&url);
+    let classes = objects.get("classes.json").unwrap().unwrap();
+    let index = objects.get("index.json").unwrap().unwrap();
+    let forged = String::from_utf8(classes.clone())
+        .unwrap()
+        .replacen("\"ball", "\"bell", 1);
+    let forged_index = String::from_utf8(index.clone()).unwrap().replace(
+        &bettimill_shard::blake3_hex(&classes),
+        &bettimill_shard::blake3_hex(forged.as_bytes()),
+    );
+    assert_ne!(forged_index.as_bytes(), &index[..]);
+    server.replace(&url, "classes.json", forged.clone().into_bytes());
+    server.replace(&url, "index.json", forged_index.clone().into_bytes());
+    std::fs::write(std::path::Path::new(local).join("classes.json"), &forged).unwrap();
+    std::fs::write(
+        std::path::Path::new(local).join("index.json"),
+        &forged_index,
+    )
+    .unwrap();
+    let verified: Vec<Output> = [url.as_str(), local]
+        .iter()
+        .map(|dataset| run(&server, &["verify", dataset]))
+        .collect();
+    for out in &verified {
+        assert_exit(out, 1);
+        let report = stdout(out);
+        assert!(
+            report.contains(
+                "classes.json: strata[0].name says \"bell/embed\", the build writes \"ball/embed\""
+            ),
+            "{report}"
+        );
+    }
+    assert_eq!(stdout(&verified[0]), stdout(&verified[1]));
+    server.replace(&url, "classes.json", classes);
+    server.replace(&url, "index.json", index.clone());
+    assert_exit(&run(&server, &["verify", &url]), 0);
+
+    // Damage: one flipped byte in a shard's array, and an edited class table.
     let shard = "shards/rd-train-000001.tar";
     let mut bytes = objects.get(shard).unwrap().unwrap();
     bytes[3000] ^= 1;

@@ -381,17 +381,30 @@ pub(crate) fn load_manifest(path: Option<&Path>) -> anyhow::Result<(String, Mani
 /// What `verify` adds to the hashes: the files that are pure functions of the plan and the
 /// records (index.json's own bytes, classes.json, the card, the wids indexes) regenerated
 /// and compared byte for byte, and manifest.toml against build.json's manifest hash. Cheap:
-/// no shard is read. A directory that cannot be opened as a dataset adds nothing here
-/// (the hash check has said why).
-fn plan_file_problems(dir: &Path) -> Vec<bettimill_format::Problem> {
+/// no shard is read. A dataset in a bucket (`s3://...`, reached with `endpoint` or
+/// `AWS_ENDPOINT_URL`) is checked from a local copy of its metadata, as `audit` checks it.
+/// A dataset that cannot be opened adds nothing here (the hash check has said why).
+pub fn plan_file_problems(dir: &Path, endpoint: Option<&str>) -> Vec<bettimill_format::Problem> {
+    match object_url(dir) {
+        Some(url) => {
+            let copy = bettimill_executor::remote::bucket_copy(url, endpoint);
+            plan_problems_of(copy.as_ref().map(|copy| &copy.dataset))
+        }
+        None => plan_problems_of(bettimill_executor::Dataset::open(dir).as_ref()),
+    }
+}
+
+fn plan_problems_of(
+    opened: Result<&bettimill_executor::Dataset, &bettimill_executor::BuildError>,
+) -> Vec<bettimill_format::Problem> {
     use bettimill_executor::BuildError;
     use bettimill_format::FormatError;
     let file = |path: &str, reason: String| bettimill_format::Problem::File {
         path: path.into(),
         reason,
     };
-    match bettimill_executor::Dataset::open(dir) {
-        Ok(dataset) => bettimill_audit::check_files(&dataset)
+    match opened {
+        Ok(dataset) => bettimill_audit::check_files(dataset)
             .into_iter()
             .map(|finding| match finding {
                 bettimill_audit::Finding::FileDiffers {
@@ -449,9 +462,7 @@ fn verify(dir: &Path, json: bool, printer: Printer) -> anyhow::Result<ExitStatus
         bar.finish_and_clear();
     }
     let mut report = report?;
-    if object_url(dir).is_none() {
-        report.problems.extend(plan_file_problems(dir));
-    }
+    report.problems.extend(plan_file_problems(dir, None));
     if json {
         outln!("{}", serde_json::to_string_pretty(&report)?);
     } else if report.problems.is_empty() {

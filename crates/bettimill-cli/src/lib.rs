@@ -39,6 +39,8 @@ mod progress;
 mod signals;
 mod stats;
 
+pub use commands::plan_file_problems;
+
 use anyhow::Context;
 use clap::Parser;
 use std::ffi::OsString;

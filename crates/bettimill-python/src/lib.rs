@@ -681,14 +681,21 @@ fn verify<'py>(
         .to_str()
         .filter(|d| bettimill_shard::object::is_object_url(d))
         .map(str::to_string);
-    let report = detach_in_pool(py, || match &url {
-        Some(url) => bettimill_executor::remote::open_bucket(url, endpoint.as_deref())
-            .map_err(|err| PyOSError::new_err(err.to_string()))?
-            .verify(&mut |_, _| {})
-            .map_err(value_error),
-        None => bettimill_format::DatasetDir::new(&dir)
-            .verify(&mut |_, _| {})
-            .map_err(value_error),
+    let report = detach_in_pool(py, || {
+        let mut report = match &url {
+            Some(url) => bettimill_executor::remote::open_bucket(url, endpoint.as_deref())
+                .map_err(|err| PyOSError::new_err(err.to_string()))?
+                .verify(&mut |_, _| {})
+                .map_err(value_error),
+            None => bettimill_format::DatasetDir::new(&dir)
+                .verify(&mut |_, _| {})
+                .map_err(value_error),
+        }?;
+        // The files that follow from the plan and the records, as `bettimill verify` checks.
+        report
+            .problems
+            .extend(bettimill_cli::plan_file_problems(&dir, endpoint.as_deref()));
+        Ok::<_, PyErr>(report)
     })??;
     let json = serde_json::to_string(&report).map_err(value_error)?;
     json_to_py(py, &json)
