@@ -1783,6 +1783,41 @@ fn a_worker_holds_compressed_members_not_the_images_of_a_shard() {
     assert!(large < small + 8 * 1024, "4: {small} KiB, 64: {large} KiB");
 }
 
+/// glibc only, for the reason above.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+#[test]
+fn a_worker_holds_an_uncompressed_shard_once_while_writing_it() {
+    // Plain 3D 128^3 samples are 2 MiB members: 20 more of them in a shard cost their 40 MiB
+    // once, since the tar is streamed from the members to its file. Holding the members, a
+    // flattened copy and the tar as well cost three times that (166 MiB for a 48 MiB shard
+    // against 72 MiB streamed).
+    let tmp = Dir::new();
+    let write = |samples: u32| {
+        let path = tmp.path().join(format!("p{samples}.toml"));
+        std::fs::write(
+            &path,
+            format!(
+                "schema_version = 1\nname = \"p\"\ndimension = 3\nside = 128\nmode = \"embed\"\n\
+                 samples = {samples}\nshard_size = {samples}\nseed = 5\ncompression = \"none\"\n\n\
+                 [[classes]]\nfamily = \"ball\"\n"
+            ),
+        )
+        .unwrap();
+        path
+    };
+    let env = [("MALLOC_MMAP_THRESHOLD_", "262144")];
+    let (_, small) = build_peaks_with(&write(4), &tmp.path().join("small"), 1, &env);
+    let (_, large) = build_peaks_with(&write(24), &tmp.path().join("large"), 1, &env);
+    let tar = std::fs::metadata(tmp.path().join("large/shards/p-000000.tar"))
+        .unwrap()
+        .len();
+    assert!(tar > 48 << 20, "{tar}");
+    eprintln!("worker VmHWM: shard of 4 {small} KiB, shard of 24 ({tar} bytes) {large} KiB");
+    assert!(small > 0 && large > 0, "no measurement");
+    // 20 samples of 2 MiB: 40 MiB once, with room for the allocator; not 80 or 120.
+    assert!(large < small + 60 * 1024, "4: {small} KiB, 24: {large} KiB");
+}
+
 /// `status` on a plan of 10^7 one-sample shards took 96-122 s: it opened every planned
 /// shard's record and tar. Now it lists `shards/` and `records/` once and opens only what
 /// is there: on a bound directory of 100,000 planned shards and none built, strace sees

@@ -292,8 +292,9 @@ impl Dataset {
             *regenerations.entry(class_label).or_default() += attempt as u64;
         }
         let relative = DatasetDir::relative_tar_name(&shard.name);
-        let (bytes, record) = bettimill_format::build_shard(&relative, &shard.split, &members)?;
-        write_tar_atomically(&self.tar_path(shard), &bytes)?;
+        let record =
+            write_tar_atomically(&self.tar_path(shard), &relative, &shard.split, &members)?;
+        drop(members);
         let completion = CompletionRecord {
             shard: record,
             regenerations: regenerations.into_iter().collect(),
@@ -725,17 +726,27 @@ fn size_category(samples: u64) -> &'static str {
         .map_or("n>1T", |(_, category)| category)
 }
 
-/// [`shard::write_atomic`] for shard tars, with the `BETTIMILL_TEST_PAUSE_BEFORE_RENAME`
-/// test hook waiting in its seam between the durable temporary file and the rename, so
-/// the tests that kill a build in that window exercise the real write.
-fn write_tar_atomically(path: &Path, bytes: &[u8]) -> Result<(), BuildError> {
+/// Writes the tar of `members` (the shard `relative`, of `split`) to `path` atomically,
+/// streamed member by member into the temporary file
+/// ([`bettimill_format::write_shard`]), so the shard's bytes are never held twice; with the
+/// `BETTIMILL_TEST_PAUSE_BEFORE_RENAME` pause, where a kill leaves a complete temporary
+/// and no tar. Returns the shard's record.
+fn write_tar_atomically(
+    path: &Path,
+    relative: &str,
+    split: &str,
+    members: &[Vec<shard::Member>],
+) -> Result<bettimill_format::ShardRecord, BuildError> {
     let pause = bettimill_env::seconds(bettimill_env::EnvVars::BETTIMILL_TEST_PAUSE_BEFORE_RENAME);
-    shard::atomic::write_atomic_then(path, bytes, || {
+    let mut file = shard::AtomicFile::create(path)?;
+    let temporary = file.temporary().to_path_buf();
+    let record = bettimill_format::write_shard(relative, split, members, &mut file, &temporary)?;
+    file.commit_then(|| {
         if let Some(pause) = pause {
             std::thread::sleep(pause);
         }
     })?;
-    Ok(())
+    Ok(record)
 }
 
 /// A writer that compares what is written with an existing file instead of writing it.

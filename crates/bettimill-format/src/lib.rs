@@ -50,9 +50,9 @@ pub use dir::{
     ShardState, ShardStream, ShardTiming, TarCheck, Unbound, CLASSES_FILE, REQUIRED_FILES,
 };
 pub use index::{
-    build_shard, count_samples, read_index, read_index_from, wids_index, Index, IndexError,
-    IndexFile, IndexHeader, IndexRefusal, IndexShard, IndexWriter, MemberRecord, ShardRecord,
-    WidsWriter, INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES, MAX_INDEX_SPLITS,
+    build_shard, count_samples, read_index, read_index_from, wids_index, write_shard, Index,
+    IndexError, IndexFile, IndexHeader, IndexRefusal, IndexShard, IndexWriter, MemberRecord,
+    ShardRecord, WidsWriter, INDEX_FORMAT, INDEX_FORMAT_VERSION, MAX_INDEX_FILES, MAX_INDEX_SPLITS,
 };
 pub use label::{Label, Pooling, ResolutionLabel};
 pub use member::{member_name, MemberName};

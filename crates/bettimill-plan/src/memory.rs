@@ -18,11 +18,11 @@
 //! per sample": 2-18 bytes per voxel without deformation, 10-21 with deformation or
 //! hypervolume targeting), rounded up with room to spare. The largest shard is `shard_size`
 //! samples, or the largest split when every split is smaller. `sample_bytes` is the plan's upper
-//! bound of one sample's uncompressed bytes in a shard; a worker holds a shard's members and
-//! then its tar, so two copies of an uncompressed shard. With compressed members the shard's
-//! size depends on the data, not the plan: the estimate counts the one sample being
-//! compressed, and the compressed members (a few percent of it for these images) are not
-//! counted.
+//! bound of one sample's uncompressed bytes in a shard; a worker holds a shard's members
+//! once, and streams the tar from them to its file, so one copy of an uncompressed shard.
+//! With compressed members the shard's size depends on the data, not the plan: the estimate
+//! counts the one sample being compressed, and the compressed members (a few percent of it
+//! for these images) are not counted.
 //!
 //! Estimates are upper bounds for planning, not promises: a worker that needs more than the
 //! limit is refused before it starts rather than killed by the kernel after minutes.
@@ -36,8 +36,9 @@ pub const PEAK_BYTES_PER_VOXEL: [u64; 3] = [24, 24, 16];
 /// allocator arenas.
 pub const FIXED_BYTES: u64 = 32 << 20;
 
-/// Copies of a shard's bytes a worker holds at once while writing it (members, then tar).
-pub const SHARD_COPIES: u64 = 2;
+/// Copies of a shard's bytes a worker holds at once while writing it: its members, from
+/// which the tar is streamed to its file.
+pub const SHARD_COPIES: u64 = 1;
 
 /// A plan whose worker needs more memory than allowed.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -91,13 +91,21 @@ impl AtomicFile {
     }
 
     /// Flushes, fsyncs and renames the file into place.
-    pub fn commit(mut self) -> Result<(), ShardError> {
+    pub fn commit(self) -> Result<(), ShardError> {
+        self.commit_then(|| {})
+    }
+
+    /// [`AtomicFile::commit`], calling `before_rename` once the file is durable under its
+    /// temporary name, just before the rename (the seam where a crash leaves a complete
+    /// temporary and no file).
+    pub fn commit_then(mut self, before_rename: impl FnOnce()) -> Result<(), ShardError> {
         let writer = self.file.take().expect("not yet committed");
         let file = writer
             .into_inner()
             .map_err(|e| ShardError::io("cannot write", &self.temporary, e.into_error()))?;
         file.sync_all()
             .map_err(|e| ShardError::io("cannot fsync", &self.temporary, e))?;
+        before_rename();
         // The file (and its lock) stays open through the rename.
         std::fs::rename(&self.temporary, &self.path)
             .map_err(|e| ShardError::io("cannot rename into", &self.path, e))?;

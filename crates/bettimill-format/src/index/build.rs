@@ -18,6 +18,64 @@ pub fn build_shard(
     split: &str,
     samples: &[Vec<Member>],
 ) -> Result<(Vec<u8>, ShardRecord), ShardError> {
+    let total = ustar::tar_len(samples.iter().flatten().map(|m| m.data.len() as u64));
+    let mut bytes = Vec::with_capacity(total as usize);
+    let record = write_shard(name, split, samples, &mut bytes, std::path::Path::new(name))?;
+    Ok((bytes, record))
+}
+
+/// [`build_shard`] streamed: the same tar bytes written to `out` (a file being written
+/// under a temporary name, `out_path` in its errors) member by member and hashed on the
+/// way, so no copy of the shard is made in memory. Returns the record; the samples are
+/// checked before anything is written.
+pub fn write_shard(
+    name: &str,
+    split: &str,
+    samples: &[Vec<Member>],
+    out: &mut dyn std::io::Write,
+    out_path: &std::path::Path,
+) -> Result<ShardRecord, ShardError> {
+    let (first_key, last_key) = check_samples(name, samples)?;
+    let mut hasher = blake3::Hasher::new();
+    let mut put = |bytes: &[u8]| {
+        hasher.update(bytes);
+        out.write_all(bytes)
+            .map_err(|err| ShardError::io("cannot write", out_path, err))
+    };
+    const ZEROS: [u8; 2 * BLOCK as usize] = [0; 2 * BLOCK as usize];
+    let mut offset = 0u64;
+    let mut member_records = Vec::with_capacity(samples.iter().map(Vec::len).sum());
+    for member in samples.iter().flatten() {
+        let size = member.data.len() as u64;
+        put(&ustar::header_block(&member.name, size)?)?;
+        put(&member.data)?;
+        let padding = size.div_ceil(BLOCK) * BLOCK - size;
+        put(&ZEROS[..padding as usize])?;
+        member_records.push(MemberRecord {
+            name: member.name.clone(),
+            offset: offset + BLOCK,
+            bytes: size,
+            blake3: blake3_hex(&member.data),
+        });
+        offset += BLOCK + size + padding;
+    }
+    put(&ZEROS)?;
+    offset += 2 * BLOCK;
+    Ok(ShardRecord {
+        name: name.to_string(),
+        split: split.to_string(),
+        samples: samples.len() as u64,
+        bytes: offset,
+        blake3: hasher.finalize().to_hex().to_string(),
+        first_key,
+        last_key,
+        members: member_records,
+    })
+}
+
+/// Checks what [`build_shard`] requires of its name and samples; returns the first and
+/// last keys.
+fn check_samples(name: &str, samples: &[Vec<Member>]) -> Result<(String, String), ShardError> {
     let bad = |sample: usize, reason: String| ShardError::BadSample {
         shard: name.to_string(),
         sample,
@@ -70,34 +128,7 @@ pub fn build_shard(
         }
         last_key = key.to_string();
     }
-    let members: Vec<Member> = samples.iter().flatten().cloned().collect();
-    let bytes = ustar::tar_bytes(&members)?;
-    let mut offset = BLOCK;
-    let member_records = members
-        .iter()
-        .map(|member| {
-            let size = member.data.len() as u64;
-            let record = MemberRecord {
-                name: member.name.clone(),
-                offset,
-                bytes: size,
-                blake3: blake3_hex(&member.data),
-            };
-            offset += size.div_ceil(BLOCK) * BLOCK + BLOCK;
-            record
-        })
-        .collect();
-    let record = ShardRecord {
-        name: name.to_string(),
-        split: split.to_string(),
-        samples: samples.len() as u64,
-        bytes: bytes.len() as u64,
-        blake3: blake3_hex(&bytes),
-        first_key,
-        last_key,
-        members: member_records,
-    };
-    Ok((bytes, record))
+    Ok((first_key, last_key))
 }
 
 /// Counts samples the way WebDataset readers do: a new sample starts whenever a

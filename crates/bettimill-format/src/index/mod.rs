@@ -35,7 +35,7 @@ mod stream;
 mod tests;
 mod wids;
 
-pub use build::{build_shard, count_samples};
+pub use build::{build_shard, count_samples, write_shard};
 pub use error::{IndexError, IndexRefusal};
 pub use stream::{read_index, read_index_from, IndexWriter, MAX_INDEX_SPLITS};
 pub use wids::{wids_index, WidsWriter};

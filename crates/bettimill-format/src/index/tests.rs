@@ -44,6 +44,48 @@ fn record_matches_the_tar() {
 }
 
 #[test]
+fn a_streamed_shard_is_the_tar_of_its_members_byte_for_byte() {
+    // Sizes around the block boundaries: empty, one byte, a block, a block and one.
+    let sizes = [0usize, 1, 511, 512, 513, 1024, 3000];
+    let samples: Vec<Vec<Member>> = sizes
+        .iter()
+        .enumerate()
+        .map(|(i, &size)| {
+            ["json", "npy"]
+                .iter()
+                .map(|field| Member {
+                    name: format!("s{i:06}.{field}"),
+                    data: (0..size).map(|b| (b * 31 + i) as u8).collect(),
+                })
+                .collect()
+        })
+        .collect();
+    let name = "shards/t-000000.tar";
+    let mut streamed = Vec::new();
+    let record = write_shard(
+        name,
+        "train",
+        &samples,
+        &mut streamed,
+        std::path::Path::new("t"),
+    )
+    .unwrap();
+    let flat: Vec<Member> = samples.iter().flatten().cloned().collect();
+    assert_eq!(streamed, ustar::tar_bytes(&flat).unwrap());
+    assert_eq!(
+        build_shard(name, "train", &samples).unwrap(),
+        (streamed.clone(), record.clone())
+    );
+    assert_eq!(record.bytes, streamed.len() as u64);
+    assert_eq!(record.blake3, blake3_hex(&streamed));
+    // A sample that would be refused writes nothing.
+    let mut out = Vec::new();
+    let twice = vec![samples[0].clone(), samples[0].clone()];
+    assert!(write_shard(name, "train", &twice, &mut out, std::path::Path::new("t")).is_err());
+    assert!(out.is_empty());
+}
+
+#[test]
 fn badly_grouped_samples_are_refused() {
     let name = "shards/x-000000.tar";
     let check = |samples: Vec<Vec<Member>>| build_shard(name, "train", &samples);
