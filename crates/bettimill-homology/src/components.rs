@@ -55,11 +55,8 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
         let base = row * row_len;
         let x = v - base;
         let line = &mut mark[base..base + row_len];
-        let lo = line[..x].iter().rposition(|&m| m != 1).map_or(0, |p| p + 1);
-        let hi = line[x..]
-            .iter()
-            .position(|&m| m != 1)
-            .map_or(row_len, |p| x + p);
+        let lo = last_not_one(&line[..x]).map_or(0, |p| p + 1);
+        let hi = first_not_one(&line[x..]).map_or(row_len, |p| x + p);
         line[lo..hi].fill(2);
         (base + lo, base + hi)
     };
@@ -67,10 +64,9 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
     // Runs filled whose neighbouring rows are still to scan: each run enters once, so the
     // stack never holds more than one entry (16 bytes) per run, 8 bytes per voxel at most.
     let mut stack: Vec<(usize, usize)> = Vec::new();
-    for start in 0..mark.len() {
-        if mark[start] != 1 {
-            continue;
-        }
+    let mut start = 0;
+    while let Some(skip) = first_one(&mark[start..]) {
+        start += skip;
         count += 1;
         stack.push(fill_run(&mut mark, start));
         while let Some((first, end)) = stack.pop() {
@@ -98,24 +94,88 @@ pub(crate) fn count_components(image: &BinaryImage, value: u8) -> u64 {
                     next = (next as isize + off[a] as isize * row_strides[a] as isize) as usize;
                 }
                 let next_base = next * row_len;
-                // Most spans are reached already or the other value: one vectorised pass.
-                if !mark[next_base + from..next_base + to].contains(&1) {
-                    continue;
-                }
+                // Most spans are reached already or the other value: a few words each.
                 let mut x = from;
-                while x < to {
-                    if mark[next_base + x] == 1 {
-                        let run = fill_run(&mut mark, next_base + x);
-                        x = run.1 - next_base;
-                        stack.push(run);
-                    } else {
-                        x += 1;
+                while let Some(skip) = first_one(&mark[next_base + x..next_base + to]) {
+                    let run = fill_run(&mut mark, next_base + x + skip);
+                    x = run.1 - next_base;
+                    stack.push(run);
+                    if x >= to {
+                        break;
                     }
                 }
             }
         }
+        start += 1;
     }
     count
+}
+
+/// A one in every byte of a word.
+const LOW_BYTES: u64 = 0x0101_0101_0101_0101;
+/// The top bit of every byte of a word.
+const HIGH_BITS: u64 = 0x8080_8080_8080_8080;
+
+/// Eight marks (0, 1 or 2) as a word, byte `i` the mark `i`,
+/// xored with ones: a byte is zero exactly where the mark is 1.
+#[inline]
+fn word_xor_ones(marks: &[u8]) -> u64 {
+    u64::from_le_bytes(marks.try_into().expect("eight bytes")) ^ LOW_BYTES
+}
+
+/// The position of the first mark 1 in `marks`, eight marks a step. The lowest byte the
+/// zero-byte test flags is the first zero byte (its borrows only run upwards).
+#[inline]
+fn first_one(marks: &[u8]) -> Option<usize> {
+    let mut chunks = marks.chunks_exact(8);
+    let mut at = 0;
+    for chunk in &mut chunks {
+        let word = word_xor_ones(chunk);
+        let zero = word.wrapping_sub(LOW_BYTES) & !word & HIGH_BITS;
+        if zero != 0 {
+            return Some(at + zero.trailing_zeros() as usize / 8);
+        }
+        at += 8;
+    }
+    chunks
+        .remainder()
+        .iter()
+        .position(|&m| m == 1)
+        .map(|p| at + p)
+}
+
+/// The position of the first mark other than 1 in `marks`, eight marks a step.
+#[inline]
+fn first_not_one(marks: &[u8]) -> Option<usize> {
+    let mut chunks = marks.chunks_exact(8);
+    let mut at = 0;
+    for chunk in &mut chunks {
+        let word = word_xor_ones(chunk);
+        if word != 0 {
+            return Some(at + word.trailing_zeros() as usize / 8);
+        }
+        at += 8;
+    }
+    chunks
+        .remainder()
+        .iter()
+        .position(|&m| m != 1)
+        .map(|p| at + p)
+}
+
+/// The position of the last mark other than 1 in `marks`, eight marks a step from the end.
+#[inline]
+fn last_not_one(marks: &[u8]) -> Option<usize> {
+    let mut chunks = marks.rchunks_exact(8);
+    let mut end = marks.len();
+    for chunk in &mut chunks {
+        let word = word_xor_ones(chunk);
+        if word != 0 {
+            return Some(end - 1 - word.leading_zeros() as usize / 8);
+        }
+        end -= 8;
+    }
+    chunks.remainder().iter().rposition(|&m| m != 1)
 }
 
 /// The number of components of `voxels` (flat indices into `data` of voxels whose byte is
@@ -148,4 +208,42 @@ pub(crate) fn count_components_of(data: &mut [u8], voxels: &[u32], steps: &[isiz
         data[v as usize] = 1;
     }
     count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn word_searches_agree_with_plain_ones() {
+        let mut state = 7u64;
+        for len in 0..40 {
+            for _ in 0..50 {
+                let marks: Vec<u8> = (0..len)
+                    .map(|_| {
+                        state = state
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        // Mostly one value, as rows are.
+                        [0, 1, 1, 1, 2, 1, 0, 0][(state >> 61) as usize]
+                    })
+                    .collect();
+                assert_eq!(
+                    first_one(&marks),
+                    marks.iter().position(|&m| m == 1),
+                    "{marks:?}"
+                );
+                assert_eq!(
+                    first_not_one(&marks),
+                    marks.iter().position(|&m| m != 1),
+                    "{marks:?}"
+                );
+                assert_eq!(
+                    last_not_one(&marks),
+                    marks.iter().rposition(|&m| m != 1),
+                    "{marks:?}"
+                );
+            }
+        }
+    }
 }
