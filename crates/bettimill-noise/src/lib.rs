@@ -96,6 +96,27 @@ fn split(x: f64) -> (usize, f64) {
     ((f as i64 & 255) as usize, x - f)
 }
 
+/// One coordinate of a noise point as the noise uses it: the lattice cell (wrapped to
+/// 0..256), the fractional position inside it, and that position faded.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Axis {
+    cell: usize,
+    frac: f64,
+    fade: f64,
+}
+
+impl Axis {
+    #[inline]
+    fn of(x: f64) -> Axis {
+        let (cell, frac) = split(x);
+        Axis {
+            cell,
+            frac,
+            fade: fade(frac),
+        }
+    }
+}
+
 #[inline]
 fn grad2(hash: u8, x: f64, y: f64) -> f64 {
     const S: f64 = core::f64::consts::SQRT_2;
@@ -221,9 +242,13 @@ impl Perlin {
 
     /// 2D Improved Noise. Zero at every integer lattice point.
     pub fn noise2(&self, x: f64, y: f64) -> f64 {
-        let (xi, x) = split(x);
-        let (yi, y) = split(y);
-        let (u, v) = (fade(x), fade(y));
+        self.noise2_axes(Axis::of(x), Axis::of(y))
+    }
+
+    #[inline]
+    fn noise2_axes(&self, x: Axis, y: Axis) -> f64 {
+        let (xi, u, x) = (x.cell, x.fade, x.frac);
+        let (yi, v, y) = (y.cell, y.fade, y.frac);
         lerp(
             v,
             lerp(
@@ -241,10 +266,14 @@ impl Perlin {
 
     /// 3D Improved Noise; with [`Perlin::reference`] this is Perlin's `ImprovedNoise`.
     pub fn noise3(&self, x: f64, y: f64, z: f64) -> f64 {
-        let (xi, x) = split(x);
-        let (yi, y) = split(y);
-        let (zi, z) = split(z);
-        let (u, v, w) = (fade(x), fade(y), fade(z));
+        self.noise3_axes(Axis::of(x), Axis::of(y), Axis::of(z))
+    }
+
+    #[inline]
+    fn noise3_axes(&self, x: Axis, y: Axis, z: Axis) -> f64 {
+        let (xi, u, x) = (x.cell, x.fade, x.frac);
+        let (yi, v, y) = (y.cell, y.fade, y.frac);
+        let (zi, w, z) = (z.cell, z.fade, z.frac);
         let g = |dx: usize, dy: usize, dz: usize| {
             grad3(
                 self.hash3(xi + dx, yi + dy, zi + dz),
@@ -270,23 +299,29 @@ impl Perlin {
 
     /// 4D Improved Noise over the 32 hypercube-edge gradients.
     pub fn noise4(&self, x: f64, y: f64, z: f64, w: f64) -> f64 {
-        let (xi, x) = split(x);
-        let (yi, y) = split(y);
-        let (zi, z) = split(z);
-        let (wi, w) = split(w);
-        let (fx, fy, fz, fw) = (fade(x), fade(y), fade(z), fade(w));
+        self.noise4_axes([Axis::of(x), Axis::of(y), Axis::of(z), Axis::of(w)])
+    }
+
+    #[inline]
+    fn noise4_axes(&self, [x, y, z, w]: [Axis; 4]) -> f64 {
+        let (xi, fx, x) = (x.cell, x.fade, x.frac);
+        let (yi, fy, y) = (y.cell, y.fade, y.frac);
+        let (zi, fz, z) = (z.cell, z.fade, z.frac);
+        let (wi, fw, w) = (w.cell, w.fade, w.frac);
         // Corner c = (dx, dy, dz, dw) in bits 3..0. The hash is built as a tree
         // (p[x] shared by 8 corners, p[p[x] + y] by 4, ...): 30 table reads instead of 64.
+        // Every index is at most 255 + 255 + 1, so `& 511` keeps it and shows the
+        // compiler it is in the table (no bounds checks in the inner loop).
         let p = &self.p;
         let mut values = [0.0f64; 16];
         for dx in 0..2 {
-            let hx = p[xi + dx] as usize;
+            let hx = p[(xi + dx) & 511] as usize;
             for dy in 0..2 {
-                let hy = p[hx + yi + dy] as usize;
+                let hy = p[(hx + yi + dy) & 511] as usize;
                 for dz in 0..2 {
-                    let hz = p[hy + zi + dz] as usize;
+                    let hz = p[(hy + zi + dz) & 511] as usize;
                     for dw in 0..2 {
-                        let hash = p[hz + wi + dw];
+                        let hash = p[(hz + wi + dw) & 511];
                         values[dx << 3 | dy << 2 | dz << 1 | dw] = grad4(
                             hash,
                             [x - dx as f64, y - dy as f64, z - dz as f64, w - dw as f64],
@@ -320,6 +355,16 @@ impl Perlin {
             Dim::Four => self.noise4(point[0], point[1], point[2], point[3]),
         }
     }
+
+    /// [`Perlin::noise`] of a point whose coordinates are split already.
+    #[inline]
+    fn noise_axes(&self, dim: Dim, axes: [Axis; 4]) -> f64 {
+        match dim {
+            Dim::Two => self.noise2_axes(axes[0], axes[1]),
+            Dim::Three => self.noise3_axes(axes[0], axes[1], axes[2]),
+            Dim::Four => self.noise4_axes(axes),
+        }
+    }
 }
 
 /// Fractal (fBm) Improved Noise sampled at voxel coordinates.
@@ -334,7 +379,16 @@ pub struct Fractal {
     frequency: f64,
     octaves: u32,
     normaliser: f64,
+    /// Every octave's [`Axis`] at the voxel coordinates `0..GRID`, octave after octave:
+    /// a point of a voxel grid repeats one coordinate value on every axis and in many
+    /// points, so its split and fade are worked out once here, by the same operations
+    /// [`Fractal::sample`] would do (the same bits).
+    grid: Vec<Axis>,
 }
+
+/// How many voxel coordinates (`0..GRID`) a [`Fractal`] keeps split: the sides of the
+/// images it serves. A point with a coordinate beyond takes the general path.
+const GRID: usize = 256;
 
 impl Fractal {
     /// A fractal noise with a seeded permutation; validates frequency and octaves.
@@ -356,12 +410,19 @@ impl Fractal {
             return Err(NoiseError::BadOctaves(octaves));
         }
         let normaliser = (0..octaves).map(|o| 0.5f64.powi(o as i32)).sum();
+        let mut grid = Vec::with_capacity(octaves as usize * GRID);
+        let mut octave_frequency = frequency;
+        for _ in 0..octaves {
+            grid.extend((0..GRID).map(|c| Axis::of(c as f64 * octave_frequency)));
+            octave_frequency *= 2.0;
+        }
         Ok(Fractal {
             perlin,
             dim,
             frequency,
             octaves,
             normaliser,
+            grid,
         })
     }
 
@@ -373,6 +434,25 @@ impl Fractal {
     /// The fractal value at voxel coordinate `coords` (first `dim` entries used).
     #[inline]
     pub fn sample(&self, coords: [usize; 4]) -> f64 {
+        let d = self.dim.get();
+        if coords[..d].iter().all(|&c| c < GRID) {
+            let mut total = 0.0;
+            let mut amplitude = 1.0;
+            for octave in self.grid.chunks_exact(GRID) {
+                let mut axes = [Axis::default(); 4];
+                for a in 0..d {
+                    axes[a] = octave[coords[a]];
+                }
+                total += amplitude * self.perlin.noise_axes(self.dim, axes);
+                amplitude *= 0.5;
+            }
+            return total / self.normaliser;
+        }
+        self.sample_anywhere(coords)
+    }
+
+    /// [`Fractal::sample`] without the split coordinates: the definition, for any point.
+    fn sample_anywhere(&self, coords: [usize; 4]) -> f64 {
         let mut total = 0.0;
         let mut amplitude = 1.0;
         let mut frequency = self.frequency;

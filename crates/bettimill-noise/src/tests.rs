@@ -244,3 +244,21 @@ fn branch_free_gradient_is_the_textbook_one_bit_for_bit() {
         }
     }
 }
+
+#[test]
+fn split_grid_coordinates_give_the_definitions_bits() {
+    // Coordinates on both sides of the grid's end, frequencies that are and are not
+    // powers of two, one octave and many, every dimension.
+    let mut rng = ChaCha8Rng::seed_from_u64(17);
+    for dim in [Dim::Two, Dim::Three, Dim::Four] {
+        for (frequency, octaves) in [(1.0 / 16.0, 3), (0.137, 1), (0.3, 5), (0.0625, 24)] {
+            let fractal = Fractal::new(dim, rng.gen(), frequency, octaves).unwrap();
+            for _ in 0..200 {
+                let coords: [usize; 4] = std::array::from_fn(|_| rng.gen_range(0..GRID + 8));
+                let split = fractal.sample(coords);
+                let plain = fractal.sample_anywhere(coords);
+                assert_eq!(split.to_bits(), plain.to_bits(), "{dim:?} {coords:?}");
+            }
+        }
+    }
+}
