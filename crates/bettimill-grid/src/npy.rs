@@ -706,6 +706,11 @@ pub fn write_bytes(image: &BinaryImage, dtype: Dtype) -> Vec<u8> {
     out.extend_from_slice(&[1, 0]);
     out.extend_from_slice(&(header.len() as u16).to_le_bytes());
     out.extend_from_slice(header.as_bytes());
+    if dtype.size == 1 {
+        // A voxel is its own element: one copy of the data.
+        out.extend_from_slice(image.data());
+        return out;
+    }
     for &v in image.data() {
         let mut element = [0u8; 8];
         if dtype.big_endian {
