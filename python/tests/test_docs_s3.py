@@ -88,7 +88,7 @@ def aws(server, monkeypatch, tmp_path):
     return f"s3://{bucket}/{prefix}", pairs
 
 
-def test_the_bucket_snippets_of_python_md_run_as_written(aws):
+def test_the_bucket_snippets_of_python_md_run_as_written(aws, tmp_path):
     url, _ = aws
     if shutil.which("bettimill") is None:
         _unavailable("no `bettimill` on PATH for the snippets' `bettimill cat` (install the package)")
@@ -117,7 +117,7 @@ def test_the_bucket_snippets_of_python_md_run_as_written(aws):
     assert first["__key__"] == "s000000"
     assert first["json"]["betti"] == sample["label"]["betti"]
     assert first["json"]["shape"] == sample["label"]["shape"]
-    downloads = Path(os.environ["HF_HOME"]) / "datasets" / "downloads"
+    downloads = tmp_path / "hf" / "datasets" / "downloads"   # HF_HOME, set by the fixture
     assert not downloads.exists() or not any(downloads.iterdir()), list(downloads.iterdir())
     assert namespace["report"]["shards_checked"] == 4
 
