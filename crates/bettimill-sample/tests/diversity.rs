@@ -9,6 +9,8 @@
 //! - In carve mode, a voxel of the solid farther from every cavity than the deformation's
 //!   reach (`bettimill_deform::reach`, summed over the steps a label records) is the same
 //!   as in the construction.
+//! - The components of one binned sample differ in size: a scene's voxel count is shared
+//!   among its objects over a wide range.
 //!
 //! Every sample comes from `make_sample`, so each one is also verified.
 
@@ -335,5 +337,81 @@ bins = [[0.03, 0.06]]
     assert!(
         middle >= 4,
         "{middle} of 24 in the bin's middle third: {counts:?}"
+    );
+}
+
+/// The sizes of the 26-connected components of a 3D foreground, largest first.
+fn component_sizes(image: &[u8], side: usize) -> Vec<usize> {
+    let mut seen = vec![false; image.len()];
+    let mut sizes = Vec::new();
+    for start in 0..image.len() {
+        if image[start] == 0 || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let (mut stack, mut size) = (vec![start], 0);
+        while let Some(i) = stack.pop() {
+            size += 1;
+            let (x, y, z) = (i / (side * side), i / side % side, i % side);
+            for dx in -1i64..=1 {
+                for dy in -1i64..=1 {
+                    for dz in -1i64..=1 {
+                        let (a, b, c) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
+                        let inside = |v: i64| (0..side as i64).contains(&v);
+                        if !(inside(a) && inside(b) && inside(c)) {
+                            continue;
+                        }
+                        let j = (a as usize * side + b as usize) * side + c as usize;
+                        if image[j] != 0 && !seen[j] {
+                            seen[j] = true;
+                            stack.push(j);
+                        }
+                    }
+                }
+            }
+        }
+        sizes.push(size);
+    }
+    sizes.sort_unstable_by(|a, b| b.cmp(a));
+    sizes
+}
+
+#[test]
+fn components_of_one_sample_differ_in_size() {
+    // A scene's voxel count is shared among its objects at random over a wide range, so
+    // one component may be many times another's size (as in shapes made any other way),
+    // not always about as large.
+    let text = r#"
+schema_version = 1
+name = "shares"
+dimension = 3
+side = 32
+mode = "embed"
+samples = 24
+shard_size = 24
+seed = 7
+components = [2]
+
+[[classes]]
+family = "ball"
+
+[hypervolume]
+unit = "fraction"
+bins = [[0.03, 0.05]]
+"#;
+    let (_, samples) = build(text);
+    let mut ratios: Vec<f64> = samples
+        .iter()
+        .map(|s| {
+            let sizes = component_sizes(s.image.data(), 32);
+            assert_eq!(sizes.len(), 2, "{}: {sizes:?}", s.label.key);
+            sizes[0] as f64 / sizes[1] as f64
+        })
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    let at_least = |r: f64| ratios.iter().filter(|&&x| x >= r).count();
+    assert!(
+        at_least(3.0) >= 6 && at_least(1.5) >= 12,
+        "size ratios of the two components: {ratios:?}"
     );
 }

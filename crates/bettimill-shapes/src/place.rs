@@ -25,6 +25,12 @@ use serde_json::{json, Value};
 /// Background voxels kept between two objects, and between an object and the border.
 pub(crate) const GAP: i64 = 2;
 
+/// The largest ratio between two objects' shares of a scene's voxel count. Components
+/// of one sample range from a few voxels to most of the count, as they do in shapes made
+/// any other way; shares within a factor of two would teach a network that the
+/// components of one image are alike in size.
+const SHARE_RATIO: f64 = 16.0;
+
 /// Background layers around the solid cube in carve mode.
 pub(crate) const CUBE_MARGIN: i64 = 1;
 
@@ -659,9 +665,13 @@ pub(crate) fn place_objects(
     order.sort_by(|&a, &b| minima[b].total_cmp(&minima[a]).then(a.cmp(&b)));
     let sorted_objects: Vec<Family> = order.iter().map(|&k| objects[k].clone()).collect();
     let sorted_minima: Vec<f64> = order.iter().map(|&k| minima[k]).collect();
-    // Each object's part of the volume: random shares, drawn once for every round.
+    // Each object's part of the volume: random shares, drawn once for every round,
+    // log-uniform so that one object may be up to SHARE_RATIO times another's size.
     let volumes: Option<Vec<f64>> = volume.map(|total| {
-        let raw: Vec<f64> = (0..count).map(|_| uniform(rng, 0.5, 1.0)).collect();
+        let low = -libm::log(SHARE_RATIO);
+        let raw: Vec<f64> = (0..count)
+            .map(|_| libm::exp(uniform(rng, low, 0.0)))
+            .collect();
         let sum: f64 = raw.iter().sum();
         raw.iter().map(|x| total * x / sum).collect()
     });
