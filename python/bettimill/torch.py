@@ -9,7 +9,8 @@ Only this module imports torch (``pip install "bettimill[torch]"``).
   samples on one thread unless ``bettimill.set_threads`` was called.
 - ``Conv4d``: a 4D convolution assembled from ``Conv3d`` (one per kernel offset along the
   first spatial axis), with padding, stride, dilation and bias.
-- ``BettiNet4d``: a small 4D CNN that predicts each Betti number as a class (0..max).
+- ``BettiNet4d``: a small 4D CNN (four blocks, batch normalisation) that predicts each Betti
+  number as a class (0..max).
 """
 
 import os
@@ -140,9 +141,27 @@ class Conv4d(nn.Module):
         return out.contiguous()
 
 
+class _ChannelNorm(nn.Module):
+    """Batch normalisation of each channel over the batch and every spatial axis (any
+    number of them): ``nn.BatchNorm1d`` on the flattened voxels."""
+
+    def __init__(self, channels):
+        super().__init__()
+        self.norm = nn.BatchNorm1d(channels)
+
+    def forward(self, x):
+        return self.norm(x.flatten(2)).view(x.shape)
+
+
 class BettiNet4d(nn.Module):
-    """A small 4D CNN: three ``Conv4d`` blocks (each of stride 2), global max and mean pooling, and
-    one classification head per Betti number (``b_k`` in ``0..max_betti``).
+    """A small 4D CNN: four ``Conv4d`` blocks (strides 2, 2, 1, 2; widths ``width``,
+    ``2 width``, ``4 width``, ``4 width``; each convolution followed by batch normalisation and
+    ReLU), global max and mean pooling, and one classification head per Betti number
+    (``b_k`` in ``0..max_betti``).
+
+    The third block keeps the resolution: a fourth block of reach where the picture is a
+    quarter of the input's side, where a block is cheap (``benches/learnability.py``
+    measures the model on kinds of shapes it never saw).
 
     ``forward`` returns logits ``[N, dimension, max_betti + 1]``; train with cross entropy
     against the label's Betti vector (values above ``max_betti`` clipped by the caller).
@@ -154,8 +173,8 @@ class BettiNet4d(nn.Module):
         self.max_betti = max_betti
         layers = []
         channels = 1
-        for i, out in enumerate((width, 2 * width, 2 * width)):
-            layers += [Conv4d(channels, out, 3, stride=2, padding=1), nn.ReLU()]
+        for stride, out in zip((2, 2, 1, 2), (width, 2 * width, 4 * width, 4 * width)):
+            layers += [Conv4d(channels, out, 3, stride=stride, padding=1, bias=False), _ChannelNorm(out), nn.ReLU()]
             channels = out
         self.features = nn.Sequential(*layers)
         self.head = nn.Linear(2 * channels, dimension * (max_betti + 1))
