@@ -137,12 +137,6 @@ impl EnvVars {
     #[doc(hidden)]
     pub const SHAPES_RATE_COUNT: &'static str = "SHAPES_RATE_COUNT";
 
-    /// Internal, read by the Python tests (`python/tests/test_docs_s3.py`): the Hugging Face
-    /// cache the test points at a temporary directory, to show that streaming from a bucket
-    /// stores no shard there.
-    #[doc(hidden)]
-    pub const HF_HOME: &'static str = "HF_HOME";
-
     /// Internal, read by the Python tests (`python/tests/conftest.py`): the `bettimill`
     /// binary the CLI tests run (default: the one on `PATH`).
     #[doc(hidden)]
