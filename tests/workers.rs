@@ -73,9 +73,9 @@ fn one_and_two_workers_build_identical_bytes() {
 #[test]
 fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identical() {
     let tmp = Dir::new();
-    // Shards of twenty-four 4D samples are slow enough for the kill to land inside a shard
-    // (about 0.03 CPU-s per sample, so a shard takes several times the 15 ticks below).
-    let m = manifest(tmp.path(), 4, 32, 48, 24);
+    // Shards of forty-eight 4D samples are slow enough for the kill to land inside a shard
+    // (a shard takes several times the 15 ticks below).
+    let m = manifest(tmp.path(), 4, 32, 96, 48);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
 
@@ -317,7 +317,8 @@ fn spawn_build_with_timeout_env(
 #[test]
 fn a_frozen_worker_is_killed_after_the_worker_timeout_and_the_build_is_identical() {
     let tmp = Dir::new();
-    let m = manifest(tmp.path(), 4, 32, 24, 12);
+    // Shards long enough for the worker to be stopped inside its first one, as above.
+    let m = manifest(tmp.path(), 4, 32, 96, 48);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
 
