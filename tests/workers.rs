@@ -75,7 +75,7 @@ fn a_worker_killed_in_the_middle_of_a_shard_is_replaced_and_the_build_is_identic
     let tmp = Dir::new();
     // Shards of forty-eight 4D samples are slow enough for the kill to land inside a shard
     // (a shard takes several times the 15 ticks below).
-    let m = manifest(tmp.path(), 4, 32, 96, 48);
+    let m = manifest(tmp.path(), 4, 48, 96, 48);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
 
@@ -318,7 +318,7 @@ fn spawn_build_with_timeout_env(
 fn a_frozen_worker_is_killed_after_the_worker_timeout_and_the_build_is_identical() {
     let tmp = Dir::new();
     // Shards long enough for the worker to be stopped inside its first one, as above.
-    let m = manifest(tmp.path(), 4, 32, 96, 48);
+    let m = manifest(tmp.path(), 4, 48, 96, 48);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 1).status.code(), Some(0));
 
