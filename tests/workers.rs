@@ -154,7 +154,8 @@ fn a_coordinator_killed_between_write_and_rename_leaves_nothing_visible_and_resu
 #[test]
 fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
     let tmp = Dir::new();
-    // 12 one-sample 4D shards: slow enough that each kill lands inside the build.
+    // 12 one-sample 4D shards, each held 0.3 s before its rename (the samples alone are
+    // too quick to be caught), so that each kill lands inside the build.
     let m = manifest(tmp.path(), 4, 24, 12, 1);
     let clean = tmp.path().join("clean");
     assert_eq!(build(&m, &clean, 2).status.code(), Some(0));
@@ -172,7 +173,12 @@ fn a_coordinator_killed_at_several_points_resumes_to_identical_bytes() {
     let mut complete_counts = Vec::new();
     // Kill once the workers are up, then after 2, 5 and 8 complete shards.
     for target in [0usize, 2, 5, 8] {
-        let coordinator = spawn_build(&m, &out, 2, &[]);
+        let coordinator = spawn_build(
+            &m,
+            &out,
+            2,
+            &[("BETTIMILL_TEST_PAUSE_BEFORE_RENAME", "0.3")],
+        );
         wait_until("workers and progress", Duration::from_secs(60), || {
             children(coordinator.id()).len() == 2 && records(&out) >= target
         });
