@@ -7,7 +7,8 @@
 //!
 //! ```text
 //! cpu = voxels x NS_PER_VOXEL[d][mode] x (binned ? BINNED_FACTOR[d] : 1)
-//!           (binned carve in the full cube: CUBE_BINNED_FACTOR[d] instead)
+//!           (binned carve in the full cube: CUBE_BINNED_NS[d] instead of the product,
+//!           growing with the cavities' share of the cube)
 //!           x (1 + COPY_WEIGHT x (components - 1))
 //!     + deformation: per step, voxels x DEFORM_SCAN_NS (one scan for the frontier)
 //!       + the step's own work: moves x DEFORM_NS_PER_MOVE, or iterations x kept share x
@@ -18,7 +19,9 @@
 //!     + SAMPLE_FIXED_SECONDS
 //! ```
 //!
-//! and a build costs [`BUILD_FIXED_SECONDS`] on top (the process, the plan, the workers).
+//! and a build costs [`BUILD_FIXED_SECONDS`] on top (the process, the plan, the workers),
+//! and [`SIMPLE_TABLE_SECONDS`] for each worker process of a plan that deforms
+//! (the table of simple points that process builds once).
 //! The family's own parts (a connected sum's summands) measure no extra cost (a big ball's
 //! cavity costs more than a connected sum's), so only the copies of a scene count.
 //! `NS_PER_VOXEL` includes generating, targeting, verifying (the homology), labelling and
@@ -42,8 +45,10 @@ use bettimill_grid::Mode;
 use bettimill_shard::Compression;
 
 /// CPU nanoseconds per voxel of one sample (side^d), by dimension (2D, 3D, 4D) and mode
-/// (embed, carve), one worker, measured at sides 128 (2D), 64 (3D), 32-64 (4D).
-pub const NS_PER_VOXEL: [[f64; 2]; 3] = [[51.0, 81.0], [34.0, 105.0], [39.0, 46.0]];
+/// (embed, carve), one worker, measured at sides 128 (2D), 64 (3D), 32-48 (4D). A carved
+/// cube is verified on the box around its cavities and an embedded image on the box around
+/// its objects, so most of a large image costs only its generation and compression.
+pub const NS_PER_VOXEL: [[f64; 2]; 3] = [[10.0, 12.0], [7.0, 8.0], [8.0, 4.5]];
 
 /// Factor on [`NS_PER_VOXEL`] for a stratum brought into a hypervolume bin, by dimension:
 /// binned samples are sized for their bin (the box and cavities are chosen to land in it),
@@ -51,14 +56,15 @@ pub const NS_PER_VOXEL: [[f64; 2]; 3] = [[51.0, 81.0], [34.0, 105.0], [39.0, 46.
 /// the reduced 4D mixed 128 preset). 2D is not calibrated: the 3D factor is used.
 pub const BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.5];
 
-/// Factor on [`NS_PER_VOXEL`] for a binned carve stratum in the full cube (the default
-/// solid): the cavities take about 1% of the image, so the homology of the mostly solid
-/// cube and the targeting cost far less than in a box sized for the bin (and a carved cube
-/// is verified on the box around its cavities). Calibrated on the 4D mixed 128 preset
-/// reduced to 8 samples (`ci/bench-4d-mixed-128.sh`) without its deformations, so that
-/// the deformation terms below are measured apart; 2D and 3D are not calibrated and use
-/// [`BINNED_FACTOR`].
-pub const CUBE_BINNED_FACTOR: [f64; 3] = [0.65, 0.65, 0.14];
+/// CPU nanoseconds per voxel of the image for a binned carve stratum in the full cube (the
+/// default solid), by dimension: `base + slope x share`, `share` the cavities' part of the
+/// cube (the part inside the empty border less the bin's middle). The work follows the
+/// cavities: the homology is computed on the box around them, and targeting and
+/// deformation move their boundary. Calibrated on the 4D mixed 128 preset reduced to 8
+/// samples without its deformations (cavities about 0.6% of the cube: 1.7 CPU-s a sample)
+/// and on 3D and 4D side-64 balls in a bin of 55-65% (cavities near 30%: 40 and 50 ns a
+/// voxel); 2D is not calibrated and uses 3D's.
+pub const CUBE_BINNED_NS: [(f64, f64); 3] = [(1.0, 125.0), (1.0, 125.0), (1.0, 170.0)];
 
 /// Extra cost of each copy past the first in a scene of `components` copies (calibrated on
 /// a 4D 48 carved handle with one and two copies).
@@ -67,8 +73,8 @@ pub const COPY_WEIGHT: f64 = 0.4;
 /// CPU nanoseconds per voxel of the image for one deformation step's scan for its frontier.
 /// The scan covers the box around the phase being deformed, not the whole image; in the
 /// calibration (the reduced 4D mixed 128 preset, cavities of about 1% of the cube) that box
-/// costs about a quarter of a whole-image scan.
-pub const DEFORM_SCAN_NS: f64 = 0.25;
+/// costs a fraction of a whole-image scan.
+pub const DEFORM_SCAN_NS: f64 = 0.15;
 
 /// CPU nanoseconds per move, by dimension (2D, 3D, 4D).
 pub const DEFORM_NS_PER_MOVE: [f64; 3] = [2_000.0, 4_000.0, 8_000.0];
@@ -76,11 +82,17 @@ pub const DEFORM_NS_PER_MOVE: [f64; 3] = [2_000.0, 4_000.0, 8_000.0];
 /// CPU nanoseconds per frontier voxel of one dilation or erosion iteration (its noise and
 /// its simple-point test), by dimension, with the frontier taken as `side^(d-1)` voxels
 /// (4D: the reduced 4D mixed 128 preset with and without its deformations).
-pub const DEFORM_NS_PER_FRONTIER_VOXEL: [f64; 3] = [300.0, 400.0, 150.0];
+pub const DEFORM_NS_PER_FRONTIER_VOXEL: [f64; 3] = [300.0, 400.0, 75.0];
 
 /// CPU nanoseconds per tentacle or walker step (the simple-point tests of a ball of
 /// radius 1), by dimension.
 pub const DEFORM_NS_PER_WALK_STEP: [f64; 3] = [1_000.0, 2_000.0, 4_000.0];
+
+/// CPU seconds a worker process spends once on the table of simple points of its dimension
+/// when its plan deforms (3D: every configuration of a 3x3x3 neighbourhood; 2D
+/// and 4D have no such table). Measured: demo-3d's 24 and 240 samples cost 2.83 and 2.91
+/// CPU-s with one worker.
+pub const SIMPLE_TABLE_SECONDS: [f64; 3] = [0.0, 2.8, 0.0];
 
 /// CPU nanoseconds per voxel of each downscaled copy (pooling, its homology, compressing).
 pub const DOWNSCALE_NS_PER_VOXEL: f64 = 60.0;
@@ -89,9 +101,9 @@ pub const DOWNSCALE_NS_PER_VOXEL: f64 = 60.0;
 pub const SAMPLE_FIXED_SECONDS: f64 = 0.000_05;
 
 /// CPU seconds of one build that do not depend on its samples: starting the process and
-/// its workers, planning, the index and the dataset card (demo-2d: 240 samples of 32^2 in
-/// 0.05 CPU-s in all).
-pub const BUILD_FIXED_SECONDS: f64 = 0.03;
+/// its workers, planning, the index and the dataset card (a one-sample 2D build takes
+/// under 0.005 CPU-s in all).
+pub const BUILD_FIXED_SECONDS: f64 = 0.005;
 
 /// Compressed bytes per voxel of an array's boundary (side^(d-1)), by compression (gzip,
 /// zstd), dimension (2D, 3D, 4D) and mode (embed, carve).
@@ -129,7 +141,8 @@ pub struct StratumEstimate {
 pub struct Estimate {
     /// Per stratum, in [`Plan::strata`] order.
     pub strata: Vec<StratumEstimate>,
-    /// CPU seconds of every sample together, plus [`BUILD_FIXED_SECONDS`].
+    /// CPU seconds of every sample together, plus [`BUILD_FIXED_SECONDS`] and one worker's
+    /// [`SIMPLE_TABLE_SECONDS`].
     pub cpu_seconds: f64,
     /// Mean CPU seconds of one sample (over the plan's samples).
     pub cpu_seconds_per_sample: f64,
@@ -145,6 +158,16 @@ impl Estimate {
     /// Wall seconds on `cores` cores (or workers), samples spread evenly over them.
     pub fn wall_seconds(&self, cores: u64) -> f64 {
         wall_seconds(self.cpu_seconds, cores, self.samples)
+    }
+}
+
+/// The model's CPU seconds of one worker's table of simple points (see
+/// [`SIMPLE_TABLE_SECONDS`]): a plan that does not deform needs none.
+fn simple_table_seconds(plan: &Plan) -> f64 {
+    if plan.deform.is_some() {
+        SIMPLE_TABLE_SECONDS[plan.dimension.get() - 2]
+    } else {
+        0.0
     }
 }
 
@@ -181,7 +204,7 @@ pub fn estimate(plan: &Plan) -> Estimate {
     let compressed = compressed.saturating_add(plan.shard_count().saturating_mul(1024));
     Estimate {
         strata,
-        cpu_seconds: sample_cpu + BUILD_FIXED_SECONDS,
+        cpu_seconds: sample_cpu + BUILD_FIXED_SECONDS + simple_table_seconds(plan),
         cpu_seconds_per_sample: if plan.samples == 0 {
             0.0
         } else {
@@ -209,11 +232,14 @@ pub fn sample_cpu_seconds(plan: &Plan, stratum: &Stratum) -> f64 {
     let d = plan.dimension.get() - 2;
     let volume = voxels(plan, plan.side);
     let mut ns = NS_PER_VOXEL[d][mode_index(stratum.mode)];
-    if stratum.hypervolume.is_some() {
-        ns *= if stratum.mode == Mode::Carve && plan.solid == bettimill_types::Solid::Cube {
-            CUBE_BINNED_FACTOR[d]
+    if let Some((lo, hi)) = stratum.hypervolume {
+        ns = if stratum.mode == Mode::Carve && plan.solid == bettimill_types::Solid::Cube {
+            let inside = ((plan.side as f64 - 2.0) / plan.side as f64).powi(d as i32 + 2);
+            let share = (inside - (lo as f64 + hi as f64) / 2.0 / volume).max(0.0);
+            let (base, slope) = CUBE_BINNED_NS[d];
+            base + slope * share
         } else {
-            BINNED_FACTOR[d]
+            ns * BINNED_FACTOR[d]
         };
     }
     ns *= 1.0 + COPY_WEIGHT * (stratum.components.max(1) - 1) as f64;
@@ -340,8 +366,10 @@ mod tests {
             "[hypervolume]\nunit = \"fraction\"\nbins = [[0.55, 0.65]]\n",
             ball,
         ));
-        assert!(carve > 2.0 * embed, "carve {carve} embed {embed}");
-        assert!(binned < carve && binned > embed, "binned {binned}");
+        assert!(carve > embed, "carve {carve} embed {embed}");
+        // Cavities of about a third of the cube (the bin's middle) cost far more than an
+        // unbinned ball's cavity: the work follows the cavities.
+        assert!(binned > 3.0 * carve, "binned {binned} carve {carve}");
         let single = per_sample(&manifest(4, 32, "carve", "", "family = \"handle\""));
         let double = per_sample(&manifest(
             4,
