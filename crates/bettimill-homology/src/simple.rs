@@ -20,16 +20,17 @@
 //! stored in the same bit layout as configurations (bit k = the face of neighbour k in
 //! [`full_offsets`] order), so A(x) and its Euler characteristic are a few word operations.
 //!
-//! Answers come from a 256-entry table in 2D, a 2^26-bit (8 MiB) table in 3D built once per
-//! process on first use (about a second on two cores), and direct evaluation in 4D where a
-//! table (2^80 entries) is impossible. [`SimpleCache`] memoises the answers for loops that
+//! Answers come from a 256-entry table in 2D, a 2^26-bit (8 MiB) table in 3D shared by the
+//! process and filled 64 configurations at a time as they are first asked for (a build or a
+//! loader worker meets a small part of the 2^26, so it pays for that part only), and direct
+//! evaluation in 4D where a table (2^80 entries) is impossible. [`SimpleCache`] memoises the answers for loops that
 //! ask many times (thinning here, the editing loops of `bettimill-deform`): the one memo of
 //! the workspace, so every caller keys and hashes it the same way (the thinning's keys,
 //! read from its block in column order, are marked apart: `SimpleTester::column_key`).
 
 use bettimill_grid::neighbourhood::{full_offsets, is_interior};
 use bettimill_grid::{BinaryImage, Dim};
-use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 
 /// A direct-mapped memo of the simple-point test, keyed by what simplicity depends on (in
@@ -181,7 +182,48 @@ fn by_bytes(low: &[[u64; 256]], high: &[[u16; 256]], bits: u128) -> u128 {
 }
 
 /// The 3D table is 8 MiB and identical for every tester, so one copy serves the process.
-static TABLE_3D: OnceLock<Vec<u64>> = OnceLock::new();
+static TABLE_3D: OnceLock<LazyTable> = OnceLock::new();
+
+/// The 3D table's 2^26 answers, one bit each, in words of 64 configurations that are
+/// evaluated when one of them is first asked for. `filled` has one bit per word. A word
+/// is a pure function of its index, so threads that fill the same word at once store the
+/// same bits; a reader that sees a word's `filled` bit (acquire) sees its bits (the writer
+/// sets the flag with release after storing them).
+struct LazyTable {
+    words: Vec<AtomicU64>,
+    filled: Vec<AtomicU64>,
+}
+
+impl LazyTable {
+    const WORDS: usize = (1 << 26) / 64;
+
+    fn new() -> LazyTable {
+        LazyTable {
+            words: (0..Self::WORDS).map(|_| AtomicU64::new(0)).collect(),
+            filled: (0..Self::WORDS / 64).map(|_| AtomicU64::new(0)).collect(),
+        }
+    }
+
+    #[inline]
+    fn get(&self, tables: &Tables, config: u128) -> bool {
+        let word = (config >> 6) as usize;
+        let (slot, flag) = (word >> 6, 1u64 << (word & 63));
+        let bits = if self.filled[slot].load(Ordering::Acquire) & flag != 0 {
+            self.words[word].load(Ordering::Relaxed)
+        } else {
+            let mut bits = 0u64;
+            for low in 0..64u128 {
+                if tables.evaluate(((word as u128) << 6) | low) {
+                    bits |= 1 << low;
+                }
+            }
+            self.words[word].store(bits, Ordering::Relaxed);
+            self.filled[slot].fetch_or(flag, Ordering::Release);
+            bits
+        };
+        bits >> (config & 63) & 1 == 1
+    }
+}
 
 impl Tables {
     fn build(dim: Dim) -> Tables {
@@ -495,28 +537,14 @@ impl Tables {
     }
 }
 
-fn table_3d(tables: &Tables) -> &'static [u64] {
-    TABLE_3D.get_or_init(|| {
-        let words = (1usize << 26) / 64;
-        (0..words)
-            .into_par_iter()
-            .map(|word| {
-                let mut bits = 0u64;
-                for low in 0..64u128 {
-                    if tables.evaluate(((word as u128) << 6) | low) {
-                        bits |= 1 << low;
-                    }
-                }
-                bits
-            })
-            .collect()
-    })
+fn table_3d() -> &'static LazyTable {
+    TABLE_3D.get_or_init(LazyTable::new)
 }
 
 impl SimpleTester {
     /// The tables for `dim`: built on the process's first call for that dimension (a pure
     /// function of the dimension), shared by the later ones (every sample a build verifies
-    /// or deforms asks for them again). The 3D bitset is built on first use.
+    /// or deforms asks for them again). The 3D bitset fills as it is asked.
     pub fn new(dim: Dim) -> SimpleTester {
         static TESTERS: [OnceLock<SimpleTester>; 3] = [const { OnceLock::new() }; 3];
         TESTERS[dim.get() - 2]
@@ -699,7 +727,7 @@ impl SimpleTester {
                     .expect("2D tables carry their table");
                 table[(config >> 6) as usize] >> (config & 63) & 1 == 1
             }
-            Dim::Three => table_3d(tables)[(config >> 6) as usize] >> (config & 63) & 1 == 1,
+            Dim::Three => table_3d().get(tables, config),
             Dim::Four => tables.evaluate(config),
         }
     }

@@ -88,11 +88,12 @@ pub const DEFORM_NS_PER_FRONTIER_VOXEL: [f64; 3] = [300.0, 400.0, 75.0];
 /// radius 1), by dimension.
 pub const DEFORM_NS_PER_WALK_STEP: [f64; 3] = [1_000.0, 2_000.0, 4_000.0];
 
-/// CPU seconds a worker process spends once on the table of simple points of its dimension
-/// when its plan deforms (3D: every configuration of a 3x3x3 neighbourhood; 2D
-/// and 4D have no such table). Measured: demo-3d's 24 and 240 samples cost 2.83 and 2.91
-/// CPU-s with one worker.
-pub const SIMPLE_TABLE_SECONDS: [f64; 3] = [0.0, 2.8, 0.0];
+/// CPU seconds a worker process spends on the table of simple points of its dimension when
+/// its plan deforms (3D: the table fills 64 configurations at a time as they are met, and
+/// a build meets a small part of them; 2D's table is built whole, at no measurable cost,
+/// and 4D has none). Measured: demo-3d (240 samples of 24^3) and 20 deformed 3D balls of
+/// side 64 spend 0.01-0.15 CPU-s on it.
+pub const SIMPLE_TABLE_SECONDS: [f64; 3] = [0.0, 0.05, 0.0];
 
 /// CPU nanoseconds per voxel of each downscaled copy (pooling, its homology, compressing).
 pub const DOWNSCALE_NS_PER_VOXEL: f64 = 60.0;
