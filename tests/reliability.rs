@@ -1752,6 +1752,30 @@ fn a_workers_memory_for_a_32_4_sample_is_within_the_documented_bound() {
     assert!(worker_peak < bound_kib, "{worker_peak} KiB");
 }
 
+/// A manifest of `samples` balls in one shard, written to DIR/NAME{samples}.toml.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn one_shard_of_balls(
+    dir: &Path,
+    name: &str,
+    dimension: u32,
+    side: u32,
+    mode: &str,
+    compression: &str,
+    samples: u32,
+) -> PathBuf {
+    let path = dir.join(format!("{name}{samples}.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"{name}\"\ndimension = {dimension}\nside = {side}\n\
+             mode = \"{mode}\"\nsamples = {samples}\nshard_size = {samples}\nseed = 5\n\
+             compression = \"{compression}\"\n\n[[classes]]\nfamily = \"ball\"\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
 /// glibc only: its dynamic mmap threshold otherwise keeps freed image-sized blocks in the
 /// heap, which grows by about one image per sample whatever the program holds (see
 /// docs/reliability.md); a fixed threshold takes the allocator out of the measurement.
@@ -1762,19 +1786,7 @@ fn a_worker_holds_compressed_members_not_the_images_of_a_shard() {
     // KiB compressed: a worker that held a shard's images until the tar was written needed
     // ~58 MiB more for 64 samples than for 4; keeping only compressed members, <1 MiB.
     let tmp = Dir::new();
-    let write = |samples: u32| {
-        let path = tmp.path().join(format!("z{samples}.toml"));
-        std::fs::write(
-            &path,
-            format!(
-                "schema_version = 1\nname = \"z\"\ndimension = 4\nside = 32\nmode = \"carve\"\n\
-                 samples = {samples}\nshard_size = {samples}\nseed = 5\ncompression = \"zstd\"\n\n\
-                 [[classes]]\nfamily = \"ball\"\n"
-            ),
-        )
-        .unwrap();
-        path
-    };
+    let write = |samples| one_shard_of_balls(tmp.path(), "z", 4, 32, "carve", "zstd", samples);
     let env = [("MALLOC_MMAP_THRESHOLD_", "262144")];
     let (_, small) = build_peaks_with(&write(4), &tmp.path().join("small"), 1, &env);
     let (_, large) = build_peaks_with(&write(64), &tmp.path().join("large"), 1, &env);
@@ -1792,19 +1804,7 @@ fn a_worker_holds_an_uncompressed_shard_once_while_writing_it() {
     // flattened copy and the tar as well cost three times that (166 MiB for a 48 MiB shard
     // against 72 MiB streamed).
     let tmp = Dir::new();
-    let write = |samples: u32| {
-        let path = tmp.path().join(format!("p{samples}.toml"));
-        std::fs::write(
-            &path,
-            format!(
-                "schema_version = 1\nname = \"p\"\ndimension = 3\nside = 128\nmode = \"embed\"\n\
-                 samples = {samples}\nshard_size = {samples}\nseed = 5\ncompression = \"none\"\n\n\
-                 [[classes]]\nfamily = \"ball\"\n"
-            ),
-        )
-        .unwrap();
-        path
-    };
+    let write = |samples| one_shard_of_balls(tmp.path(), "p", 3, 128, "embed", "none", samples);
     let env = [("MALLOC_MMAP_THRESHOLD_", "262144")];
     let (_, small) = build_peaks_with(&write(4), &tmp.path().join("small"), 1, &env);
     let (_, large) = build_peaks_with(&write(24), &tmp.path().join("large"), 1, &env);
