@@ -204,119 +204,89 @@ impl Layout {
     /// The voxels of the box whose value is `flip_from` and that have a face neighbour of
     /// the other value: what growing (`flip_from` = the other phase) or shrinking
     /// (`flip_from` = the phase) would flip next. In increasing flat order.
+    ///
+    /// The rows along the last axis that the box's voxels can touch (the box's rows and
+    /// their face neighbours) are packed first, one bit a voxel set where it holds the
+    /// other value, eight voxels a multiply. A row's frontier is then a few word
+    /// operations: its own bits shifted by one (the neighbours along the row) or'ed with
+    /// the face-neighbouring rows' bits, kept where the voxel itself holds `flip_from`.
     pub(crate) fn frontier(&self, image: &BinaryImage, flip_from: u8) -> Vec<usize> {
-        match self.near_phase(image) {
-            Some(near) => near.frontier_within(image, flip_from),
-            None => Vec::new(),
-        }
-    }
-
-    /// The part of the box within one voxel of the phase's voxels in the box grown by one
-    /// voxel, or `None` when it is empty. Every frontier voxel is there: one that shrinking
-    /// flips is a phase voxel, one that growth flips has a phase voxel as a face
-    /// neighbour. A carve-mode phase (the cavities) is small beside its box (the solid), so
-    /// the frontier's scan covers the cavities, not the wall; finding them costs one pass
-    /// eight voxels a step.
-    fn near_phase(&self, image: &BinaryImage) -> Option<Layout> {
+        let mut out = Vec::new();
         if self.is_empty() {
-            return None;
+            return out;
         }
-        let d = self.d;
-        let shape = image.shape();
-        // The box keeps off the image's outermost layer, so one voxel more stays inside.
-        let grown_lo: [usize; 4] = std::array::from_fn(|a| if a < d { self.lo[a] - 1 } else { 0 });
-        let grown_hi: [usize; 4] = std::array::from_fn(|a| {
-            if a < d {
-                (self.hi[a] + 1).min(shape[a] - 1)
-            } else {
-                0
-            }
-        });
-        let (found_lo, found_hi) = image.value_box(self.value, &grown_lo, &grown_hi)?;
-        let mut near = Layout {
-            d,
-            strides: self.strides,
-            lo: self.lo,
-            hi: self.hi,
-            value: self.value,
-        };
-        for a in 0..d {
-            near.lo[a] = self.lo[a].max(found_lo[a].saturating_sub(1));
-            near.hi[a] = self.hi[a].min(found_hi[a] + 1);
-        }
-        (!near.is_empty()).then_some(near)
-    }
-
-    /// [`Layout::frontier`] by a scan of this box.
-    fn frontier_within(&self, image: &BinaryImage, flip_from: u8) -> Vec<usize> {
-        let data = image.data();
-        let other = 1 - flip_from;
         let d = self.d;
         let row_len = image.shape()[d - 1];
-        // Which rows of the last axis hold a voxel of the other value within one voxel of
-        // the box's span of the row: a voxel of the box can only touch one there, in its
-        // own row or a face-neighbouring one, so most rows of a large image are passed
-        // over after one vectorised pass each (the image's own border, outside that
-        // span, does not count).
-        // Only the rows of the box and their face neighbours are ever consulted.
-        let span = self.lo[d - 1] - 1..=self.hi[d - 1] + 1;
-        let mut has_other = vec![false; data.len() / row_len];
-        let mut rows = Layout {
-            d,
-            strides: self.strides,
-            lo: self.lo,
-            hi: self.hi,
-            value: self.value,
-        };
-        for a in 0..d - 1 {
-            rows.lo[a] -= 1;
-            rows.hi[a] += 1;
+        let other = PackedRows::of(image, self, 1 - flip_from);
+        let (bits, words) = (&other.bits, other.words);
+        // The leading axes' steps in rows. An axis the image lacks steps 0, which reads
+        // the row itself: its bits are where the voxels hold the other value, and those
+        // are dropped below, so it adds nothing.
+        let mut steps = [0usize; 3];
+        for (step, &stride) in steps.iter_mut().zip(&self.strides[..d - 1]) {
+            *step = stride / row_len * words;
         }
-        rows.for_each_row(|first, _| {
-            let row = first / row_len;
-            has_other[row] = data[row * row_len..][span.clone()].contains(&other);
-        });
-        let row_strides: Vec<usize> = (0..d - 1).map(|a| self.strides[a] / row_len).collect();
-        // Eight voxels at a time, one byte each in a u64: voxels are 0 or 1, so a byte of
-        // `word ^ from` is 1 exactly where the voxel holds the other value. A voxel is on
-        // the frontier when its own byte is 0 there and some face neighbour's is 1; the
-        // neighbours of eight consecutive voxels along an axis are the eight consecutive
-        // bytes one stride away, so each neighbour is one unaligned read.
-        let from = u64::from(flip_from) * LOW_BYTES;
-        let mut offsets: Vec<usize> = self.strides[..d].to_vec();
-        offsets[d - 1] = 1;
-        let mut out = Vec::new();
+        if words == 1 {
+            // Rows of up to 64 voxels, the sides people train on: one word a row, and the
+            // rows of the box visited a line of them at a time along the last leading axis.
+            let span = span_mask(0, self.lo[d - 1], self.hi[d - 1]);
+            let line = d - 2;
+            let mut c = self.lo;
+            loop {
+                let start = (0..line).map(|a| c[a] * self.strides[a]).sum::<usize>() / row_len
+                    + self.lo[line] * steps[line];
+                for k in 0..=self.hi[line] - self.lo[line] {
+                    let at = start + k * steps[line];
+                    let own = bits[at];
+                    let touching = own << 1
+                        | own >> 1
+                        | bits[at - steps[0]]
+                        | bits[at + steps[0]]
+                        | bits[at - steps[1]]
+                        | bits[at + steps[1]]
+                        | bits[at - steps[2]]
+                        | bits[at + steps[2]];
+                    push_bits(&mut out, at * row_len, touching & !own & span);
+                }
+                // The next line: odometer over the axes before it.
+                let mut axis = line;
+                loop {
+                    if axis == 0 {
+                        return out;
+                    }
+                    axis -= 1;
+                    if c[axis] < self.hi[axis] {
+                        c[axis] += 1;
+                        break;
+                    }
+                    c[axis] = self.lo[axis];
+                }
+            }
+        }
         self.for_each_row(|first, last| {
-            let row_index = first / row_len;
-            let near_other = has_other[row_index]
-                || row_strides.iter().any(|&s| {
-                    has_other.get(row_index.wrapping_sub(s)) == Some(&true)
-                        || has_other.get(row_index + s) == Some(&true)
-                });
-            if !near_other {
-                return;
-            }
-            let row = &data[first..=last];
-            if !row.contains(&flip_from) {
-                return;
-            }
-            let mut k = first;
-            while k <= last {
-                let mut touching = 0u64;
-                for &s in &offsets {
-                    touching |= (word_at(data, k - s) ^ from) | (word_at(data, k + s) ^ from);
+            let row = first / row_len;
+            let base = row * row_len;
+            let (lo_bit, hi_bit) = (first - base, last - base);
+            let at = row * words;
+            for w in lo_bit / 64..=hi_bit / 64 {
+                let own = bits[at + w];
+                // The neighbours along the row, across word ends; the box keeps off the
+                // row's ends, so every voxel of it has both.
+                let before = if w > 0 { bits[at + w - 1] >> 63 } else { 0 };
+                let after = if w + 1 < words {
+                    bits[at + w + 1] << 63
+                } else {
+                    0
+                };
+                let mut touching = own << 1 | before | own >> 1 | after;
+                for &s in &steps {
+                    touching |= bits[at + w - s] | bits[at + w + s];
                 }
-                let mut found = touching & !(word_at(data, k) ^ from) & LOW_BYTES;
-                // Bytes past the row's last voxel belong to the next row or the border.
-                let n = last + 1 - k;
-                if n < 8 {
-                    found &= (1u64 << (8 * n)) - 1;
-                }
-                while found != 0 {
-                    out.push(k + found.trailing_zeros() as usize / 8);
-                    found &= found - 1;
-                }
-                k += 8;
+                push_bits(
+                    &mut out,
+                    base + w * 64,
+                    touching & !own & span_mask(w, lo_bit, hi_bit),
+                );
             }
         });
         out
@@ -333,18 +303,116 @@ impl Layout {
 /// The lowest bit of every byte of a u64.
 const LOW_BYTES: u64 = 0x0101_0101_0101_0101;
 
-/// The eight voxels from flat index `i` on as the bytes of a u64 (voxel `i` lowest); past
-/// the end of the image, bytes of 0.
+/// The bits `w * 64 ..` of a row that lie in `lo_bit ..= hi_bit`.
 #[inline]
-fn word_at(data: &[u8], i: usize) -> u64 {
-    match data.get(i..i + 8) {
-        Some(bytes) => u64::from_le_bytes(bytes.try_into().expect("eight bytes")),
-        None => {
-            let mut bytes = [0u8; 8];
-            let tail = &data[i.min(data.len())..];
-            bytes[..tail.len()].copy_from_slice(tail);
-            u64::from_le_bytes(bytes)
+fn span_mask(w: usize, lo_bit: usize, hi_bit: usize) -> u64 {
+    let start = w * 64;
+    let from = lo_bit.saturating_sub(start);
+    let to = (hi_bit - start).min(63);
+    (u64::MAX >> (63 - to)) & (u64::MAX << from)
+}
+
+/// Bytes that are 0 or 1 at bits 0, 8, .., 56 of a u64, gathered by one multiply onto bits
+/// 56 ..= 63 (byte k onto bit 56 + k): no two product terms share a bit, so none carries.
+const GATHER: u64 = 0x0102_0408_1020_4080;
+
+/// Appends `base + i` for every set bit `i` of `found`, lowest first.
+#[inline]
+fn push_bits(out: &mut Vec<usize>, base: usize, mut found: u64) {
+    while found != 0 {
+        out.push(base + found.trailing_zeros() as usize);
+        found &= found - 1;
+    }
+}
+
+/// Rows along the last axis packed one bit a voxel (bit `i` of a row's words: voxel `i`
+/// holds the value asked for), for the rows a box's frontier reads: the box's rows and
+/// their face neighbours. The other rows are left empty and never read.
+struct PackedRows {
+    bits: Vec<u64>,
+    words: usize,
+}
+
+impl PackedRows {
+    fn of(image: &BinaryImage, layout: &Layout, value: u8) -> PackedRows {
+        let data = image.data();
+        let d = layout.d;
+        let row_len = image.shape()[d - 1];
+        let words = row_len.div_ceil(64);
+        let n_rows = data.len() / row_len;
+        let mut bits = vec![0u64; n_rows * words];
+        // A byte of `word ^ flip` is 1 exactly where the voxel holds `value`.
+        let flip = u64::from(1 - value) * LOW_BYTES;
+        let gather = |chunk: &[u8]| {
+            let word = u64::from_le_bytes(chunk.try_into().expect("eight bytes"));
+            ((word ^ flip) & LOW_BYTES).wrapping_mul(GATHER) >> 56
+        };
+        // The rows of the box grown by one on the leading axes lie between these two.
+        let row_of = |leading: &[usize; 4]| -> usize {
+            (0..d - 1)
+                .map(|a| leading[a] * layout.strides[a])
+                .sum::<usize>()
+                / row_len
+        };
+        let first_row = row_of(&std::array::from_fn(|a| layout.lo[a].saturating_sub(1)));
+        let last_row = row_of(&std::array::from_fn(|a| layout.hi[a] + 1));
+        if words == 1 {
+            // Short rows: the voxels from the first row to the last packed as one run of
+            // bits (long loops, eight voxels a multiply), then each row's bits cut out.
+            let voxels = &data[first_row * row_len..(last_row + 1) * row_len];
+            let mut run = vec![0u64; voxels.len().div_ceil(64) + 1];
+            let mut blocks = voxels.chunks_exact(64);
+            for (out, block) in run.iter_mut().zip(blocks.by_ref()) {
+                let mut packed = 0u64;
+                for (k, chunk) in block.chunks_exact(8).enumerate() {
+                    packed |= gather(chunk) << (8 * k);
+                }
+                *out = packed;
+            }
+            let done = voxels.len() - blocks.remainder().len();
+            for (i, &v) in blocks.remainder().iter().enumerate() {
+                let at = done + i;
+                run[at / 64] |= u64::from(v == value) << (at % 64);
+            }
+            let mask = u64::MAX >> (64 - row_len);
+            for (r, out) in bits[first_row..=last_row].iter_mut().enumerate() {
+                let at = r * row_len;
+                let pair = u128::from(run[at / 64]) | u128::from(run[at / 64 + 1]) << 64;
+                *out = (pair >> (at % 64)) as u64 & mask;
+            }
+            return PackedRows { bits, words };
         }
+        let mut rows = Layout {
+            d,
+            strides: layout.strides,
+            lo: layout.lo,
+            hi: layout.hi,
+            value: layout.value,
+        };
+        for a in 0..d - 1 {
+            rows.lo[a] -= 1;
+            rows.hi[a] += 1;
+        }
+        rows.for_each_row(|first, _| {
+            let row = first / row_len;
+            let voxels = &data[row * row_len..(row + 1) * row_len];
+            for (w, out) in bits[row * words..(row + 1) * words].iter_mut().enumerate() {
+                let part = &voxels[w * 64..voxels.len().min(w * 64 + 64)];
+                let mut chunks = part.chunks_exact(8);
+                let mut packed = 0u64;
+                let mut shift = 0;
+                for chunk in chunks.by_ref() {
+                    packed |= gather(chunk) << shift;
+                    shift += 8;
+                }
+                for &v in chunks.remainder() {
+                    packed |= u64::from(v == value) << shift;
+                    shift += 1;
+                }
+                *out = packed;
+            }
+        });
+        PackedRows { bits, words }
     }
 }
 
@@ -417,10 +485,12 @@ mod tests {
             vec![6, 5, 7, 19],
             vec![12, 11, 14],
             vec![9, 8, 10, 12],
+            vec![5, 6, 70],
+            vec![4, 5, 4, 131],
         ] {
             // Voxels of the phase everywhere, or only in a corner (the rest of the image
-            // the other value), for a phase of either value: the frontier's scan is cut
-            // to the phase's surroundings.
+            // the other value), for a phase of either value; rows of one word and of
+            // several.
             for (density, value, corner) in [
                 (2u64, 1u8, false),
                 (5, 1, false),
