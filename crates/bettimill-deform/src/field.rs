@@ -4,19 +4,20 @@
 //! the voxels of a 3D or 4D image, so values are computed on first use and kept in a map
 //! keyed by voxel, rather than filling (or even allocating) the whole field: a 128^4
 //! field would be a gigabyte. The map is only looked up, never iterated, so its order
-//! cannot reach a result. The values are those of [`bettimill_noise::noise_field`] with
+//! cannot reach a result; its hash is rustc-hash's multiply (keys are voxel indices of
+//! one image, not input an attacker picks), a few instructions where SipHash costs tens. The values are those of [`bettimill_noise::noise_field`] with
 //! the same seed, frequency and octaves, so the two are interchangeable.
 
 use bettimill_grid::BinaryImage;
 use bettimill_noise::{Fractal, NoiseError};
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 /// Noise values per flat voxel index, computed on demand.
 pub(crate) struct NoiseCache {
     fractal: Fractal,
     strides: [usize; 4],
     d: usize,
-    values: HashMap<usize, f32>,
+    values: FxHashMap<usize, f32>,
 }
 
 impl NoiseCache {
@@ -33,7 +34,7 @@ impl NoiseCache {
             fractal,
             strides,
             d: image.dim().get(),
-            values: HashMap::new(),
+            values: FxHashMap::default(),
         })
     }
 

@@ -127,6 +127,9 @@ pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformRep
     }
     let fractal = Fractal::new(dim, job.seed, job.noise_frequency, job.octaves)?;
     let tester = SimpleTester::new(dim);
+    let strides = image.strides().to_vec();
+    let mut memo = SimpleCache::new(MEMO_BITS);
+    let parallel = rayon::current_num_threads() > 1;
     let mut rng = ChaCha8Rng::seed_from_u64(job.seed);
     rng.set_stream(MORPHOLOGY_STREAM);
     let n_subfields = 3usize.pow(dim.get() as u32);
@@ -180,16 +183,22 @@ pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformRep
         let mut flipped = 0u64;
         for &class in &order {
             let members = &buckets[class];
-            let frozen: &BinaryImage = image;
-            let simple: Vec<bool> = if members.len() >= PARALLEL_SUBFIELD {
+            // Candidates are in the box, which keeps off the outermost layer: their
+            // configurations are read straight from the voxel bytes. On one thread the
+            // answers are memoised (a pure function of the configuration, so the same
+            // answers either way).
+            let frozen = image.data();
+            let simple: Vec<bool> = if members.len() >= PARALLEL_SUBFIELD && parallel {
                 members
                     .par_iter()
-                    .map(|&v| tester.is_simple(frozen, v))
+                    .map(|&v| {
+                        tester.is_simple_configuration(tester.configuration_in(frozen, &strides, v))
+                    })
                     .collect()
             } else {
                 members
                     .iter()
-                    .map(|&v| tester.is_simple(frozen, v))
+                    .map(|&v| memo.is_simple(&tester, tester.configuration_in(frozen, &strides, v)))
                     .collect()
             };
             let data = image.data_mut();
@@ -394,7 +403,7 @@ pub(crate) fn target(
 const LOOKAHEAD: usize = 16;
 
 /// log2 of the targeting loop's simple-point memo slots.
-const MEMO_BITS: u32 = 12;
+pub(crate) const MEMO_BITS: u32 = 12;
 
 #[cfg(test)]
 mod tests {

@@ -26,10 +26,10 @@ use crate::phase::{BitSet, Layout, Phase};
 use crate::DeformReport;
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::BinaryImage;
-use bettimill_homology::simple::SimpleTester;
+use bettimill_homology::simple::{SimpleCache, SimpleTester};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 /// Random boundary voxels drawn per move; the lowest-noise one is the source.
 pub(crate) const TOURNAMENT: usize = 4;
@@ -50,11 +50,12 @@ pub(crate) fn index_below(rng: &mut ChaCha8Rng, n: usize) -> usize {
 
 /// The phase's boundary voxels, as a list that supports uniform random draws plus a slot
 /// map for O(1) insertion and removal (a map, not a table over the image: the boundary is
-/// a small part of a large image; it is only looked up, so its order reaches nothing).
+/// a small part of a large image; it is only looked up, so its order reaches nothing, and
+/// its keys are voxel indices, so rustc-hash's multiply hashes them).
 struct BoundarySet {
     list: Vec<usize>,
     // Position in `list`.
-    slot: HashMap<usize, usize>,
+    slot: FxHashMap<usize, usize>,
 }
 
 impl BoundarySet {
@@ -109,6 +110,10 @@ pub(crate) fn run(
     let d = dim.get();
     let foreground_before = image.count_foreground();
     let tester = SimpleTester::new(dim);
+    // Sources and targets are in the box, which keeps off the outermost layer, so their
+    // configurations are read straight from the voxel bytes; the answers are memoised
+    // (a pure function of the configuration: it changes no result, only its cost).
+    let mut memo = SimpleCache::new(crate::morphology::MEMO_BITS);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(MOVES_STREAM);
     let mut shape = [1usize; 4];
@@ -177,7 +182,7 @@ pub(crate) fn run(
 
     let mut boundary = BoundarySet {
         list: Vec::new(),
-        slot: HashMap::new(),
+        slot: FxHashMap::default(),
     };
     for v in geometry.layout.frontier(image, inside) {
         boundary.insert(v);
@@ -198,7 +203,10 @@ pub(crate) fn run(
                 source_noise = n;
             }
         }
-        if !tester.is_simple(image, source) {
+        if !memo.is_simple(
+            &tester,
+            tester.configuration_in(image.data(), &strides, source),
+        ) {
             rejected += 1;
             stuck.insert(source);
             n_stuck += 1;
@@ -244,7 +252,7 @@ pub(crate) fn run(
         let target = candidates
             .iter()
             .map(|&(_, z)| z)
-            .find(|&z| tester.is_simple(image, z));
+            .find(|&z| memo.is_simple(&tester, tester.configuration_in(image.data(), &strides, z)));
         match target {
             Some(z) => {
                 image.data_mut()[z] = inside;
