@@ -218,7 +218,7 @@ impl Layout {
         let d = self.d;
         let row_len = image.shape()[d - 1];
         let other = PackedRows::of(image, self, 1 - flip_from);
-        let (bits, words) = (&other.bits, other.words);
+        let (bits, words, first_row) = (&other.bits, other.words, other.first_row);
         // The leading axes' steps in rows. An axis the image lacks steps 0, which reads
         // the row itself: its bits are where the voxels hold the other value, and those
         // are dropped below, so it adds nothing.
@@ -234,7 +234,8 @@ impl Layout {
             let mut c = self.lo;
             loop {
                 let start = (0..line).map(|a| c[a] * self.strides[a]).sum::<usize>() / row_len
-                    + self.lo[line] * steps[line];
+                    + self.lo[line] * steps[line]
+                    - first_row;
                 for k in 0..=self.hi[line] - self.lo[line] {
                     let at = start + k * steps[line];
                     let own = bits[at];
@@ -246,7 +247,7 @@ impl Layout {
                         | bits[at + steps[1]]
                         | bits[at - steps[2]]
                         | bits[at + steps[2]];
-                    push_bits(&mut out, at * row_len, touching & !own & span);
+                    push_bits(&mut out, (first_row + at) * row_len, touching & !own & span);
                 }
                 // The next line: odometer over the axes before it.
                 let mut axis = line;
@@ -331,6 +332,9 @@ fn push_bits(out: &mut Vec<usize>, base: usize, mut found: u64) {
 struct PackedRows {
     bits: Vec<u64>,
     words: usize,
+    /// The row `bits` starts at: rows of one word keep only the rows from the box's first
+    /// to its last (grown by one); longer rows keep every row of the image.
+    first_row: usize,
 }
 
 impl PackedRows {
@@ -339,8 +343,6 @@ impl PackedRows {
         let d = layout.d;
         let row_len = image.shape()[d - 1];
         let words = row_len.div_ceil(64);
-        let n_rows = data.len() / row_len;
-        let mut bits = vec![0u64; n_rows * words];
         // A byte of `word ^ flip` is 1 exactly where the voxel holds `value`.
         let flip = u64::from(1 - value) * LOW_BYTES;
         let gather = |chunk: &[u8]| {
@@ -359,29 +361,39 @@ impl PackedRows {
         if words == 1 {
             // Short rows: the voxels from the first row to the last packed as one run of
             // bits (long loops, eight voxels a multiply), then each row's bits cut out.
+            // Only those rows are kept (and nothing is zeroed first).
             let voxels = &data[first_row * row_len..(last_row + 1) * row_len];
-            let mut run = vec![0u64; voxels.len().div_ceil(64) + 1];
             let mut blocks = voxels.chunks_exact(64);
-            for (out, block) in run.iter_mut().zip(blocks.by_ref()) {
-                let mut packed = 0u64;
-                for (k, chunk) in block.chunks_exact(8).enumerate() {
-                    packed |= gather(chunk) << (8 * k);
-                }
-                *out = packed;
-            }
-            let done = voxels.len() - blocks.remainder().len();
+            let mut run: Vec<u64> = blocks
+                .by_ref()
+                .map(|block| {
+                    let mut packed = 0u64;
+                    for (k, chunk) in block.chunks_exact(8).enumerate() {
+                        packed |= gather(chunk) << (8 * k);
+                    }
+                    packed
+                })
+                .collect();
+            let mut tail = 0u64;
             for (i, &v) in blocks.remainder().iter().enumerate() {
-                let at = done + i;
-                run[at / 64] |= u64::from(v == value) << (at % 64);
+                tail |= u64::from(v == value) << i;
             }
+            run.extend([tail, 0]);
             let mask = u64::MAX >> (64 - row_len);
-            for (r, out) in bits[first_row..=last_row].iter_mut().enumerate() {
-                let at = r * row_len;
-                let pair = u128::from(run[at / 64]) | u128::from(run[at / 64 + 1]) << 64;
-                *out = (pair >> (at % 64)) as u64 & mask;
-            }
-            return PackedRows { bits, words };
+            let bits = (0..=last_row - first_row)
+                .map(|r| {
+                    let at = r * row_len;
+                    let pair = u128::from(run[at / 64]) | u128::from(run[at / 64 + 1]) << 64;
+                    (pair >> (at % 64)) as u64 & mask
+                })
+                .collect();
+            return PackedRows {
+                bits,
+                words,
+                first_row,
+            };
         }
+        let mut bits = vec![0u64; data.len() / row_len * words];
         let mut rows = Layout {
             d,
             strides: layout.strides,
@@ -412,7 +424,11 @@ impl PackedRows {
                 *out = packed;
             }
         });
-        PackedRows { bits, words }
+        PackedRows {
+            bits,
+            words,
+            first_row: 0,
+        }
     }
 }
 
