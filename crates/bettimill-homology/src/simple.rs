@@ -541,6 +541,47 @@ fn table_3d() -> &'static LazyTable {
     TABLE_3D.get_or_init(LazyTable::new)
 }
 
+/// [`SimpleTester::configuration_in`] of a 4D voxel whose block, read as 27 unaligned
+/// 4-byte rows, lies in `data` (`None` for a voxel so near the end of `data` that the last
+/// row's fourth byte is past it). One range check for the whole block, one load and one
+/// multiply a row, and the rows' three bits packed with constant shifts into 64-bit halves
+/// (shifting a u128 by a running amount costs several instructions a row).
+#[inline]
+fn configuration_4d(data: &[u8], strides: &[usize], index: usize) -> Option<u128> {
+    // Strides that fit in 32 bits (any image the crate can hold in memory) keep every
+    // row's offset far from overflowing, so each row needs one range comparison.
+    let stride = |a: usize| u32::try_from(strides[a]).ok().map(|s| s as usize);
+    let [s0, s1, s2] = [stride(0)?, stride(1)?, stride(2)?];
+    let start = index.checked_sub(s0 + s1 + s2 + 1)?;
+    let block = data.get(start..start + 2 * (s0 + s1 + s2) + 4)?;
+    // With bytes a, b, c (each 0 or 1) at bits 0, 8 and 16, multiplying by
+    // 2^14 + 2^7 + 1 lands them on bits 14, 15 and 16 with no other product term touching
+    // those bits.
+    let row = |p: usize| -> u64 {
+        let word = u32::from_le_bytes(block[p..p + 4].try_into().expect("four bytes"));
+        u64::from((word & 0x0001_0101).wrapping_mul(0x4081) >> 14 & 7)
+    };
+    // Nine bits per plane of three rows (a, b).
+    let plane = |base: usize| row(base) | row(base + s2) << 3 | row(base + 2 * s2) << 6;
+    let mut planes = [0u64; 9];
+    for a in 0..3 {
+        for b in 0..3 {
+            planes[3 * a + b] = plane(a * s0 + b * s1);
+        }
+    }
+    let low = planes[0]
+        | planes[1] << 9
+        | planes[2] << 18
+        | planes[3] << 27
+        | planes[4] << 36
+        | planes[5] << 45
+        | planes[6] << 54;
+    let high = planes[7] | planes[8] << 9;
+    let block = low as u128 | (high as u128) << 63;
+    // Without the centre, bit 40 (3^4 / 2), as a constant.
+    Some((block & ((1u128 << 40) - 1)) | ((block >> 41) << 40))
+}
+
 impl SimpleTester {
     /// The tables for `dim`: built on the process's first call for that dimension (a pure
     /// function of the dimension), shared by the later ones (every sample a build verifies
@@ -649,6 +690,11 @@ impl SimpleTester {
     /// dimension.
     #[inline]
     pub fn configuration_in(&self, data: &[u8], strides: &[usize], index: usize) -> u128 {
+        if self.tables.dim == Dim::Four {
+            if let Some(config) = configuration_4d(data, strides, index) {
+                return config;
+            }
+        }
         let start = index - strides.iter().sum::<usize>();
         let row = |p: usize| -> u128 {
             // One unaligned 4-byte load instead of three byte loads: with bytes a, b, c

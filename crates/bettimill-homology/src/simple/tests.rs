@@ -36,6 +36,44 @@ fn the_reader_and_the_memo_agree_with_the_tester() {
     }
 }
 
+/// The unchecked reader gives the configuration as defined (bit k set when the neighbour
+/// at `offsets()[k]` is foreground), for every interior voxel, those at the end of the
+/// image's bytes included, in 2D, 3D and 4D.
+#[test]
+fn the_reader_gives_the_defined_configuration() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    for shape in [
+        vec![5usize, 6],
+        vec![4, 5, 6],
+        vec![4, 5, 3, 6],
+        vec![3, 3, 3, 3],
+    ] {
+        let mut image = BinaryImage::zeros(&shape).unwrap();
+        for v in image.data_mut() {
+            *v = rng.gen_bool(0.5) as u8;
+        }
+        let tester = SimpleTester::new(image.dim());
+        let strides = image.strides().to_vec();
+        for v in (0..image.len()).filter(|&v| is_interior(&image, v, 1)) {
+            let want = tester
+                .offsets()
+                .iter()
+                .enumerate()
+                .fold(0u128, |config, (k, offset)| {
+                    let at = (0..shape.len()).fold(v as isize, |at, a| {
+                        at + isize::from(offset[a]) * strides[a] as isize
+                    });
+                    config | u128::from(image.data()[at as usize]) << k
+                });
+            assert_eq!(
+                tester.configuration_in(image.data(), &strides, v),
+                want,
+                "{shape:?} voxel {v}"
+            );
+        }
+    }
+}
+
 /// The answer read off the memo key is the answer for the configuration, on random 4D
 /// configurations of every density (and in 2D and 3D, where the key is the
 /// configuration).
