@@ -35,12 +35,17 @@
 //! - Only voxels in the phase's box change, and the box never includes the outermost
 //!   layer (the simple-point test needs every neighbour of a voxel to exist).
 //! - Work and memory follow the phase's frontier, not the image: after one scan of the
-//!   box, nothing visits or allocates per voxel of the image but bitsets (one bit a voxel).
+//!   box, nothing visits or allocates per voxel of the image but bitsets (one bit a voxel)
+//!   and, for a phase of two or more components, their labels ([`Apart`], a byte a voxel).
+//! - Components of the phase that start at least [`APART`] + 1 apart (as placement leaves
+//!   them) stay so when the caller passes an [`Apart`]: growth never presses two objects or
+//!   two cavities against each other.
 //! - Results depend only on the input image, the settings and the seed: the randomness is
 //!   `ChaCha8Rng`, the noise is `bettimill-noise`, and the only parallel step (simple-point
 //!   decisions within one 3^d parity subfield, whose voxels are 3 apart and so cannot
 //!   influence each other's test) gives the same answers on any number of threads.
 
+mod apart;
 mod field;
 pub mod hitmiss;
 mod morphology;
@@ -53,6 +58,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+pub use apart::{Apart, APART};
 pub use bettimill_types::deform::{
     DeformSettings, DeformStep, Deformation, Method, Spread, DEFAULT_COUNT,
     DEFAULT_GROWTH_PROBABILITY, DEFAULT_MAX_DISTANCE, DEFAULT_NOISE_FREQUENCY, DEFAULT_OCTAVES,
@@ -127,11 +133,16 @@ pub fn deform(
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
     let phase = Phase::foreground(image);
-    deform_phase(image, settings, &phase, seed)
+    let mut apart = Apart::new(image, &phase);
+    deform_phase(image, settings, &phase, apart.as_mut(), seed)
 }
 
 /// Deforms `phase` of `image` in place without changing its topology: grows, shrinks,
 /// moves or extends the voxels of the phase's value inside its box, and nothing else.
+///
+/// With `apart` (made by [`Apart::new`] from the image before its first step and passed to
+/// every step and to the targeting), the phase's components keep at least [`APART`]
+/// voxels between them as they grow.
 ///
 /// Deterministic: the same image, settings, phase and seed give the same result on any
 /// machine and any number of threads. Returns an error (leaving the image untouched) only
@@ -140,6 +151,7 @@ pub fn deform_phase(
     image: &mut BinaryImage,
     settings: &DeformSettings,
     phase: &Phase,
+    apart: Option<&mut Apart>,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
     settings
@@ -156,6 +168,7 @@ pub fn deform_phase(
                 image,
                 noise,
                 phase,
+                apart,
                 settings.steps,
                 settings.max_distance,
                 seed,
@@ -172,10 +185,12 @@ pub fn deform_phase(
                 octaves: settings.octaves,
                 seed,
             },
+            apart,
         )?,
         Method::Tentacles | Method::Walk => walkers::run(
             image,
             phase,
+            apart,
             settings.count,
             settings.steps,
             settings.method == Method::Tentacles,
@@ -250,7 +265,8 @@ pub fn target_hypervolume(
 ) -> Result<DeformReport, DeformError> {
     let phase = Phase::foreground(image);
     let goal = morphology::nearest_end(image.count_foreground(), lo, hi);
-    morphology::target(image, lo, hi, goal, &phase, seed)
+    let mut apart = Apart::new(image, &phase);
+    morphology::target(image, lo, hi, goal, &phase, apart.as_mut(), seed)
 }
 
 /// Brings the foreground count into `[lo, hi]` by topology-preserving growth or
@@ -263,18 +279,21 @@ pub fn target_hypervolume(
 /// range stays. A goal drawn per sample spreads a bin's samples over the bin, where
 /// stopping at the first count inside would pile them on its ends.
 ///
-/// Fails, leaving the image unchanged, when `lo > hi` or when no simple frontier voxel is
-/// left before the range is reached (an empty phase cannot grow; a closed curve cannot
-/// shrink).
+/// With `apart`, growth keeps the phase's components apart as [`deform_phase`] does.
+///
+/// Fails, leaving the image (and `apart`) unchanged, when `lo > hi` or when no simple
+/// frontier voxel is left before the range is reached (an empty phase cannot grow; a closed
+/// curve cannot shrink).
 pub fn target_hypervolume_phase(
     image: &mut BinaryImage,
     lo: u64,
     hi: u64,
     goal: u64,
     phase: &Phase,
+    apart: Option<&mut Apart>,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
-    morphology::target(image, lo, hi, goal, phase, seed)
+    morphology::target(image, lo, hi, goal, phase, apart, seed)
 }
 
 #[cfg(test)]

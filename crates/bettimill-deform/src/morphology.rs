@@ -24,6 +24,7 @@
 //! the decisions of a subfield are made in parallel against the same image and then
 //! applied, with the same outcome as applying them one by one, on any number of threads.
 
+use crate::apart::{self, Apart};
 use crate::phase::{BitSet, Layout, Phase};
 use crate::{DeformError, DeformReport};
 use bettimill_grid::BinaryImage;
@@ -111,7 +112,11 @@ pub(crate) struct Morphology<'a> {
     pub(crate) seed: u64,
 }
 
-pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformReport, DeformError> {
+pub(crate) fn run(
+    image: &mut BinaryImage,
+    job: &Morphology,
+    mut apart: Option<&mut Apart>,
+) -> Result<DeformReport, DeformError> {
     let dim = image.dim();
     let foreground_before = image.count_foreground();
     let mut report = DeformReport {
@@ -201,11 +206,34 @@ pub(crate) fn run(image: &mut BinaryImage, job: &Morphology) -> Result<DeformRep
                     .map(|&v| memo.is_simple(&tester, tester.configuration_in(frozen, &strides, v)))
                     .collect()
             };
+            // Some(label) for a voxel that flips (the component it joins when the phase
+            // grows): members of one subfield are 3 apart, so the separation test of one
+            // reads no voxel another flips either.
+            let decided: Vec<Option<u8>> = members
+                .iter()
+                .zip(simple)
+                .map(|(&v, ok)| {
+                    if !ok {
+                        None
+                    } else if job.grow {
+                        apart::joins(apart.as_deref(), image, v)
+                    } else {
+                        Some(0)
+                    }
+                })
+                .collect();
             let data = image.data_mut();
-            for (&v, ok) in members.iter().zip(simple) {
-                if ok {
+            for (&v, label) in members.iter().zip(decided) {
+                if let Some(label) = label {
                     data[v] = flip_to;
                     flipped += 1;
+                    if let Some(apart) = apart.as_deref_mut() {
+                        if job.grow {
+                            apart.join(v, label);
+                        } else {
+                            apart.leave(v);
+                        }
+                    }
                 } else {
                     report.rejected += 1;
                 }
@@ -258,6 +286,7 @@ pub(crate) fn target(
     hi: u64,
     goal: u64,
     phase: &Phase,
+    mut apart: Option<&mut Apart>,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
     if lo > hi {
@@ -301,6 +330,7 @@ pub(crate) fn target(
     // Voxels flipped so far (to undo them on failure) and voxels already queued for the
     // next iteration (to queue each once).
     let mut flipped_list: Vec<usize> = Vec::new();
+    let mut undo_labels: Vec<u8> = Vec::new();
     let mut queued = BitSet::new(image.len());
     let mut count = start;
     // The candidates with their rank keys; a candidate rejected in one iteration carries
@@ -342,10 +372,29 @@ pub(crate) fn target(
                 }
                 std::hint::black_box(sink);
             }
+            let simple =
+                memo.is_simple(&tester, tester.configuration_in(image.data(), &strides, v));
+            let label = if !simple {
+                None
+            } else if grows_phase {
+                apart::joins(apart.as_deref(), image, v)
+            } else {
+                Some(0)
+            };
             let data = image.data_mut();
-            if memo.is_simple(&tester, tester.configuration_in(data, &strides, v)) {
+            if let Some(label) = label {
                 data[v] = flip_to;
                 flipped_list.push(v);
+                if let Some(apart) = apart.as_deref_mut() {
+                    // What undoing the flip restores: no label for a voxel that joined,
+                    // its label for one that left.
+                    undo_labels.push(if grows_phase {
+                        apart.join(v, label);
+                        0
+                    } else {
+                        apart.leave(v)
+                    });
+                }
                 count = if grow_foreground {
                     count + 1
                 } else {
@@ -381,6 +430,11 @@ pub(crate) fn target(
             let data = image.data_mut();
             for &v in &flipped_list {
                 data[v] = inside;
+            }
+            if let Some(apart) = apart.as_deref_mut() {
+                for (&v, &label) in flipped_list.iter().zip(&undo_labels) {
+                    apart.join(v, label);
+                }
             }
             return Err(DeformError::HypervolumeUnreachable {
                 start,
@@ -669,7 +723,8 @@ mod tests {
                 let want = target_reference(&mut expected, lo, hi, goal, &phase, round);
                 for pool in &pools {
                     let mut found = image.clone();
-                    let got = pool.install(|| target(&mut found, lo, hi, goal, &phase, round));
+                    let got =
+                        pool.install(|| target(&mut found, lo, hi, goal, &phase, None, round));
                     assert_eq!(got, want, "{shape:?} round {round}");
                     assert_eq!(found.data(), expected.data(), "{shape:?} round {round}");
                     if got.is_ok() {
@@ -705,7 +760,7 @@ mod tests {
                 let applied = run_reference(&mut expected, &job);
                 for pool in &pools {
                     let mut found = image.clone();
-                    let report = pool.install(|| run(&mut found, &job)).unwrap();
+                    let report = pool.install(|| run(&mut found, &job, None)).unwrap();
                     assert_eq!(report.applied, applied, "{shape:?} round {round}");
                     assert_eq!(found.data(), expected.data(), "{shape:?} round {round}");
                 }

@@ -21,6 +21,7 @@
 //! tournament keeps picking the low-noise voxels on the downhill side of an object, whose
 //! background neighbours all have lower noise, and most attempts are wasted.
 
+use crate::apart::{self, Apart};
 use crate::field::NoiseCache;
 use crate::phase::{BitSet, Layout, Phase};
 use crate::DeformReport;
@@ -102,6 +103,7 @@ pub(crate) fn run(
     image: &mut BinaryImage,
     mut noise: NoiseCache,
     phase: &Phase,
+    mut apart: Option<&mut Apart>,
     steps: u32,
     max_distance: u32,
     seed: u64,
@@ -155,9 +157,11 @@ pub(crate) fn run(
     }
 
     // Voxels whose state can change whether a source succeeds: the Chebyshev ball of
-    // radius m + 1 around a flipped voxel, centre included, scanned as rows along the last
-    // axis (offsets of the leading axes here; the row spans -(m+1) ..= m+1 on the last).
-    let reach = m + 1;
+    // radius m + 1 around a flipped voxel, centre included (m + 1 + APART when components
+    // are kept apart: a target's separation test reads that far), scanned as rows along
+    // the last axis (offsets of the leading axes here; the row spans -reach ..= reach on
+    // the last).
+    let reach = m + 1 + if apart.is_some() { apart::APART } else { 0 };
     let reach_side = 2 * reach + 1;
     let mut refresh_rows: Vec<([i64; 4], isize)> = Vec::new();
     for k in 0..reach_side.pow(d as u32 - 1) {
@@ -215,6 +219,7 @@ pub(crate) fn run(
             continue;
         }
         image.data_mut()[source] = outside;
+        let source_label = apart.as_deref_mut().map_or(0, |a| a.leave(source));
 
         let c = image.coords(source);
         let (lo, hi) = (geometry.layout.lo, geometry.layout.hi);
@@ -249,13 +254,19 @@ pub(crate) fn run(
             }
         }
         candidates.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-        let target = candidates
-            .iter()
-            .map(|&(_, z)| z)
-            .find(|&z| memo.is_simple(&tester, tester.configuration_in(image.data(), &strides, z)));
+        let target = candidates.iter().find_map(|&(_, z)| {
+            if memo.is_simple(&tester, tester.configuration_in(image.data(), &strides, z)) {
+                apart::joins(apart.as_deref(), image, z).map(|label| (z, label))
+            } else {
+                None
+            }
+        });
         match target {
-            Some(z) => {
+            Some((z, label)) => {
                 image.data_mut()[z] = inside;
+                if let Some(apart) = apart.as_deref_mut() {
+                    apart.join(z, label);
+                }
                 applied += 1;
                 for centre in [source, z] {
                     // Un-stick the stuck voxels this move may have freed.
@@ -308,6 +319,9 @@ pub(crate) fn run(
             }
             None => {
                 image.data_mut()[source] = inside;
+                if let Some(apart) = apart.as_deref_mut() {
+                    apart.join(source, source_label);
+                }
                 rejected += 1;
                 stuck.insert(source);
                 n_stuck += 1;

@@ -18,6 +18,7 @@
 //! and the walkers run one after the other, so the result is the same on any machine and
 //! thread count.
 
+use crate::apart::{self, Apart};
 use crate::phase::{Layout, Phase};
 use crate::DeformReport;
 use bettimill_grid::BinaryImage;
@@ -61,6 +62,7 @@ fn normalise(v: &mut [f64; 4], d: usize) -> bool {
 struct Painter<'a> {
     layout: Layout,
     tester: &'a SimpleTester,
+    apart: Option<&'a mut Apart>,
     value: u8,
     report: DeformReport,
 }
@@ -85,8 +87,16 @@ impl Painter<'_> {
                 if image.data()[v] == self.value {
                     continue;
                 }
-                if self.tester.is_simple(image, v) {
+                let label = if self.tester.is_simple(image, v) {
+                    apart::joins(self.apart.as_deref(), image, v)
+                } else {
+                    None
+                };
+                if let Some(label) = label {
                     image.data_mut()[v] = self.value;
+                    if let Some(apart) = self.apart.as_deref_mut() {
+                        apart.join(v, label);
+                    }
                     self.report.applied += 1;
                     flipped = true;
                 } else {
@@ -107,6 +117,7 @@ impl Painter<'_> {
 pub(crate) fn run(
     image: &mut BinaryImage,
     phase: &Phase,
+    apart: Option<&mut Apart>,
     count: u32,
     steps: u32,
     persistent: bool,
@@ -116,6 +127,7 @@ pub(crate) fn run(
     let layout = Layout::new(image, phase);
     let mut painter = Painter {
         tester: &SimpleTester::new(image.dim()),
+        apart,
         value: phase.value,
         report: DeformReport {
             applied: 0,

@@ -2,8 +2,8 @@
 //! exact Betti numbers, moves keep the foreground count, and the outer layer is untouched.
 
 use bettimill_deform::{
-    deform, deform_phase, target_hypervolume, target_hypervolume_phase, DeformSettings, Method,
-    Phase,
+    deform, deform_phase, target_hypervolume, target_hypervolume_phase, Apart, DeformSettings,
+    Method, Phase,
 };
 use bettimill_grid::neighbourhood::is_interior;
 use bettimill_grid::BinaryImage;
@@ -74,7 +74,9 @@ fn check_cavities(img: BinaryImage, method: Method, steps: u32, p: f64, seed: u6
         ..DeformSettings::default()
     };
     let mut out = img.clone();
-    let report = deform_phase(&mut out, &settings, &phase, seed).unwrap();
+    // Random images hold many cavities: the separation's labels are exercised too.
+    let mut apart = Apart::new(&img, &phase);
+    let report = deform_phase(&mut out, &settings, &phase, apart.as_mut(), seed).unwrap();
     assert_eq!(topology(&out), before, "{method:?} {report:?}");
     let in_box = |v: usize| {
         let c = img.coords(v);
@@ -91,7 +93,16 @@ fn check_cavities(img: BinaryImage, method: Method, steps: u32, p: f64, seed: u6
     }
     let goal = img.count_foreground() + 5;
     let mut targeted = img.clone();
-    match target_hypervolume_phase(&mut targeted, goal, goal, goal, &phase, seed) {
+    let mut apart = Apart::new(&img, &phase);
+    match target_hypervolume_phase(
+        &mut targeted,
+        goal,
+        goal,
+        goal,
+        &phase,
+        apart.as_mut(),
+        seed,
+    ) {
         Ok(_) => {
             assert_eq!(targeted.count_foreground(), goal);
             assert_eq!(topology(&targeted), before);

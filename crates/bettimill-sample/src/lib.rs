@@ -343,6 +343,19 @@ pub fn make_sample_observed(
         };
         let mut image = generated.image;
         let mut applied = Vec::new();
+        // The phase's components: the objects of embed mode (b0), the cavities of carve
+        // mode (b_{d-1} of the solid, by Alexander duality). Only two or more need labels
+        // to be kept apart.
+        let components = if phase.value == 1 {
+            stratum.betti[0]
+        } else {
+            stratum.betti[stratum.betti.len() - 1]
+        };
+        let mut apart = if components >= 2 {
+            bettimill_deform::Apart::new(&image, &phase)
+        } else {
+            None
+        };
         if let Some(deformation) = &plan.deform {
             report(Stage::Deform, 0.0);
             let mut failed = None;
@@ -351,9 +364,13 @@ pub fn make_sample_observed(
                 let draw = step_seed("bettimill deform draw v2", &task.seed, attempt, &at);
                 let settings = bettimill_deform::draw_settings(step, draw);
                 let seed = step_seed("bettimill deform seed v2", &task.seed, attempt, &at);
-                if let Err(err) =
-                    bettimill_deform::deform_phase(&mut image, &settings, &phase, seed)
-                {
+                if let Err(err) = bettimill_deform::deform_phase(
+                    &mut image,
+                    &settings,
+                    &phase,
+                    apart.as_mut(),
+                    seed,
+                ) {
                     failed = Some(format!("deformation step {i} failed: {err}"));
                     break;
                 }
@@ -371,9 +388,18 @@ pub fn make_sample_observed(
             // that a bin's samples spread over it instead of piling on its nearer end.
             let draw = sub_seed("bettimill hypervolume goal v1", &task.seed, attempt);
             let goal = lo + ((u128::from(draw) * (u128::from(hi - lo) + 1)) >> 64) as u64;
-            if let Err(err) =
-                bettimill_deform::target_hypervolume_phase(&mut image, lo, hi, goal, &phase, seed)
-            {
+            let mut target = |apart: Option<&mut bettimill_deform::Apart>| {
+                bettimill_deform::target_hypervolume_phase(
+                    &mut image, lo, hi, goal, &phase, apart, seed,
+                )
+            };
+            // A bin the parts cannot reach while kept apart (the image leaves them too
+            // little room) is reached as without the separation: the plan accepted it.
+            let reached = match target(apart.as_mut()) {
+                Err(_) if apart.is_some() => target(None),
+                reached => reached,
+            };
+            if let Err(err) = reached {
                 last = format!("hypervolume targeting failed: {err}");
                 continue;
             }
