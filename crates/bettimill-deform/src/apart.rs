@@ -16,6 +16,13 @@
 //! that joins the phase by a simple flip touches exactly one component and takes its
 //! label; one that leaves it loses its label (a simple flip never splits a component, so
 //! no other label changes).
+//!
+//! Most flips happen far from any other component, so the window need not be read there:
+//! blocks of [`BLOCK`]^d voxels record which labels have had a voxel within [`APART`] of
+//! them (none, one, or several). A voxel whose block has seen no label but its own joins
+//! without a look at its window; only near another component is the window read. A block's
+//! record only ever gains labels (a voxel leaving the phase does not clear it), which can
+//! cost a window read, never a wrong answer: the window read decides.
 
 use crate::phase::{Layout, Phase};
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets, full_offsets};
@@ -25,6 +32,12 @@ use bettimill_grid::BinaryImage;
 /// another component: two, as the placement's gap leaves (three apart means two voxels
 /// between them).
 pub const APART: i64 = 2;
+
+/// log2 of the side of the blocks that record which components are near.
+const BLOCK_SHIFT: u32 = 3;
+
+/// A block's record when voxels of two or more components have been near it.
+const MIXED: u8 = u8::MAX;
 
 /// The labels of a phase's components and the test that keeps them apart (see the module
 /// documentation).
@@ -39,7 +52,16 @@ pub struct Apart {
     /// The window of radius [`APART`] without its centre, as coordinate and flat offsets.
     window: Vec<([i64; 4], isize)>,
     shape: [i64; 4],
+    /// The image's flat strides.
+    strides: [usize; 4],
     d: usize,
+    /// Per block of `2^BLOCK_SHIFT` voxels a side: 0 when no component has had a voxel
+    /// within [`APART`] of it, `k` when only component `k`, [`MIXED`] when several.
+    near: Vec<u8>,
+    /// Flat strides of the block grid.
+    block_strides: [usize; 4],
+    /// The block grid's shape.
+    blocks: [usize; 4],
 }
 
 impl Apart {
@@ -59,7 +81,11 @@ impl Apart {
             flat_offsets(image, &face_offsets(dim))
         };
         let data = image.data();
-        let mut labels = vec![0u8; image.len()];
+        // Voxels outside the box hold MIXED while labelling, so the search never enters
+        // them (the box keeps off the image's outermost layer, so every neighbour of a
+        // voxel in it exists) without a bounds test per step.
+        let mut labels = vec![MIXED; image.len()];
+        layout.for_each_row(|first, last| labels[first..=last].fill(0));
         let mut components = 0usize;
         let mut stack = Vec::new();
         let mut overflow = false;
@@ -72,7 +98,7 @@ impl Apart {
                     continue;
                 }
                 components += 1;
-                if components > usize::from(u8::MAX) {
+                if components >= usize::from(MIXED) {
                     overflow = true;
                     return;
                 }
@@ -80,11 +106,9 @@ impl Apart {
                 labels[v] = label;
                 stack.push(v);
                 while let Some(u) = stack.pop() {
-                    // The box keeps off the image's outermost layer, so every neighbour
-                    // of a voxel in it exists.
                     for &o in &adjacent {
                         let w = (u as isize + o) as usize;
-                        if data[w] == phase.value && labels[w] == 0 && layout.in_box(w) {
+                        if labels[w] == 0 && data[w] == phase.value {
                             labels[w] = label;
                             stack.push(w);
                         }
@@ -92,6 +116,11 @@ impl Apart {
                 }
             }
         });
+        for label in labels.iter_mut() {
+            if *label == MIXED {
+                *label = 0;
+            }
+        }
         if overflow || components < 2 {
             return None;
         }
@@ -115,14 +144,84 @@ impl Apart {
         for (s, &n) in shape.iter_mut().zip(image.shape()) {
             *s = n as i64;
         }
-        Some(Apart {
+        let mut image_strides = [0usize; 4];
+        image_strides[..d].copy_from_slice(image.strides());
+        let mut blocks = [1usize; 4];
+        for a in 0..d {
+            blocks[a] = (shape[a] as usize).div_ceil(1 << BLOCK_SHIFT);
+        }
+        let mut block_strides = [0usize; 4];
+        let mut stride = 1;
+        for a in (0..d).rev() {
+            block_strides[a] = stride;
+            stride *= blocks[a];
+        }
+        let mut apart = Apart {
             labels,
             value: phase.value,
             adjacent,
             window,
             shape,
+            strides: image_strides,
             d,
-        })
+            near: vec![0u8; stride],
+            block_strides,
+            blocks,
+        };
+        // One mark per run of a label along a row.
+        let row_len = image.shape()[d - 1];
+        let mut v = 0;
+        while v < apart.labels.len() {
+            let label = apart.labels[v];
+            if label == 0 {
+                v += 1;
+                continue;
+            }
+            let row_end = (v / row_len + 1) * row_len;
+            let mut last = v;
+            while last + 1 < row_end && apart.labels[last + 1] == label {
+                last += 1;
+            }
+            apart.mark(v, last, label);
+            v = last + 1;
+        }
+        Some(apart)
+    }
+
+    /// Records `label` in every block within [`APART`] of the voxels `first ..= last` of
+    /// one row along the last axis.
+    fn mark(&mut self, first: usize, last: usize, label: u8) {
+        let mut lo = [0usize; 4];
+        let mut hi = [0usize; 4];
+        for a in 0..self.d {
+            let x = (first / self.strides[a]) as i64 % self.shape[a];
+            let y = (last / self.strides[a]) as i64 % self.shape[a];
+            lo[a] = ((x - APART).max(0) as usize) >> BLOCK_SHIFT;
+            hi[a] = (((y + APART) as usize) >> BLOCK_SHIFT).min(self.blocks[a] - 1);
+        }
+        let mut at = lo;
+        loop {
+            let b: usize = (0..self.d).map(|a| at[a] * self.block_strides[a]).sum();
+            let seen = &mut self.near[b];
+            if *seen == 0 {
+                *seen = label;
+            } else if *seen != label {
+                *seen = MIXED;
+            }
+            // Odometer over the blocks' box.
+            let mut a = self.d;
+            loop {
+                if a == 0 {
+                    return;
+                }
+                a -= 1;
+                if at[a] < hi[a] {
+                    at[a] += 1;
+                    break;
+                }
+                at[a] = lo[a];
+            }
+        }
     }
 
     /// Whether `v`, not in the phase, may join it: `Some(label)` of the component it would
@@ -138,6 +237,13 @@ impl Apart {
             .find(|&w| data[w] == self.value && self.labels[w] != 0)
             .map_or(0, |w| self.labels[w]);
         let c = image.coords(v);
+        let block: usize = (0..self.d)
+            .map(|a| (c[a] >> BLOCK_SHIFT) * self.block_strides[a])
+            .sum();
+        let seen = self.near[block];
+        if seen == 0 || seen == own {
+            return Some(own);
+        }
         let deep = (0..self.d).all(|a| {
             let x = c[a] as i64;
             x >= APART && x + APART < self.shape[a]
@@ -163,6 +269,9 @@ impl Apart {
     /// Records that `v` joined the phase as part of component `label`.
     pub(crate) fn join(&mut self, v: usize, label: u8) {
         self.labels[v] = label;
+        if label != 0 {
+            self.mark(v, v, label);
+        }
     }
 
     /// Records that `v` left the phase; returns the label it had (to restore it if the
