@@ -24,7 +24,7 @@
 //! record only ever gains labels (a voxel leaving the phase does not clear it), which can
 //! cost a window read, never a wrong answer: the window read decides.
 
-use crate::phase::{Layout, Phase};
+use crate::phase::{chebyshev_ball, Layout, Phase};
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets, full_offsets};
 use bettimill_grid::BinaryImage;
 
@@ -124,22 +124,7 @@ impl Apart {
         if overflow || components < 2 {
             return None;
         }
-        let side = 2 * APART + 1;
-        let strides = image.strides();
-        let mut window = Vec::new();
-        for k in 0..side.pow(d as u32) {
-            let mut off = [0i64; 4];
-            let mut rest = k;
-            for axis in (0..d).rev() {
-                off[axis] = rest % side - APART;
-                rest /= side;
-            }
-            if off.iter().all(|&o| o == 0) {
-                continue;
-            }
-            let flat = (0..d).map(|a| off[a] as isize * strides[a] as isize).sum();
-            window.push((off, flat));
-        }
+        let window = chebyshev_ball(image, APART);
         let mut shape = [1i64; 4];
         for (s, &n) in shape.iter_mut().zip(image.shape()) {
             *s = n as i64;

@@ -23,7 +23,7 @@
 
 use crate::apart::{self, Apart};
 use crate::field::NoiseCache;
-use crate::phase::{BitSet, Layout, Phase};
+use crate::phase::{chebyshev_ball, BitSet, Layout, Phase};
 use crate::DeformReport;
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets};
 use bettimill_grid::BinaryImage;
@@ -139,22 +139,8 @@ pub(crate) fn run(
     // Target offsets: the Chebyshev ball of radius m without its centre, in lexicographic
     // order (the order only breaks exact noise ties, but it must be fixed).
     let m = max_distance as i64;
-    let side = 2 * m + 1;
     let strides = image.strides().to_vec();
-    let mut ball: Vec<([i64; 4], isize)> = Vec::new();
-    for k in 0..side.pow(d as u32) {
-        let mut off = [0i64; 4];
-        let mut rest = k;
-        for axis in (0..d).rev() {
-            off[axis] = rest % side - m;
-            rest /= side;
-        }
-        if off.iter().all(|&o| o == 0) {
-            continue;
-        }
-        let flat = (0..d).map(|a| off[a] as isize * strides[a] as isize).sum();
-        ball.push((off, flat));
-    }
+    let ball = chebyshev_ball(image, m);
 
     // Voxels whose state can change whether a source succeeds: the Chebyshev ball of
     // radius m + 1 around a flipped voxel, centre included (m + 1 + APART when components

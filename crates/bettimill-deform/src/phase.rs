@@ -301,6 +301,30 @@ impl Layout {
     }
 }
 
+/// The Chebyshev ball of `radius` around a voxel, without its centre, as coordinate and
+/// flat offsets in lexicographic order (a fixed order: callers that break ties by position
+/// depend on it).
+pub(crate) fn chebyshev_ball(image: &BinaryImage, radius: i64) -> Vec<([i64; 4], isize)> {
+    let d = image.dim().get();
+    let side = 2 * radius + 1;
+    let strides = image.strides();
+    let mut ball = Vec::new();
+    for k in 0..side.pow(d as u32) {
+        let mut off = [0i64; 4];
+        let mut rest = k;
+        for axis in (0..d).rev() {
+            off[axis] = rest % side - radius;
+            rest /= side;
+        }
+        if off.iter().all(|&o| o == 0) {
+            continue;
+        }
+        let flat = (0..d).map(|a| off[a] as isize * strides[a] as isize).sum();
+        ball.push((off, flat));
+    }
+    ball
+}
+
 /// The lowest bit of every byte of a u64.
 const LOW_BYTES: u64 = 0x0101_0101_0101_0101;
 
