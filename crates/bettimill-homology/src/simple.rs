@@ -569,15 +569,7 @@ fn configuration_4d(data: &[u8], strides: &[usize], index: usize) -> Option<u128
             planes[3 * a + b] = plane(a * s0 + b * s1);
         }
     }
-    let low = planes[0]
-        | planes[1] << 9
-        | planes[2] << 18
-        | planes[3] << 27
-        | planes[4] << 36
-        | planes[5] << 45
-        | planes[6] << 54;
-    let high = planes[7] | planes[8] << 9;
-    let block = low as u128 | (high as u128) << 63;
+    let block = pack_planes(&planes);
     // Without the centre, bit 40 (3^4 / 2), as a constant.
     Some((block & ((1u128 << 40) - 1)) | ((block >> 41) << 40))
 }
@@ -740,15 +732,7 @@ impl SimpleTester {
                             | (row(base + 2 * strides[2]) as u64) << 6;
                     }
                 }
-                let low = planes[0]
-                    | planes[1] << 9
-                    | planes[2] << 18
-                    | planes[3] << 27
-                    | planes[4] << 36
-                    | planes[5] << 45
-                    | planes[6] << 54;
-                let high = planes[7] | planes[8] << 9;
-                let block = low as u128 | (high as u128) << 63;
+                let block = pack_planes(&planes);
                 // The centre, bit 40 (3^4 / 2), as a constant.
                 debug_assert_eq!(self.tables.centre, 40);
                 return (block & ((1u128 << 40) - 1)) | ((block >> 41) << 40);
@@ -853,6 +837,21 @@ impl SimpleTester {
         let config = config & self.tables.neighbour_bits;
         self.tables.collapses_to_a_point(config)
     }
+}
+
+/// The 81 bits of a 4D 3x3x3x3 block from its nine 3x3 planes (9 bits each, in order):
+/// seven planes fill the low 63 bits of a u64, the last two the next 18.
+#[inline]
+fn pack_planes(planes: &[u64; 9]) -> u128 {
+    let low = planes[0]
+        | planes[1] << 9
+        | planes[2] << 18
+        | planes[3] << 27
+        | planes[4] << 36
+        | planes[5] << 45
+        | planes[6] << 54;
+    let high = planes[7] | planes[8] << 9;
+    low as u128 | (high as u128) << 63
 }
 
 #[cfg(test)]
