@@ -108,13 +108,15 @@ fn strata_the_plan_leaves_out_are_said_when_the_build_starts() {
     );
 }
 
-/// One 4D sample big enough to take a few seconds (side 96, carved T2xB2, no copies), so
-/// that its stages are reported while it is made.
+/// One 4D sample big enough that its stages are reported while it is made (side 128, carved
+/// T2xB2, no copies, gzip members). A worker sends at most one stage frame a quarter second,
+/// so each stage up to the last, encoding, must outlast that to be seen.
 fn one_big_sample(dir: &Dir) -> String {
     std::fs::write(
         dir.join("big.toml"),
-        "schema_version = 1\nname = \"big\"\ndimension = 4\nside = 96\nmode = \"carve\"\n\
-         samples = 1\nshard_size = 1\nseed = 7\n[[classes]]\nfamily = \"t2_x_b2\"\n",
+        "schema_version = 1\nname = \"big\"\ndimension = 4\nside = 128\nmode = \"carve\"\n\
+         samples = 1\nshard_size = 1\nseed = 7\ncompression = \"gzip\"\n\
+         [[classes]]\nfamily = \"t2_x_b2\"\n",
     )
     .unwrap();
     "big.toml".to_string()
