@@ -66,7 +66,7 @@ pub struct Apart {
 
 impl Apart {
     /// Labels the components of `phase` in `image`. `None` when there are fewer than two
-    /// (nothing to keep apart) or more than 255 (a byte cannot tell them apart; such a
+    /// (nothing to keep apart) or more than 254 (a byte cannot tell them apart beside its marker; such a
     /// phase keeps only the simple-point rule).
     pub fn new(image: &BinaryImage, phase: &Phase) -> Option<Apart> {
         let layout = Layout::new(image, phase);
