@@ -29,7 +29,7 @@ use crate::phase::{BitSet, Layout, Phase};
 use crate::{DeformError, DeformReport};
 use bettimill_grid::BinaryImage;
 use bettimill_homology::simple::{SimpleCache, SimpleTester};
-use bettimill_noise::Fractal;
+use bettimill_noise::{Fractal, FractalMemo};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -73,7 +73,9 @@ fn rank_by_key(mut keyed: Vec<(u32, usize)>) -> Vec<(u32, usize)> {
 }
 
 /// The candidates with their rank keys ([`rank_key`] of their noise), computed in
-/// parallel: each value depends only on its voxel's coordinates.
+/// parallel: each value depends only on its voxel's coordinates. A frontier comes in C
+/// order, so neighbours along the last axis follow each other; each part of the split
+/// keeps a memo of the point before ([`FractalMemo`]), which changes no value.
 fn keyed_by_noise(
     candidates: &[usize],
     fractal: &Fractal,
@@ -82,7 +84,10 @@ fn keyed_by_noise(
 ) -> Vec<(u32, usize)> {
     candidates
         .par_iter()
-        .map(|&v| (rank_key(fractal.sample(layout.coords(v)), highest_first), v))
+        .map_init(FractalMemo::default, |memo, &v| {
+            let noise = fractal.sample_memo(layout.coords(v), memo);
+            (rank_key(noise, highest_first), v)
+        })
         .collect()
 }
 

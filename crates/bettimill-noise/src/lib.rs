@@ -16,6 +16,10 @@
 //!   all 32 are reachable with equal frequency.
 //! * [`Fractal`] sums octaves (lacunarity 2, gain 0.5) and divides by the sum of the
 //!   amplitudes, so it stays in the range of one octave (roughly [-1, 1]).
+//! * [`Fractal::sample_memo`] is [`Fractal::sample`] bit for bit, keeping from one 4D point
+//!   to the next what depends only on the first three coordinates (the corner hashes and
+//!   three of the four terms of each gradient product): a frontier in C order visits runs
+//!   of neighbours along the last axis.
 //! * [`noise_field`] evaluates a fractal field at every voxel in C order. It runs on rayon
 //!   but each value is a pure function of its coordinate, so the output is bit-identical
 //!   whatever the number of threads.
@@ -190,6 +194,78 @@ fn grad4(hash: u8, p: [f64; 4]) -> f64 {
     sum
 }
 
+/// The 4D noise from its 16 corner values (corner bit 0 is w, bit 3 is x) and the fades
+/// `[fx, fy, fz, fw]`: interpolated along w, then z, then y, then x.
+#[inline]
+fn interpolate4(values: [f64; 16], [fx, fy, fz, fw]: [f64; 4]) -> f64 {
+    let mut along_w = [0.0f64; 8];
+    for (i, v) in along_w.iter_mut().enumerate() {
+        *v = lerp(fw, values[2 * i], values[2 * i + 1]);
+    }
+    let mut along_z = [0.0f64; 4];
+    for (i, v) in along_z.iter_mut().enumerate() {
+        *v = lerp(fz, along_w[2 * i], along_w[2 * i + 1]);
+    }
+    let along_y = [
+        lerp(fy, along_z[0], along_z[1]),
+        lerp(fy, along_z[2], along_z[3]),
+    ];
+    lerp(fx, along_y[0], along_y[1])
+}
+
+/// [`grad4`] in two parts: the running sum over the first three axes, and the gradient's
+/// factor on the fourth. `prefix + p[3] * factor` is the whole sum, the same operations in
+/// the same order, so a point that only moves along the fourth axis reuses the prefix.
+#[inline]
+fn grad4_prefix(hash: u8, p: [f64; 3]) -> (f64, f64) {
+    let g = &GRADIENTS4[gradient_index4(hash) as usize];
+    let mut sum = 0.0;
+    for axis in 0..3 {
+        sum += p[axis] * g[axis];
+    }
+    (sum, g[3])
+}
+
+/// What the 4D noise of one octave needs from a point's first three coordinates and the
+/// lattice cell of its fourth (see `Perlin::fill_row4`): points of a row along the fourth
+/// axis inside one cell share it, and only the fourth axis's term and the interpolation
+/// are left per point.
+#[derive(Clone, Copy, Debug)]
+struct Row4 {
+    prefix: [f64; 16],
+    w_factor: [f64; 16],
+    /// The fades of the first three coordinates.
+    fades: [f64; 3],
+    w_cell: usize,
+    filled: bool,
+}
+
+impl Default for Row4 {
+    fn default() -> Row4 {
+        Row4 {
+            prefix: [0.0; 16],
+            w_factor: [0.0; 16],
+            fades: [0.0; 3],
+            w_cell: 0,
+            filled: false,
+        }
+    }
+}
+
+impl Row4 {
+    /// The octave's noise at fourth coordinate `w`, in the cell the row was filled for.
+    #[inline]
+    fn noise(&self, w: Axis) -> f64 {
+        let mut values = [0.0f64; 16];
+        for (c, v) in values.iter_mut().enumerate() {
+            let dw = (c & 1) as f64;
+            *v = self.prefix[c] + (w.frac - dw) * self.w_factor[c];
+        }
+        let [fx, fy, fz] = self.fades;
+        interpolate4(values, [fx, fy, fz, w.fade])
+    }
+}
+
 impl Perlin {
     /// Noise with Ken Perlin's reference permutation.
     pub fn reference() -> Perlin {
@@ -330,20 +406,52 @@ impl Perlin {
                 }
             }
         }
-        // Interpolate along w, then z, then y, then x (corner bit 0 is w).
-        let mut along_w = [0.0f64; 8];
-        for (i, v) in along_w.iter_mut().enumerate() {
-            *v = lerp(fw, values[2 * i], values[2 * i + 1]);
+        interpolate4(values, [fx, fy, fz, fw])
+    }
+
+    /// The part of the 4D noise that does not depend on the fourth coordinate's position
+    /// inside its lattice cell: each corner's hash, the sum of its gradient's first three
+    /// terms, and the factor of its fourth.
+    #[inline]
+    fn fill_row4(&self, row: &mut Row4, [x, y, z]: [Axis; 3], wi: usize) {
+        let (x_fade, y_fade, z_fade) = (x.fade, y.fade, z.fade);
+        let (xi, x) = (x.cell, x.frac);
+        let (yi, y) = (y.cell, y.frac);
+        let (zi, z) = (z.cell, z.frac);
+        row.fades = [x_fade, y_fade, z_fade];
+        // Corner c = (dx, dy, dz, dw) in bits 3..0. The hash is built as a tree
+        // (p[x] shared by 8 corners, p[p[x] + y] by 4, ...): 30 table reads instead of 64.
+        // Every index is at most 255 + 255 + 1, so `& 511` keeps it and shows the
+        // compiler it is in the table (no bounds checks in the inner loop).
+        let p = &self.p;
+        for dx in 0..2 {
+            let hx = p[(xi + dx) & 511] as usize;
+            for dy in 0..2 {
+                let hy = p[(hx + yi + dy) & 511] as usize;
+                for dz in 0..2 {
+                    let hz = p[(hy + zi + dz) & 511] as usize;
+                    for dw in 0..2 {
+                        let hash = p[(hz + wi + dw) & 511];
+                        let c = dx << 3 | dy << 2 | dz << 1 | dw;
+                        (row.prefix[c], row.w_factor[c]) =
+                            grad4_prefix(hash, [x - dx as f64, y - dy as f64, z - dz as f64]);
+                    }
+                }
+            }
         }
-        let mut along_z = [0.0f64; 4];
-        for (i, v) in along_z.iter_mut().enumerate() {
-            *v = lerp(fz, along_w[2 * i], along_w[2 * i + 1]);
+    }
+
+    /// Noise of a 4D point through a [`Row4`] memo: the memo is refilled unless it holds
+    /// this octave's lattice cell of the fourth coordinate and the same first three
+    /// coordinates.
+    #[inline]
+    fn noise4_memo(&self, memo: &mut Row4, lead_same: bool, axes: [Axis; 4]) -> f64 {
+        if !(lead_same && memo.filled && memo.w_cell == axes[3].cell) {
+            self.fill_row4(memo, [axes[0], axes[1], axes[2]], axes[3].cell);
+            memo.w_cell = axes[3].cell;
+            memo.filled = true;
         }
-        let along_y = [
-            lerp(fy, along_z[0], along_z[1]),
-            lerp(fy, along_z[2], along_z[3]),
-        ];
-        lerp(fx, along_y[0], along_y[1])
+        memo.noise(axes[3])
     }
 
     /// Noise of the first `dim` coordinates of `point`.
@@ -384,6 +492,16 @@ pub struct Fractal {
     /// points, so its split and fade are worked out once here, by the same operations
     /// [`Fractal::sample`] would do (the same bits).
     grid: Vec<Axis>,
+}
+
+/// What [`Fractal::sample_memo`] keeps from the last point it was asked for: that point's
+/// first three coordinates and, per octave, the corner terms that do not depend on where
+/// the fourth coordinate lies inside its lattice cell. Belongs to one [`Fractal`]; a fresh
+/// one (`FractalMemo::default()`) holds nothing.
+#[derive(Clone, Debug, Default)]
+pub struct FractalMemo {
+    lead: [usize; 3],
+    rows: Vec<Row4>,
 }
 
 /// How many voxel coordinates (`0..GRID`) a [`Fractal`] keeps split: the sides of the
@@ -449,6 +567,31 @@ impl Fractal {
             return total / self.normaliser;
         }
         self.sample_anywhere(coords)
+    }
+
+    /// [`Fractal::sample`], bit for bit, reusing what `memo` kept from the point before:
+    /// in 4D, a point that shares the first three coordinates with it and, per octave, the
+    /// lattice cell of the fourth skips the corner hashes and three of the four terms of
+    /// every corner's gradient product. Points taken in C order (a phase's frontier) share
+    /// them often; in any order the values are the same.
+    #[inline]
+    pub fn sample_memo(&self, coords: [usize; 4], memo: &mut FractalMemo) -> f64 {
+        if self.dim != Dim::Four || !coords.iter().all(|&c| c < GRID) {
+            return self.sample(coords);
+        }
+        let lead_same = memo.lead == [coords[0], coords[1], coords[2]];
+        memo.lead = [coords[0], coords[1], coords[2]];
+        if memo.rows.len() != self.octaves as usize {
+            memo.rows = vec![Row4::default(); self.octaves as usize];
+        }
+        let mut total = 0.0;
+        let mut amplitude = 1.0;
+        for (octave, row) in self.grid.chunks_exact(GRID).zip(memo.rows.iter_mut()) {
+            let axes = coords.map(|c| octave[c]);
+            total += amplitude * self.perlin.noise4_memo(row, lead_same, axes);
+            amplitude *= 0.5;
+        }
+        total / self.normaliser
     }
 
     /// [`Fractal::sample`] without the split coordinates: the definition, for any point.

@@ -262,3 +262,25 @@ fn split_grid_coordinates_give_the_definitions_bits() {
         }
     }
 }
+
+#[test]
+fn the_memo_gives_the_plain_samples_bits() {
+    // Rows along the last axis (the memo's reuse), jumps between rows, points on both
+    // sides of the grid's end, and one memo carried across all of them, every dimension.
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    for dim in [Dim::Two, Dim::Three, Dim::Four] {
+        for (frequency, octaves) in [(0.1, 3), (0.3, 2), (1.0 / 16.0, 5)] {
+            let fractal = Fractal::new(dim, rng.gen(), frequency, octaves).unwrap();
+            let mut memo = FractalMemo::default();
+            for _ in 0..60 {
+                let mut coords: [usize; 4] = std::array::from_fn(|_| rng.gen_range(0..GRID + 4));
+                for _ in 0..rng.gen_range(1..12) {
+                    coords[3] = rng.gen_range(coords[3].saturating_sub(3)..coords[3] + 4);
+                    let memoised = fractal.sample_memo(coords, &mut memo);
+                    let plain = fractal.sample_anywhere(coords);
+                    assert_eq!(memoised.to_bits(), plain.to_bits(), "{dim:?} {coords:?}");
+                }
+            }
+        }
+    }
+}
