@@ -67,6 +67,19 @@ pub use bettimill_types::deform::{
 pub use morphology::{DEFAULT_TARGET_FREQUENCY, DEFAULT_TARGET_OCTAVES};
 pub use phase::Phase;
 
+/// The foreground count after `flipped` voxels of the other value became `to`: a flip
+/// changes the count by one, so no pass over the image is needed. Debug builds check it
+/// against a count.
+fn foreground_after(image: &BinaryImage, before: u64, flipped: u64, to: u8) -> u64 {
+    let after = if to == 1 {
+        before + flipped
+    } else {
+        before - flipped
+    };
+    debug_assert_eq!(after, image.count_foreground(), "the flips were counted");
+    after
+}
+
 /// What a deformation did.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DeformReport {

@@ -271,7 +271,8 @@ pub(crate) fn run(
         }
         candidates = next;
     }
-    report.foreground_after = image.count_foreground();
+    report.foreground_after =
+        crate::foreground_after(image, foreground_before, report.applied, flip_to);
     Ok(report)
 }
 

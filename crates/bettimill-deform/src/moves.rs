@@ -321,6 +321,7 @@ pub(crate) fn run(
         rejected,
         iterations: attempts,
         foreground_before,
-        foreground_after: image.count_foreground(),
+        // A move flips one voxel each way.
+        foreground_after: crate::foreground_after(image, foreground_before, 0, 1),
     }
 }

@@ -212,6 +212,11 @@ pub(crate) fn run(
             }
         }
     }
-    painter.report.foreground_after = image.count_foreground();
+    painter.report.foreground_after = crate::foreground_after(
+        image,
+        foreground_before,
+        painter.report.applied,
+        phase.value,
+    );
     painter.report
 }
