@@ -167,13 +167,34 @@ pub fn deform_phase(
     apart: Option<&mut Apart>,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
+    let foreground = image.count_foreground();
+    deform_phase_counted(image, settings, phase, apart, seed, foreground)
+}
+
+/// [`deform_phase`] for a caller that knows the image's foreground count `foreground`
+/// (the count it built, or the previous step's [`DeformReport::foreground_after`]): a
+/// sequence of steps then counts once, not once a step. The count must be right; debug
+/// builds check it.
+pub fn deform_phase_counted(
+    image: &mut BinaryImage,
+    settings: &DeformSettings,
+    phase: &Phase,
+    apart: Option<&mut Apart>,
+    seed: u64,
+    foreground: u64,
+) -> Result<DeformReport, DeformError> {
+    debug_assert_eq!(
+        foreground,
+        image.count_foreground(),
+        "the count is the image's"
+    );
     settings
         .validate()
         .map_err(|err| DeformError::InvalidSetting {
             field: err.field,
             reason: err.reason,
         })?;
-    let report = match settings.method {
+    let mut report = match settings.method {
         Method::Moves => {
             let noise =
                 field::NoiseCache::new(image, seed, settings.noise_frequency, settings.octaves)?;
@@ -209,6 +230,18 @@ pub fn deform_phase(
             settings.method == Method::Tentacles,
             seed,
         ),
+    };
+    // The runners count flips; the foreground count follows from them (a move flips one
+    // voxel each way, the other methods flip voxels into the value they grow).
+    let to = match settings.method {
+        Method::Moves => None,
+        Method::Dilate | Method::Tentacles | Method::Walk => Some(phase.value),
+        Method::Erode => Some(phase.other()),
+    };
+    report.foreground_before = foreground;
+    report.foreground_after = match to {
+        Some(to) => foreground_after(image, foreground, report.applied, to),
+        None => foreground_after(image, foreground, 0, 1),
     };
     Ok(report)
 }

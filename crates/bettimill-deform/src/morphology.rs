@@ -123,13 +123,13 @@ pub(crate) fn run(
     mut apart: Option<&mut Apart>,
 ) -> Result<DeformReport, DeformError> {
     let dim = image.dim();
-    let foreground_before = image.count_foreground();
+    // The foreground counts are the caller's (`deform_phase_counted`), from the flips.
     let mut report = DeformReport {
         applied: 0,
         rejected: 0,
         iterations: 0,
-        foreground_before,
-        foreground_after: foreground_before,
+        foreground_before: 0,
+        foreground_after: 0,
     };
     let layout = Layout::new(image, job.phase);
     if job.steps == 0 || layout.is_empty() {
@@ -271,8 +271,6 @@ pub(crate) fn run(
         }
         candidates = next;
     }
-    report.foreground_after =
-        crate::foreground_after(image, foreground_before, report.applied, flip_to);
     Ok(report)
 }
 

@@ -123,7 +123,6 @@ pub(crate) fn run(
     persistent: bool,
     seed: u64,
 ) -> DeformReport {
-    let foreground_before = image.count_foreground();
     let layout = Layout::new(image, phase);
     let mut painter = Painter {
         tester: &SimpleTester::new(image.dim()),
@@ -133,8 +132,9 @@ pub(crate) fn run(
             applied: 0,
             rejected: 0,
             iterations: 0,
-            foreground_before,
-            foreground_after: foreground_before,
+            // The foreground counts are the caller's (`deform_phase_counted`).
+            foreground_before: 0,
+            foreground_after: 0,
         },
         layout,
     };
@@ -212,11 +212,5 @@ pub(crate) fn run(
             }
         }
     }
-    painter.report.foreground_after = crate::foreground_after(
-        image,
-        foreground_before,
-        painter.report.applied,
-        phase.value,
-    );
     painter.report
 }

@@ -359,20 +359,26 @@ pub fn make_sample_observed(
         if let Some(deformation) = &plan.deform {
             report(Stage::Deform, 0.0);
             let mut failed = None;
+            // Counted once; each step reports the count it leaves.
+            let mut foreground = image.count_foreground();
             for (i, step) in deformation.0.iter().enumerate() {
                 let at = (i as u32).to_le_bytes();
                 let draw = step_seed("bettimill deform draw v2", &task.seed, attempt, &at);
                 let settings = bettimill_deform::draw_settings(step, draw);
                 let seed = step_seed("bettimill deform seed v2", &task.seed, attempt, &at);
-                if let Err(err) = bettimill_deform::deform_phase(
+                match bettimill_deform::deform_phase_counted(
                     &mut image,
                     &settings,
                     &phase,
                     apart.as_mut(),
                     seed,
+                    foreground,
                 ) {
-                    failed = Some(format!("deformation step {i} failed: {err}"));
-                    break;
+                    Ok(step_report) => foreground = step_report.foreground_after,
+                    Err(err) => {
+                        failed = Some(format!("deformation step {i} failed: {err}"));
+                        break;
+                    }
                 }
                 applied.push(settings);
             }
