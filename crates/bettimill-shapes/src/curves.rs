@@ -53,6 +53,91 @@ pub(crate) fn open_curve(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> So
     Solid::Tube(vec![(Piece::polyline(points, false), tube)])
 }
 
+/// Points of a [`wavy_loop`]'s closed curve: about one per LOOP_SPACING voxels of its
+/// length (bounded from above), within these bounds (the clearance check compares every pair of them, and the
+/// sizing builds an instance hundreds of times).
+const LOOP_SAMPLES: (f64, f64) = (48.0, 240.0);
+const LOOP_SPACING: f64 = 0.75;
+
+/// A thickened closed curve that is not round: a circle of radius `tube + INNER_GAP / 2 +
+/// grow` (the handle's) stretched along one axis, with lobes in its plane and waves out of
+/// it, amplitudes and phases from `shares`. The waves scale with `grow`, so the smallest
+/// instance is the handle's circle whatever the shares. The curve's shadow on its plane is
+/// star-shaped about the centre (the radius stays positive and the angle turns one way),
+/// so it never crosses itself and in 3D it is unknotted: the solid is S1 x B(d-1). When a
+/// draw would bring two far-apart stretches of the tube within INNER_GAP (or bend it
+/// tighter than the tube), the waves are halved until it does not; without waves it is the
+/// handle's circle, which is clear.
+pub(crate) fn wavy_loop(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> Solid {
+    let count = shares.len() as f64;
+    let random = |k: usize| shares[k % shares.len()] * count;
+    let radius = tube + INNER_GAP / 2.0 + grow;
+    // Lobes in the plane (2 or 3 of them), a squeeze of one in-plane axis, and one wave per
+    // further axis (1 to 3 periods around the loop).
+    // Each choice reads its own share: 0-3 the lobes and the squeeze, 4-5 the waves'
+    // heights, 6-7 their periods, 8-9 their phases.
+    let lobes = 2.0 + (libm::floor(random(1) * 7.0) % 2.0);
+    let lobe = (grow * 0.35 * random(0)).min(0.45 * radius);
+    let squeeze = (grow / radius) * 0.4 * (random(2) / 2.5).min(1.0);
+    let phase = |k: usize| 2.0 * PI * random(k) / count;
+    let mut wave = [0.0; 4];
+    let mut periods = [0.0; 4];
+    for k in 2..dim {
+        wave[k] = grow * 0.3 * random(k + 2);
+        periods[k] = 1.0 + (libm::floor(random(k + 4) * 7.0) % 3.0);
+    }
+    // The length of the curve at most: the lobed circle's, and 4 heights a period of each
+    // wave.
+    let length = 2.0 * PI * (radius + lobe) * (1.0 + lobes * lobe / radius)
+        + (2..dim).map(|k| 4.0 * wave[k] * periods[k]).sum::<f64>();
+    let samples = (length / LOOP_SPACING)
+        .ceil()
+        .clamp(LOOP_SAMPLES.0, LOOP_SAMPLES.1) as usize;
+    let round = lobe == 0.0 && squeeze == 0.0 && wave.iter().all(|&h| h == 0.0);
+    let mut damp = 1.0;
+    loop {
+        let points = closed_curve_of(samples, |t| {
+            let r = radius + damp * lobe * libm::sin(lobes * t + phase(3));
+            let mut p = [
+                r * libm::cos(t),
+                r * (1.0 - damp * squeeze) * libm::sin(t),
+                0.0,
+                0.0,
+            ];
+            for k in 2..dim {
+                p[k] = damp * wave[k] * libm::sin(periods[k] * t + phase(k + 6));
+            }
+            p
+        });
+        // The round circle is the handle's, clear by construction.
+        if damp == 0.0 || round || clear_at(&points, tube) {
+            return Solid::Tube(vec![(Piece::polyline(points, true), tube)]);
+        }
+        // Eight halvings leave waves well under a voxel; then the plain circle.
+        damp = if damp < 0.01 { 0.0 } else { damp * 0.5 };
+    }
+}
+
+/// Whether a tube of radius `tube` around the closed polyline `points` (at its own scale)
+/// meets the two conditions of the module documentation.
+fn clear_at(points: &[P], tube: f64) -> bool {
+    let gap = need(tube);
+    let n = points.len();
+    let bends = (0..n).all(|k| {
+        circumradius(points[(k + n - 1) % n], points[k], points[(k + 1) % n]) >= gap / 2.0
+    });
+    if !bends {
+        return false;
+    }
+    let (arc, total) = arc_lengths(points);
+    (0..n).all(|i| {
+        (i + 1..n).all(|j| {
+            let along = (arc[j] - arc[i]).min(total - (arc[j] - arc[i]));
+            along < PI / 2.0 * gap || norm(sub(points[i], points[j])) >= gap
+        })
+    })
+}
+
 /// Samples per closed component at unit scale.
 const SAMPLES: usize = 360;
 
@@ -63,8 +148,12 @@ struct CurveSet {
 }
 
 fn closed_curve(f: impl Fn(f64) -> P) -> Vec<P> {
-    (0..SAMPLES)
-        .map(|k| f(2.0 * PI * k as f64 / SAMPLES as f64))
+    closed_curve_of(SAMPLES, f)
+}
+
+fn closed_curve_of(samples: usize, f: impl Fn(f64) -> P) -> Vec<P> {
+    (0..samples)
+        .map(|k| f(2.0 * PI * k as f64 / samples as f64))
         .collect()
 }
 

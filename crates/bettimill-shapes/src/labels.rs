@@ -55,7 +55,7 @@ pub(crate) fn embed_betti(family: &Family, dim: Dim) -> Result<Betti, ShapeError
     };
     let z2 = match family {
         Family::Ball | Family::Curve => unit(d, &[1]),
-        Family::Handle => unit(d, &[1, 1]),
+        Family::Handle | Family::Loop => unit(d, &[1, 1]),
         Family::Shell => {
             let mut b = unit(d, &[1]);
             b[d - 1] += 1;
@@ -193,6 +193,7 @@ fn tentacle_host(family: &Family) -> bool {
             | Family::Handle
             | Family::Handlebody { .. }
             | Family::Curve
+            | Family::Loop
             | Family::Knot { .. }
             | Family::TorusKnot { .. }
             | Family::Link { .. }

@@ -170,6 +170,9 @@ pub enum Family {
     },
     /// A thickened smooth open curve (contractible).
     Curve,
+    /// A thickened closed curve that is not round (lobes, a squeeze, waves out of its
+    /// plane): S1 x B(d-1), the handle's topology, never knotted.
+    Loop,
     /// A knotted solid torus in 3D; in 4D the knot times an interval (circles do not knot
     /// in 4D).
     Knot {
@@ -392,6 +395,7 @@ impl Family {
                 }
             }
             Family::Curve => "curve".into(),
+            Family::Loop => "loop".into(),
             Family::Knot { knot } => format!("knot({})", knot.name()),
             Family::TorusKnot { p, q } => format!("torus_knot(p={p},q={q})"),
             Family::Link { link } => format!("link({})", link.name()),

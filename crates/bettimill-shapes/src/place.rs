@@ -768,6 +768,7 @@ mod tests {
             r#"{"family":"torus_shell"}"#,
             r#"{"family":"handlebody","genus":2}"#,
             r#"{"family":"curve"}"#,
+            r#"{"family":"loop"}"#,
             r#"{"family":"knot","knot":"trefoil"}"#,
             r#"{"family":"link","link":"hopf"}"#,
             r#"{"family":"s2_x_b2"}"#,

@@ -208,7 +208,8 @@ pub(crate) fn tube_range(family: &Family, floor: TubeFloor) -> (f64, f64) {
         | Family::Link { .. }
         | Family::SpunKnot { .. }
         | Family::SpunLink { .. }
-        | Family::Curve => (TUBE_MIN, 3.0),
+        | Family::Curve
+        | Family::Loop => (TUBE_MIN, 3.0),
         _ => (TUBE_MIN, 4.0),
     })
 }
@@ -221,6 +222,7 @@ pub(crate) fn share_count(family: &Family) -> usize {
         Family::ConnectedSum { .. } => 3,
         Family::Tunnel { .. } => 2,
         Family::Curve => 8,
+        Family::Loop => 10,
         _ => 1,
     }
 }
@@ -350,6 +352,7 @@ pub(crate) fn make(
             )
         }
         Family::Curve => curves::open_curve(dim, tube, grow, &shares.0),
+        Family::Loop => curves::wavy_loop(dim, tube, grow, &shares.0),
         Family::Knot { knot } => curves::knot_solid(*knot, dim, tube, grow)?,
         Family::TorusKnot { p, q } => curves::torus_knot_solid(*p, *q, dim, tube, grow)?,
         Family::Link { link } => curves::link_solid(*link, dim, tube, grow)?,

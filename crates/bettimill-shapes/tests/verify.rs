@@ -81,3 +81,23 @@ fn betti_classes_match_the_homology_crate() {
         }
     }
 }
+
+/// A loop's waves are drawn per instance, and a draw that brings its tube too close to
+/// itself is damped: many draws in each dimension and mode, each labelled right.
+#[test]
+fn wavy_loops_match_the_homology_crate_draw_after_draw() {
+    let mut failures = Vec::new();
+    for (dim, side, count) in [
+        (Dim::Two, 32, 40),
+        (Dim::Three, 32, 40),
+        (Dim::Four, 20, 12),
+    ] {
+        for mode in [Mode::Embed, Mode::Carve] {
+            match mismatches(&Family::Loop, dim, side, mode, 100, count) {
+                Some(bad) => failures.extend(bad),
+                None => failures.push(format!("loop {dim}D side {side} {mode}: does not fit")),
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}

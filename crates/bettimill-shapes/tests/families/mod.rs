@@ -121,6 +121,7 @@ pub fn cases() -> Vec<(Family, [usize; 3])> {
             [0, 40, 32],
         ),
         (Curve, [32, 32, 16]),
+        (Loop, [32, 32, 20]),
         (knot(KnotKind::Unknot), [0, 32, 20]),
         (knot(KnotKind::Trefoil), [0, 48, 0]),
         (knot(KnotKind::FigureEight), [0, 48, 0]),
