@@ -156,6 +156,21 @@ pub(crate) enum Piece {
     /// `axes` coordinate axes (axes = 3 in 4D is a 2-sphere; axes = d is the full
     /// (d-1)-sphere).
     Sphere { centre: P, radius: f64, axes: usize },
+    /// A star-shaped sphere inside the span of the first `axes` axes: in the direction u
+    /// its radius is `radius + sum a (u . v)^2` over `stretches` plus `sum a max(0, u .
+    /// v)^4` over `lumps` (never below `radius`), and it is lifted along the next axis by
+    /// `bend.1 (u . bend.0)^2`. Its "distance" is measured in the half-plane of the
+    /// point's direction: sqrt((|q| - r(u))^2 + (q_axes - h(u))^2 + the rest^2). A tube
+    /// around it is a disk bundle over the sphere of directions, so it has the round
+    /// sphere's tube's topology while `radius` exceeds the tube.
+    Bumpy {
+        centre: P,
+        radius: f64,
+        axes: usize,
+        stretches: Vec<(P, f64)>,
+        lumps: Vec<(P, f64)>,
+        bend: (P, f64),
+    },
     /// A polyline through `points`, closed when `closed`. Build it with
     /// [`Piece::polyline`], which also fills `chunks`: bounding balls of runs of
     /// `CHUNK` segments, so that most segments are skipped when testing a point.
@@ -238,6 +253,7 @@ impl Piece {
                 Some((*centre, *radius))
             }
             Piece::Polyline { bound, .. } => Some(*bound),
+            Piece::Bumpy { centre, .. } => Some((*centre, self.extent() - norm(*centre))),
             Piece::Torus { major, minor } | Piece::Klein { major, minor } => {
                 Some((ORIGIN, major + minor))
             }
@@ -327,6 +343,47 @@ impl Piece {
                 let radial = inside.sqrt() - radius;
                 (radial * radial + outside).sqrt()
             }
+            Piece::Bumpy {
+                centre,
+                radius,
+                axes,
+                stretches,
+                lumps,
+                bend,
+            } => {
+                let q = sub(p, *centre);
+                let rho = q[..*axes].iter().map(|x| x * x).sum::<f64>().sqrt();
+                // The centre's direction is arbitrary; any one gives a distance of at
+                // least `radius` there, far outside every tube.
+                let mut u = [0.0; 4];
+                if rho > 0.0 {
+                    for k in 0..*axes {
+                        u[k] = q[k] / rho;
+                    }
+                } else {
+                    u[0] = 1.0;
+                }
+                let mut r = *radius;
+                for &(v, a) in stretches {
+                    let c = dot(u, v);
+                    r += a * c * c;
+                }
+                for &(v, a) in lumps {
+                    let c = dot(u, v).max(0.0);
+                    r += a * c * c * c * c;
+                }
+                let lift = {
+                    let c = dot(u, bend.0);
+                    bend.1 * c * c
+                };
+                let radial = rho - r;
+                let mut rest = 0.0;
+                for (k, &x) in q.iter().enumerate().skip(*axes) {
+                    let x = if k == *axes { x - lift } else { x };
+                    rest += x * x;
+                }
+                (radial * radial + rest).sqrt()
+            }
             Piece::Polyline { points, closed, .. } => {
                 let n = points.len();
                 let segments = if *closed { n } else { n.saturating_sub(1) };
@@ -387,6 +444,17 @@ impl Piece {
             Piece::Segment(a, b) => norm(*a).max(norm(*b)),
             Piece::Circle { centre, radius, .. } => norm(*centre) + radius,
             Piece::Sphere { centre, radius, .. } => norm(*centre) + radius,
+            Piece::Bumpy {
+                centre,
+                radius,
+                stretches,
+                lumps,
+                bend,
+                ..
+            } => {
+                let bulge: f64 = stretches.iter().chain(lumps).map(|&(_, a)| a).sum();
+                norm(*centre) + radius + bulge + bend.1.abs()
+            }
             Piece::Polyline { points, .. } => points.iter().map(|&q| norm(q)).fold(0.0, f64::max),
             Piece::Torus { major, minor } | Piece::Klein { major, minor } => major + minor,
             // Spinning maps (rho, x2, x3) to points of the same norm.
@@ -451,6 +519,20 @@ impl Piece {
             } => json!({
                 "piece": "sphere", "centre": point_json(*centre, dim),
                 "radius": round6(*radius), "axes": axes
+            }),
+            Piece::Bumpy {
+                centre,
+                radius,
+                axes,
+                stretches,
+                lumps,
+                bend,
+            } => json!({
+                "piece": "bumpy_sphere", "centre": point_json(*centre, dim),
+                "radius": round6(*radius), "axes": axes,
+                "stretches": stretches.iter().map(|&(_, a)| round6(a)).collect::<Vec<_>>(),
+                "lumps": lumps.iter().map(|&(_, a)| round6(a)).collect::<Vec<_>>(),
+                "bend": round6(bend.1)
             }),
             Piece::Polyline { points, closed, .. } => json!({
                 "piece": "polyline", "closed": closed, "vertices": points.len(),

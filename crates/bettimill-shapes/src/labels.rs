@@ -56,7 +56,7 @@ pub(crate) fn embed_betti(family: &Family, dim: Dim) -> Result<Betti, ShapeError
     let z2 = match family {
         Family::Ball | Family::Curve => unit(d, &[1]),
         Family::Handle | Family::Loop => unit(d, &[1, 1]),
-        Family::Shell => {
+        Family::Shell | Family::BumpyShell => {
             let mut b = unit(d, &[1]);
             b[d - 1] += 1;
             b
@@ -77,6 +77,10 @@ pub(crate) fn embed_betti(family: &Family, dim: Dim) -> Result<Betti, ShapeError
         }
         Family::S2xB2 => {
             only_4d("S2xB2 is four-dimensional; in 3D use shell")?;
+            vec![1, 0, 1, 0]
+        }
+        Family::BumpyS2xB2 => {
+            only_4d("bumpy_s2_x_b2 is four-dimensional; in 3D use bumpy_shell")?;
             vec![1, 0, 1, 0]
         }
         Family::T2xB2 => {

@@ -133,6 +133,13 @@ pub enum Family {
     /// 4D: a thickened torus, T2xB2 = S1xS1xB2.
     #[serde(rename = "t2_x_b2")]
     T2xB2,
+    /// A `shell` whose sphere is not round: stretched along its axes, with lumps, drawn
+    /// per sample.
+    BumpyShell,
+    /// 4D: an `s2_x_b2` whose 2-sphere is not round: stretched, with lumps, and bent into
+    /// the fourth axis, drawn per sample.
+    #[serde(rename = "bumpy_s2_x_b2")]
+    BumpyS2xB2,
     /// S1 x (boundary sum of j copies of S1xB(d-2)), built by spinning a thickened planar
     /// graph with j cycles about a plane (3D: about an axis).
     #[serde(rename = "s1_x_handlebody")]
@@ -379,6 +386,8 @@ impl Family {
             Family::Handlebody { genus } => format!("handlebody(genus={genus})"),
             Family::S2xB2 => "s2_x_b2".into(),
             Family::T2xB2 => "t2_x_b2".into(),
+            Family::BumpyShell => "bumpy_shell".into(),
+            Family::BumpyS2xB2 => "bumpy_s2_x_b2".into(),
             Family::S1xHandlebody { j } => format!("s1_x_handlebody(j={j})"),
             Family::ConnectedSum { g, h, i, j } => {
                 format!("connected_sum(g={g},h={h},i={i},j={j})")

@@ -772,6 +772,8 @@ mod tests {
             r#"{"family":"knot","knot":"trefoil"}"#,
             r#"{"family":"link","link":"hopf"}"#,
             r#"{"family":"s2_x_b2"}"#,
+            r#"{"family":"bumpy_shell"}"#,
+            r#"{"family":"bumpy_s2_x_b2"}"#,
             r#"{"family":"t2_x_b2"}"#,
             r#"{"family":"connected_sum","g":1,"h":1,"i":1,"j":2}"#,
             r#"{"family":"spun_knot","knot":"trefoil"}"#,

@@ -127,7 +127,85 @@ fn translate(piece: Piece, by: P) -> Piece {
             inner: Box::new(translate(*inner, by)),
             keep,
         },
+        Piece::Bumpy {
+            centre,
+            radius,
+            axes,
+            stretches,
+            lumps,
+            bend,
+        } => Piece::Bumpy {
+            centre: add(centre, by),
+            radius,
+            axes,
+            stretches,
+            lumps,
+            bend,
+        },
         other @ (Piece::Torus { .. } | Piece::Klein { .. }) => other,
+    }
+}
+
+/// A sphere in the first `axes` axes that is `hole` plus half of `grow` in radius, with
+/// stretches along its axes, two lumps and (when there is an axis beyond the sphere's) a
+/// bend drawn from `shares` (13 of them) and scaled with `grow`: at `grow` = 0 it is the
+/// round sphere of radius `hole` whatever the shares, so the smallest instance is the
+/// round family's. The tube is measured along rays from the centre, so it is thinner where
+/// the sphere is steep (by the cosine of the slope); the bumps together stay within
+/// BUMPS of the radius, which keeps the slope under about 30 degrees and the tube at least
+/// 0.85 of its radius thick.
+/// The bumps of a bumpy sphere together, at most, as a share of its radius.
+const BUMPS: f64 = 0.35;
+
+fn bumpy_sphere(dim: usize, axes: usize, hole: f64, grow: f64, shares: &Shares) -> Piece {
+    let count = shares.0.len() as f64;
+    let random = |k: usize| shares.get(k % shares.0.len()) * count;
+    let mut stretches: Vec<(P, f64)> = (0..axes)
+        .map(|k| (axis(k), grow * 0.2 * random(k)))
+        .collect();
+    // A lump's direction: two angles from the shares, in the sphere's first three axes
+    // (the random rotation at placement turns it anywhere).
+    let direction = |k: usize| -> P {
+        let theta = std::f64::consts::PI * (random(k) / 2.5).min(1.0);
+        let phi = 2.0 * std::f64::consts::PI * (random(k + 1) / 2.5).min(1.0);
+        let mut v = [0.0; 4];
+        v[0] = libm::cos(theta);
+        v[1] = libm::sin(theta) * libm::cos(phi);
+        if axes > 2 {
+            v[2] = libm::sin(theta) * libm::sin(phi);
+        }
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        // In 2D both in-plane terms vanish when theta is a right angle and phi too.
+        if n < 1e-9 {
+            return axis(0);
+        }
+        [v[0] / n, v[1] / n, v[2] / n, 0.0]
+    };
+    let mut lumps = vec![
+        (direction(4), grow * 0.3 * random(6)),
+        (direction(7), grow * 0.3 * random(9)),
+    ];
+    let mut bend = if axes < dim {
+        (direction(10), grow * 0.25 * (random(12) - 1.0))
+    } else {
+        (ORIGIN, 0.0)
+    };
+    let radius = hole + 0.5 * grow;
+    let bulge: f64 = stretches.iter().chain(&lumps).map(|&(_, a)| a).sum::<f64>() + bend.1.abs();
+    if bulge > BUMPS * radius {
+        let factor = BUMPS * radius / bulge;
+        for (_, a) in stretches.iter_mut().chain(lumps.iter_mut()) {
+            *a *= factor;
+        }
+        bend.1 *= factor;
+    }
+    Piece::Bumpy {
+        centre: ORIGIN,
+        radius,
+        axes,
+        stretches,
+        lumps,
+        bend,
     }
 }
 
@@ -201,7 +279,7 @@ fn connected_sum(
 pub(crate) fn tube_range(family: &Family, floor: TubeFloor) -> (f64, f64) {
     floor.raise(match family {
         Family::Ball => (TUBE_MIN, TUBE_MIN),
-        Family::Shell | Family::TorusShell => (SHELL_MIN, 3.0),
+        Family::Shell | Family::TorusShell | Family::BumpyShell => (SHELL_MIN, 3.0),
         Family::Tunnel { .. } if tunnel_cycles(family) == 0 => (TUBE_MIN, TUBE_MIN),
         Family::Knot { .. }
         | Family::TorusKnot { .. }
@@ -223,6 +301,7 @@ pub(crate) fn share_count(family: &Family) -> usize {
         Family::Tunnel { .. } => 2,
         Family::Curve => 8,
         Family::Loop => 10,
+        Family::BumpyShell | Family::BumpyS2xB2 => 13,
         _ => 1,
     }
 }
@@ -299,6 +378,8 @@ pub(crate) fn make(
             },
             tube,
         )]),
+        Family::BumpyShell => Solid::Tube(vec![(bumpy_sphere(dim, dim, hole, grow, shares), tube)]),
+        Family::BumpyS2xB2 => Solid::Tube(vec![(bumpy_sphere(dim, 3, hole, grow, shares), tube)]),
         Family::T2xB2 | Family::KleinBottle => {
             let minor = hole + shares.get(0) * grow;
             let major = minor + hole + (1.0 - shares.get(0)) * grow;

@@ -82,20 +82,26 @@ fn betti_classes_match_the_homology_crate() {
     }
 }
 
-/// A loop's waves are drawn per instance, and a draw that brings its tube too close to
-/// itself is damped: many draws in each dimension and mode, each labelled right.
+/// Loops, bumpy shells and bumpy S2xB2 draw their shapes per instance (a loop's draw is
+/// damped when its tube would come too close to itself): many draws in each dimension and
+/// mode, each labelled right.
 #[test]
-fn wavy_loops_match_the_homology_crate_draw_after_draw() {
+fn drawn_shapes_match_the_homology_crate_draw_after_draw() {
     let mut failures = Vec::new();
-    for (dim, side, count) in [
-        (Dim::Two, 32, 40),
-        (Dim::Three, 32, 40),
-        (Dim::Four, 20, 12),
-    ] {
+    let cases = [
+        (Family::Loop, Dim::Two, 32, 40),
+        (Family::Loop, Dim::Three, 32, 40),
+        (Family::Loop, Dim::Four, 20, 12),
+        (Family::BumpyShell, Dim::Two, 32, 40),
+        (Family::BumpyShell, Dim::Three, 32, 40),
+        (Family::BumpyShell, Dim::Four, 20, 12),
+        (Family::BumpyS2xB2, Dim::Four, 20, 12),
+    ];
+    for (family, dim, side, count) in cases {
         for mode in [Mode::Embed, Mode::Carve] {
-            match mismatches(&Family::Loop, dim, side, mode, 100, count) {
+            match mismatches(&family, dim, side, mode, 100, count) {
                 Some(bad) => failures.extend(bad),
-                None => failures.push(format!("loop {dim}D side {side} {mode}: does not fit")),
+                None => failures.push(format!("{family} {dim}D side {side} {mode}: does not fit")),
             }
         }
     }

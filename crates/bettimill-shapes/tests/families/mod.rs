@@ -50,6 +50,8 @@ pub fn cases() -> Vec<(Family, [usize; 3])> {
         (Handlebody { genus: 2 }, [32, 40, 32]),
         (Handlebody { genus: 3 }, [48, 48, 0]),
         (S2xB2, [0, 0, 20]),
+        (BumpyShell, [32, 32, 20]),
+        (BumpyS2xB2, [0, 0, 20]),
         (T2xB2, [0, 0, 32]),
         (S1xHandlebody { j: 1 }, [0, 40, 32]),
         (S1xHandlebody { j: 2 }, [0, 64, 0]),
