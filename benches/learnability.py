@@ -14,7 +14,8 @@ held-out samples of every kind. The kinds:
 - ``binned-chain``: binned, and every deformation in turn with strengths drawn per sample
   from none upward (CHAIN), as the 4d-mixed-128 preset does;
 - ``families``: binned-chain over several constructions of each class (FAMILIES: curves,
-  objects with tentacles, pairs of different objects), not the canonical one alone;
+  loops, bumpy spheres, objects with tentacles, pairs of different objects), not the
+  canonical one alone;
 - ``mix``: canonical and every deformation, in equal shares; ``mix-no-X``: the same
   without the deformation X (X is then a kind that model never saw); ``all``: every
   bettimill kind in equal shares;
@@ -49,7 +50,9 @@ the same ``--train`` samples every epoch; ``--augment`` shows each batch in a ra
 symmetry of the 4D cube; ``--side 24`` gives the constructions room to vary (at side 16 a
 handle needs a bounding radius of 5.25 voxels and the image offers 5.5), with the
 independent generator's shapes scaled to keep their proportions; ``--kinds`` makes only
-the listed kinds (a side-24 run of every kind takes hours).
+the listed kinds (a side-24 run of every kind takes hours); ``--confusion`` prints, for
+every training and held-out kind, the share of each class answered right and the wrong
+answer it gets most (which shapes a model misreads, and as what).
 
 Run by hand (not in CI), from the repository root, with bettimill and torch installed
 (``ci/python-env.sh`` makes a venv with torch; build the package into it with
@@ -104,8 +107,12 @@ DEFORMS = {
 }
 # Hypervolume bins (fractions of the 16^4 image) that every class reaches at side 16: with
 # them each class spans the same foreground counts, so the count alone does not tell the
-# class (without bins each class's count sits in a narrow band of its own).
-BINS = [[0.004, 0.01], [0.01, 0.02], [0.02, 0.035], [0.035, 0.06]]
+# class (without bins each class's count sits in a narrow band of its own). They span the
+# sizes other shapes take, not only ours: the independent generator's balls and loops hold
+# 0.1-1% of the image, its hollow blobs 3-8%, and a model trained on 0.4-6% read nearly
+# every hollow blob as a 2-sphere. The smallest bin stays above the thinnest 4D shell
+# (about 140 voxels, 0.2%).
+BINS = [[0.0025, 0.004], [0.004, 0.01], [0.01, 0.02], [0.02, 0.035], [0.035, 0.06], [0.06, 0.09]]
 # Every deformation in turn, each sample drawing its strengths (from none) per step, as
 # the 4d-mixed-128 preset does.
 CHAIN = [
@@ -116,20 +123,23 @@ CHAIN = [
     {"method": "moves", "steps": [0, 600], "noise_frequency": [0.05, 0.3]},
 ]
 # Constructions of each object class beyond the canonical one, as `[[classes]]` bodies:
-# long thin curves, objects with tentacles, two objects of different kinds. Without them
+# long thin curves, closed curves that are not round, spheres that are not round, objects
+# with tentacles, two objects of different kinds. Without them
 # every one-component training object is compact and a long or spread-out shape reads as
 # two components (the families that fit at side 16; knots and links need a larger side).
 FAMILIES = {
     (1, 0, 0, 0): ['family = "ball"', 'family = "curve"',
                    'family = "tentacled"\ntentacles = 2\nobject = { family = "ball" }',
                    'family = "tentacled"\ntentacles = 3\nobject = { family = "curve" }'],
-    (1, 1, 0, 0): ['family = "handle"'] + [
-        f'family = "tentacled"\ntentacles = {n}\nobject = {{ family = "handle" }}' for n in (1, 2, 3)],
+    (1, 1, 0, 0): ['family = "handle"', 'family = "loop"',
+                   'family = "tentacled"\ntentacles = 1\nobject = { family = "loop" }',
+                   'family = "tentacled"\ntentacles = 3\nobject = { family = "loop" }',
+                   'family = "tentacled"\ntentacles = 2\nobject = { family = "handle" }'],
     (2, 0, 0, 0): ['family = "scene"\nobjects = [{ family = "ball" }, { family = "ball" }]',
                    'family = "scene"\nobjects = [{ family = "tentacled", tentacles = 1, object = { family = "ball" } }, { family = "ball" }]',
                    'family = "scene"\nobjects = [{ family = "tentacled", tentacles = 1, object = { family = "curve" } }, { family = "ball" }]'],
-    (1, 0, 1, 0): ['family = "s2_x_b2"'],
-    (1, 0, 0, 1): ['family = "shell"'],
+    (1, 0, 1, 0): ['family = "s2_x_b2"', 'family = "bumpy_s2_x_b2"'],
+    (1, 0, 0, 1): ['family = "shell"', 'family = "bumpy_shell"'],
 }
 # ... or, for a bettimill whose `[deform]` is one table of fixed values: the strengths
 # first measured (dilate x4, moves x300) and erode like dilate.
@@ -569,12 +579,29 @@ def train(voxels, betti, args, seed):
     return model
 
 
-def exact_accuracy(model, voxels, betti):
+def predict(model, voxels):
     with torch.no_grad():
-        predicted = torch.cat([model(torch.from_numpy(voxels[s:s + 32]).unsqueeze(1).float()).argmax(dim=2)
-                               for s in range(0, len(voxels), 32)])
+        return torch.cat([model(torch.from_numpy(voxels[s:s + 32]).unsqueeze(1).float()).argmax(dim=2)
+                          for s in range(0, len(voxels), 32)])
+
+
+def exact_accuracy(model, voxels, betti):
     truth = torch.from_numpy(betti).clamp(max=MAX_BETTI)
-    return (predicted == truth).all(dim=1).float().mean().item()
+    return (predict(model, voxels) == truth).all(dim=1).float().mean().item()
+
+
+def confusion(model, voxels, betti):
+    """Per true Betti vector: its share answered right and its most common wrong answer."""
+    predicted = predict(model, voxels).tolist()
+    truth = np.minimum(betti, MAX_BETTI).tolist()
+    lines = []
+    for label in sorted({tuple(t) for t in truth}):
+        answers = [tuple(p) for p, t in zip(predicted, truth) if tuple(t) == label]
+        wrong = [a for a in answers if a != label]
+        common = max(set(wrong), key=wrong.count) if wrong else None
+        lines.append(f"{list(label)} {1 - len(wrong) / len(answers):.2f}"
+                     + (f" (else mostly {list(common)}, {wrong.count(common)})" if wrong else ""))
+    return "; ".join(lines)
 
 
 def chance(betti):
@@ -624,6 +651,8 @@ def main():
     parser.add_argument("--fresh", action="store_true",
                         help="a single kind's training sees every sample once: --train x --epochs "
                              "distinct samples (from another seed than the held-out ones), one epoch")
+    parser.add_argument("--confusion", action="store_true",
+                        help="print each training's score per true class on every held-out kind")
     args = parser.parse_args()
     global SIDE
     SIDE = args.side
@@ -675,6 +704,9 @@ def main():
         for repeat in range(args.repeats):
             model = train(voxels, betti, schedule, args.seed + number + 1000 * repeat)
             runs_scores.append({k: exact_accuracy(model, data[k][2], data[k][3]) for k in columns})
+            if args.confusion:
+                for k in columns:
+                    log(f"  {name} #{repeat} on {k}: {confusion(model, data[k][2], data[k][3])}")
         seconds = (time.perf_counter() - start) / args.repeats
         scores = {k: float(np.mean([r[k] for r in runs_scores])) for k in columns}
         spread = {k: (min(r[k] for r in runs_scores), max(r[k] for r in runs_scores)) for k in columns}
