@@ -53,10 +53,11 @@ pub(crate) fn open_curve(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> So
     Solid::Tube(vec![(Piece::polyline(points, false), tube)])
 }
 
-/// Points of a [`wavy_loop`]'s closed curve: about one per LOOP_SPACING voxels of its
-/// length (bounded from above), within these bounds (the clearance check compares every pair of them, and the
-/// sizing builds an instance hundreds of times).
+/// Points of a [`wavy_loop`]'s closed curve: about one per [`LOOP_SPACING`] voxels of its
+/// length (bounded from above), within these bounds (the clearance check compares every
+/// pair of them, and the sizing builds an instance hundreds of times).
 const LOOP_SAMPLES: (f64, f64) = (48.0, 240.0);
+/// Voxels of a loop's length between two of its points.
 const LOOP_SPACING: f64 = 0.75;
 
 /// A thickened closed curve that is not round: a circle of radius `tube + INNER_GAP / 2 +

@@ -146,17 +146,17 @@ fn translate(piece: Piece, by: P) -> Piece {
     }
 }
 
+/// The bumps of a bumpy sphere together, at most, as a share of its radius.
+const BUMPS: f64 = 0.35;
+
 /// A sphere in the first `axes` axes that is `hole` plus half of `grow` in radius, with
 /// stretches along its axes, two lumps and (when there is an axis beyond the sphere's) a
 /// bend drawn from `shares` (13 of them) and scaled with `grow`: at `grow` = 0 it is the
 /// round sphere of radius `hole` whatever the shares, so the smallest instance is the
 /// round family's. The tube is measured along rays from the centre, so it is thinner where
 /// the sphere is steep (by the cosine of the slope); the bumps together stay within
-/// BUMPS of the radius, which keeps the slope under about 30 degrees and the tube at least
-/// 0.85 of its radius thick.
-/// The bumps of a bumpy sphere together, at most, as a share of its radius.
-const BUMPS: f64 = 0.35;
-
+/// [`BUMPS`] of the radius, which keeps the slope under about 30 degrees and the tube at
+/// least 0.85 of its radius thick.
 fn bumpy_sphere(dim: usize, axes: usize, hole: f64, grow: f64, shares: &Shares) -> Piece {
     let count = shares.0.len() as f64;
     let random = |k: usize| shares.get(k % shares.0.len()) * count;
