@@ -133,13 +133,13 @@ fn a_4d_side_254_sample_is_refused_with_the_numbers_before_any_worker_starts() {
     let m = m.to_str().unwrap();
     let expected = [
         "4D, side 254: 4162314256 voxels a sample",
-        "needs about 65.9 GiB",
+        "needs about 23.3 GiB",
         "16.0 GiB allowed per worker (--max-memory 16.0 GiB)",
     ];
     let out = run(&["plan", m, "--max-memory", "16G"]);
     assert_exit(&out, 2);
     // The plan is printed, then refused.
-    assert!(stdout(&out).contains("worker memory: about 65.9 GiB"));
+    assert!(stdout(&out).contains("worker memory: about 23.3 GiB"));
     for needle in expected {
         assert!(
             stderr(&out).contains(needle),
@@ -175,9 +175,10 @@ fn the_memory_limit_is_shared_by_the_workers_and_checked_by_each_worker() {
     let tmp = Dir::new();
     let m = with_side(tmp.path(), 32);
     let m = m.to_str().unwrap();
-    // One 32^4 worker: 16 B x 2^20 voxels + 32 MiB + one sample's bytes (gzip) = 49 MiB.
-    let out = run(&["plan", m, "--max-memory", "40M"]);
-    common::assert_exit_saying(&out, 2, "needs about 49.0 MiB");
+    // One 32^4 worker: 5 B x 2^20 voxels (the 10% phase share of an unbinned 4D stratum)
+    // + 32 MiB + one sample's bytes (gzip) = 38 MiB.
+    let out = run(&["plan", m, "--max-memory", "30M"]);
+    common::assert_exit_saying(&out, 2, "needs about 38.0 MiB");
     let dir = tmp.path().join("out");
     let out = run(&[
         "build",
@@ -204,7 +205,7 @@ fn the_memory_limit_is_shared_by_the_workers_and_checked_by_each_worker() {
         "--max-memory",
         "60M",
     ]);
-    common::assert_exit_saying(&out, 2, "needs about 97.0 MiB");
+    common::assert_exit_saying(&out, 2, "needs about 75.0 MiB");
     // Sizes that are not sizes are refused by name.
     let out = run(&["plan", m, "--max-memory", "lots"]);
     common::assert_exit_saying(&out, 2, "is not a memory size");
@@ -217,7 +218,7 @@ fn slurm_checks_one_array_task_and_asks_for_its_memory() {
     let m = m.to_str().unwrap();
     let dir = tmp.path().join("cluster");
     let d = dir.to_str().unwrap();
-    // Two CPUs a task: two 32^4 samples at once need about 97 MiB.
+    // Two CPUs a task: two 32^4 samples at once need about 75 MiB.
     let out = run(&[
         "slurm",
         m,
@@ -228,7 +229,7 @@ fn slurm_checks_one_array_task_and_asks_for_its_memory() {
         "--max-memory",
         "60M",
     ]);
-    common::assert_exit_saying(&out, 2, "needs about 97.0 MiB");
+    common::assert_exit_saying(&out, 2, "needs about 75.0 MiB");
     assert!(!dir.exists(), "a refused slurm wrote {d}");
     let out = run(&["slurm", m, "--out", d, "--max-memory", "1G"]);
     assert_exit(&out, 0);
@@ -315,4 +316,45 @@ fn k8s_max_memory_is_checked_and_written_into_the_jobs_resources_and_command() {
     let out = run(&["k8s", m, "--out", d, "--tasks", "2"]);
     assert_exit(&out, 0);
     assert!(!stdout(&out).contains("memory"), "{}", stdout(&out));
+}
+
+/// The estimate bounds what a worker really holds where a 4D sample's memory is largest:
+/// a binned carve stratum whose cavities take 40% of the image, targeted and deformed.
+#[test]
+fn a_4d_binned_carve_build_stays_under_its_memory_estimate() {
+    let tmp = Dir::new();
+    let m = tmp.path().join("carve.toml");
+    std::fs::write(
+        &m,
+        "schema_version = 1\nname = \"carve\"\ndimension = 4\nside = 48\nmode = \"carve\"\n\
+         samples = 2\nshard_size = 1\nseed = 5\ncompression = \"zstd\"\nresolutions = [24]\n\
+         [hypervolume]\nunit = \"fraction\"\nbins = [[0.60, 0.62]]\n\
+         [[deform]]\nmethod = \"erode\"\nsteps = [0, 3]\n\
+         [[deform]]\nmethod = \"tentacles\"\ncount = [1, 6]\nsteps = [0, 40]\n\
+         [[deform]]\nmethod = \"moves\"\nsteps = [0, 20000]\n\
+         [[classes]]\nfamily = [\"handle\", \"t2_x_b2\"]\n",
+    )
+    .unwrap();
+    let m = m.to_str().unwrap();
+    let out = run(&["plan", m, "--json"]);
+    assert_exit(&out, 0);
+    let plan: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let estimate = plan["worker_memory_bytes"].as_u64().unwrap();
+    let dir = tmp.path().join("out");
+    let Some((out, peak_kib)) = common::run_with_peak(&[
+        "build",
+        m,
+        "--out",
+        dir.to_str().unwrap(),
+        "--workers",
+        "1",
+        "--quiet",
+    ]) else {
+        return;
+    };
+    assert_exit(&out, 0);
+    assert!(
+        peak_kib * 1024 < estimate,
+        "peak {peak_kib} KiB, estimate {estimate} bytes"
+    );
 }

@@ -6,20 +6,28 @@
 //! the machine):
 //!
 //! ```text
-//! worker bytes = threads x (PEAK_BYTES_PER_VOXEL[d] x voxels + FIXED_BYTES)   one sample per thread
-//!              + SHARD_COPIES x largest shard x sample_bytes                   the shard being written
+//! worker bytes = threads x (B x voxels + FIXED_BYTES)       one sample per thread
+//!              + SHARD_COPIES x largest shard x sample_bytes  the shard being written
 //!                (uncompressed members; with gzip or zstd members: 1 x sample_bytes)
 //! ```
 //!
-//! `PEAK_BYTES_PER_VOXEL` is the peak stage's memory per voxel of the sample's side^d grid
-//! (the image, the homology's padded copy and complex, the deformation's buffers, the
+//! `B` is the peak stage's memory per voxel of the sample's side^d grid (the image, the
+//! homology's padded copy and complex, the deformation's and the targeting's buffers, the
 //! serialised arrays), measured with `/usr/bin/time -v` (maximum resident set) on
-//! one-sample builds of 3D and 4D samples of several sides (docs/reliability.md, "Memory
-//! per sample": 2-18 bytes per voxel without deformation, 10-21 with deformation or
-//! hypervolume targeting), rounded up with room to spare. The largest shard is `shard_size`
-//! samples, or the largest split when every split is smaller. `sample_bytes` is the plan's upper
-//! bound of one sample's uncompressed bytes in a shard; a worker holds a shard's members
-//! once, and streams the tar from them to its file, so one copy of an uncompressed shard.
+//! one-sample builds of several sides (docs/reliability.md, "Memory per sample"), rounded up
+//! with room to spare. In 2D and 3D it is [`PEAK_BYTES_PER_VOXEL`]. A 4D sample's image is
+//! one byte a voxel and the rest grows with its topological phase (the objects in embed
+//! mode, the cavities in carve mode), which targeting walks voxel by voxel: a binned carve
+//! sample with 40% of its image in cavities peaks at 6-7 bytes a voxel, the 4D mixed 128
+//! preset's 7% at 2.5, so `B` = [`SAMPLE_BYTES_PER_VOXEL_4D`] + [`PHASE_BYTES_4D`] x the
+//! largest phase share the plan's bins allow ([`UNBINNED_PHASE_SHARE`] without bins).
+//! [`PEAK_BYTES_PER_VOXEL`]'s 4D figure, the homology of an arbitrary array (a random
+//! image's complex is most of the image), stays for [`image_bytes`].
+//!
+//! The largest shard is `shard_size` samples, or the largest split when every split is
+//! smaller. `sample_bytes` is the plan's upper bound of one sample's uncompressed bytes in
+//! a shard; a worker holds a shard's members once, and streams the tar from them to its
+//! file, so one copy of an uncompressed shard.
 //! With compressed members the shard's size depends on the data, not the plan: the estimate
 //! counts the one sample being compressed, and the compressed members (a few percent of it
 //! for these images) are not counted.
@@ -28,9 +36,22 @@
 //! limit is refused before it starts rather than killed by the kernel after minutes.
 
 use crate::Plan;
+use bettimill_grid::Mode;
 
-/// Peak bytes per voxel of one sample, for 2D, 3D and 4D (see the module documentation).
+/// Peak bytes per voxel of one sample in 2D and 3D, and of the homology of an arbitrary
+/// array in 2D, 3D and 4D (see the module documentation).
 pub const PEAK_BYTES_PER_VOXEL: [u64; 3] = [24, 24, 16];
+
+/// A 4D sample's peak bytes per voxel before its phase's share (see the module
+/// documentation).
+pub const SAMPLE_BYTES_PER_VOXEL_4D: f64 = 4.0;
+
+/// A 4D sample's further peak bytes per voxel of the image per unit of its phase's share.
+pub const PHASE_BYTES_4D: f64 = 10.0;
+
+/// The phase share assumed for a stratum without bins: its constructions are sized to fit,
+/// not to fill, and deformation touches only their frontier.
+pub const UNBINNED_PHASE_SHARE: f64 = 0.1;
 
 /// Memory of a worker process before any sample: the binary, the plan, thread stacks,
 /// allocator arenas.
@@ -62,8 +83,8 @@ pub struct MemoryError {
     pub shard_size: u64,
     /// The estimate, in words (`5.3 GiB`).
     pub need: String,
-    /// The per-voxel factor used.
-    pub per_voxel: u64,
+    /// The per-voxel factor used, in words (`4.7`).
+    pub per_voxel: String,
     /// The fixed part, in words.
     pub fixed: String,
     /// The shard part, in words.
@@ -79,11 +100,13 @@ pub struct MemoryError {
 }
 
 /// One worker's estimated memory for `plan`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WorkerMemory {
     /// Voxels of one sample (side^d).
     pub voxels: u64,
-    /// One sample in flight: `PEAK_BYTES_PER_VOXEL[d] x voxels + FIXED_BYTES`.
+    /// Peak bytes per voxel of one sample ([`sample_bytes_per_voxel`]).
+    pub bytes_per_voxel: f64,
+    /// One sample in flight: `bytes_per_voxel x voxels + FIXED_BYTES`.
     pub sample_bytes: u64,
     /// The shard being written: `SHARD_COPIES x largest shard x sample_bytes` uncompressed,
     /// `sample_bytes` with compressed members.
@@ -95,10 +118,12 @@ impl WorkerMemory {
     pub fn of(plan: &Plan) -> WorkerMemory {
         let d = plan.dimension.get();
         let voxels = (plan.side as u64).saturating_pow(d as u32);
+        let bytes_per_voxel = sample_bytes_per_voxel(plan);
         WorkerMemory {
             voxels,
-            sample_bytes: PEAK_BYTES_PER_VOXEL[d - 2]
-                .saturating_mul(voxels)
+            bytes_per_voxel,
+            // Saturating: `as` clamps a float above u64::MAX.
+            sample_bytes: ((bytes_per_voxel * voxels as f64).ceil() as u64)
                 .saturating_add(FIXED_BYTES),
             shard_bytes: if plan.compression == bettimill_shard::Compression::None {
                 SHARD_COPIES
@@ -116,6 +141,28 @@ impl WorkerMemory {
             .saturating_mul(threads.max(1))
             .saturating_add(self.shard_bytes)
     }
+}
+
+/// Peak bytes per voxel of one of `plan`'s samples (see the module documentation).
+pub fn sample_bytes_per_voxel(plan: &Plan) -> f64 {
+    let d = plan.dimension.get();
+    if d != 4 {
+        return PEAK_BYTES_PER_VOXEL[d - 2] as f64;
+    }
+    let voxels = (plan.side as f64).powi(4);
+    let share = plan
+        .strata
+        .iter()
+        .map(|stratum| match stratum.hypervolume {
+            None => UNBINNED_PHASE_SHARE,
+            Some((low, high)) => match stratum.mode {
+                Mode::Embed => high as f64 / voxels,
+                Mode::Carve => (voxels - low as f64) / voxels,
+            },
+        })
+        .fold(0.0, f64::max)
+        .clamp(0.0, 1.0);
+    SAMPLE_BYTES_PER_VOXEL_4D + PHASE_BYTES_4D * share
 }
 
 /// Refuses `plan` when one worker running `threads` samples at once needs more than
@@ -138,7 +185,7 @@ pub fn check(
         voxels: estimate.voxels,
         shard_size: plan.largest_shard(),
         need: human_bytes(need),
-        per_voxel: PEAK_BYTES_PER_VOXEL[plan.dimension.get() - 2],
+        per_voxel: format!("{:.1}", estimate.bytes_per_voxel),
         fixed: human_bytes(FIXED_BYTES),
         shard: human_bytes(estimate.shard_bytes),
         limit: human_bytes(limit),
@@ -321,9 +368,17 @@ mod tests {
         let p = plan(4, 32, 4);
         let m = WorkerMemory::of(&p);
         assert_eq!(m.voxels, 1 << 20);
+        // Unbinned 4D: the assumed phase share.
         assert_eq!(
             m.sample_bytes,
-            PEAK_BYTES_PER_VOXEL[2] * (1 << 20) + FIXED_BYTES
+            ((SAMPLE_BYTES_PER_VOXEL_4D + PHASE_BYTES_4D * UNBINNED_PHASE_SHARE)
+                * (1u64 << 20) as f64) as u64
+                + FIXED_BYTES
+        );
+        let three = WorkerMemory::of(&plan(3, 32, 4));
+        assert_eq!(
+            three.sample_bytes,
+            PEAK_BYTES_PER_VOXEL[1] * (1 << 15) + FIXED_BYTES
         );
         assert_eq!(m.shard_bytes, SHARD_COPIES * 4 * p.sample_bytes);
         assert_eq!(m.total(2), 2 * m.sample_bytes + m.shard_bytes);
@@ -334,7 +389,33 @@ mod tests {
         // any workstation.
         let huge = WorkerMemory::of(&plan(4, 254, 1));
         assert_eq!(huge.voxels, 254u64.pow(4));
-        assert!(huge.total(1) > 62 << 30);
+        assert!(huge.total(1) > 20 << 30);
+    }
+
+    fn binned_4d(mode: &str, bin: (f64, f64)) -> Plan {
+        let text = format!(
+            "schema_version = 1\nname = \"m\"\ndimension = 4\nside = 32\n\
+             mode = \"{mode}\"\nsamples = 10\nshard_size = 4\nseed = 1\n\
+             [hypervolume]\nunit = \"fraction\"\nbins = [[{}, {}]]\n\
+             [[classes]]\nfamily = \"ball\"\n",
+            bin.0, bin.1
+        );
+        Plan::new(&Manifest::parse(&text, Path::new("m.toml")).unwrap()).unwrap()
+    }
+
+    /// A 4D sample's bytes per voxel grow with the share of the image its bins leave to
+    /// the phase: the objects' upper end in embed mode, the cavities' (one less the
+    /// solid's lower end) in carve mode.
+    #[test]
+    fn the_4d_estimate_follows_the_phase_share_the_bins_allow() {
+        let per_voxel = |p: &Plan| sample_bytes_per_voxel(p);
+        let close = |a: f64, b: f64| (a - b).abs() < 0.01;
+        assert!(close(per_voxel(&binned_4d("embed", (0.02, 0.05))), 4.5));
+        assert!(close(per_voxel(&binned_4d("carve", (0.60, 0.62))), 8.0));
+        assert!(
+            per_voxel(&binned_4d("carve", (0.40, 0.42)))
+                > per_voxel(&binned_4d("carve", (0.60, 0.62)))
+        );
     }
 
     #[test]
