@@ -43,7 +43,7 @@ use rand_chacha::ChaCha8Rng;
 pub use seed::{attempt_rng, canonical_json, derive_seed, manifest_hash};
 use serde::{Deserialize, Serialize};
 pub use shards::{SampleTask, ShardPlan};
-use strata::{check_reach, one_copy, resolve_class, strata};
+use strata::{check_reach, one_copy, reach_in, resolve_class, strata};
 pub use strata::{class_with_copies, mode_name, stratum_reach, tube_floor_for};
 
 /// One cell of the balanced design: a label class in a mode.
@@ -225,6 +225,12 @@ fn member_compression(manifest: &Manifest) -> bettimill_shard::Compression {
 }
 
 impl Plan {
+    /// The foreground counts the samples of `stratum` (one of [`Plan::strata`]) can reach,
+    /// as the plan decided them ([`stratum_reach`]).
+    pub fn reach(&self, stratum: &Stratum) -> reach::Reach {
+        reach_in(self.dimension, self.side, self.solid, stratum)
+    }
+
     /// Upper bound of the bytes of the largest shard, whatever the samples' voxels: its
     /// members at their largest compressed size, tar headers, padding and the end of the
     /// archive.

@@ -2,9 +2,10 @@
 //! components and hypervolume bins, and checked for feasibility and reach (here only).
 
 use crate::{reach, Infeasible, PlanError, Stratum};
-use bettimill_grid::Mode;
+use bettimill_grid::{Dim, Mode};
 use bettimill_manifest::{ClassKind, ClassSpec, Manifest, ManifestError};
 use bettimill_shapes::{Family, TubeFloor};
+use bettimill_types::Solid;
 
 /// The construction a class entry names, with every key written checked.
 pub(crate) fn resolve_class(
@@ -166,7 +167,17 @@ pub(crate) fn strata(
 
 /// The foreground counts a stratum's samples can reach ([`reach::reach`]).
 pub fn stratum_reach(manifest: &Manifest, stratum: &Stratum) -> reach::Reach {
-    let dim = manifest.dimension;
+    reach_in(
+        manifest.dimension,
+        manifest.side,
+        manifest.solid.unwrap_or_default(),
+        stratum,
+    )
+}
+
+/// [`stratum_reach`] of a stratum in images of `dim` axes and `side` voxels per axis,
+/// carved from `solid` in carve mode.
+pub(crate) fn reach_in(dim: Dim, side: u32, solid: Solid, stratum: &Stratum) -> reach::Reach {
     let d = dim.get();
     let tunnel = match stratum.family {
         Family::Tunnel { intervals, .. } => Some(intervals),
@@ -189,9 +200,9 @@ pub fn stratum_reach(manifest: &Manifest, stratum: &Stratum) -> reach::Reach {
     };
     reach::reach(&reach::Stratum {
         dim: d,
-        side: manifest.side,
+        side,
         mode: stratum.mode,
-        solid: manifest.solid.unwrap_or_default(),
+        solid,
         phase_betti,
         tunnel,
         smallest_radius: stratum
