@@ -13,18 +13,33 @@
 //!   the same wall. These are bounds no sample can cross.
 //! - the phase grows until its components meet: targeting grows all of them together, in
 //!   the order of one smooth noise, so two components end apart by a wall across the box
-//!   (one layer of `(box side)^(d-1)` voxels per extra component). An estimate of where
-//!   growth stops, not a bound.
+//!   (one layer of `(box side)^(d-1)` voxels per extra component). As the cavities of carve
+//!   mode grow, the solid keeps its own topology too: a voxel of each piece of it inside a
+//!   cavity, and a thin sheet across the box through every hole of the cavities (its
+//!   Betti numbers b_k, 1 <= k <= d - 2: a line of `(box side)` voxels through a 3D handle,
+//!   a plane of `(box side)^2` through a 4D one). Estimates of where growth stops, not
+//!   bounds.
 //! - the phase shrinks until it is thin: each component keeps a voxel, and every hole or
-//!   void it holds a thin loop or closed surface around the hole of the smallest instance
-//!   (the construction is built at its smallest size for a small phase): the area of a
-//!   round k-sphere of the instance's core radius per Betti number b_k, half of it in embed
-//!   mode, where diagonal steps make thin foreground sparser than thin background. Also an
-//!   estimate.
+//!   void of each object (a scene's objects each at their own size, a Betti class's as
+//!   the construction it is built as) a thin loop or closed surface around it, on the
+//!   smallest instance (the construction is built at its smallest size for a small phase).
+//!   For round tubes and shells that is a round k-sphere per Betti number b_k, half a
+//!   voxel inside the middle of the tube or shell, at the density of a digital surface one
+//!   voxel thick (`thin_density`): thin foreground joins across corners, so it needs one
+//!   voxel per row along the axis nearest the normal; thin background joins only across
+//!   faces, so it needs one along every axis. Where shrinking stops varies with the noise
+//!   order, so the count is raised to the upper quartile the sweep measured
+//!   (`thin_margin`). Other objects (tori, handlebodies, sums, knots) keep the plain
+//!   sphere model at half a voxel per unit area (one in carve mode), which the sweep's
+//!   builds of them stopped near or below. Also an estimate.
 //!
-//! A bin that lies wholly outside these bounds cannot be built (the estimates are drawn to
-//! refuse only bins that measured builds at small sides never reached), so the plan
-//! refuses it by name instead of every shard failing later.
+//! A bin that lies wholly outside these bounds cannot be built, so the plan refuses it by
+//! name, with the bin end that works, instead of every shard failing later. The estimates
+//! come from a sweep of small sides in 2D, 3D and 4D, both modes (the example
+//! `cargo run --release -p bettimill-sample --example reach -- MANIFEST` measures a
+//! manifest's strata against them): a bin just past an estimate is reached in most attempts,
+//! so all 16 attempts of a sample failing is rare; tunnels, whose cross-section is drawn per
+//! sample whatever the bin, stop over a wide range, and the estimate sits inside it.
 
 use bettimill_grid::Mode;
 use bettimill_types::Solid;
@@ -48,6 +63,40 @@ pub struct Stratum {
     /// The smallest bounding radius of one object with the usual tubes (of a tunnel's
     /// cross-section), if known.
     pub smallest_radius: Option<f64>,
+    /// The objects (cavities) that make up the phase, each with the Betti numbers and
+    /// smallest bounding radius of its own: a scene's holes are those of its objects, at
+    /// their own sizes.
+    pub parts: Vec<Part>,
+    /// Carve mode: the Betti numbers of the carved solid (the whole image's).
+    pub solid_betti: Vec<u64>,
+}
+
+/// One object (cavity) of a phase.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    /// Its own Betti numbers, as an object in empty space.
+    pub betti: Vec<u64>,
+    /// Its smallest bounding radius with the usual tubes, if known.
+    pub radius: Option<f64>,
+    /// What its holes and voids are wrapped in.
+    pub shape: PartShape,
+}
+
+/// What a part's holes and voids are wrapped in, which sets where its thin cycles sit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PartShape {
+    /// A round tube (ball, handle, S2xB2, curve, loop): its cycles are round spheres about
+    /// its middle, its bounding radius less the tube's.
+    Tube,
+    /// A round shell: a sphere about its middle, its bounding radius less the shell's
+    /// 1.5-voxel half-thickness.
+    Shell,
+    /// Anything else (tori, handlebodies, sums, knots): spheres of its bounding radius less
+    /// a tube, at half a voxel per unit of area in embed mode and one in carve mode. The
+    /// round model overshoots these (a torus shell's thin surface is a torus, not a sphere
+    /// of its bounding radius); the sweep's 3D torus shells stopped at 416-465 voxels
+    /// against 427 here, its genus-2 handlebodies and 4D T2xB2 below this.
+    Other,
 }
 
 /// Inclusive foreground-count bounds of a stratum's samples, with what sets each.
@@ -102,22 +151,8 @@ pub fn reach(s: &Stratum) -> Reach {
     let components = s.phase_betti.first().copied().unwrap_or(1);
     let walls = components.saturating_sub(1);
     // The thinnest the phase gets: a voxel per component and a thin cycle around every
-    // hole or void of the smallest instance.
-    let core = s
-        .smallest_radius
-        .map(|r| (r - bettimill_shapes::TubeFloor::USUAL.radius()).max(1.0))
-        .unwrap_or(1.0);
-    let density = match s.mode {
-        Mode::Embed => 0.5,
-        Mode::Carve => 1.0,
-    };
-    let cycles: f64 = s
-        .phase_betti
-        .iter()
-        .enumerate()
-        .skip(1)
-        .map(|(k, &b)| b as f64 * density * sphere_area(k, core))
-        .sum();
+    // hole or void of the smallest instance of each part.
+    let cycles = thin_cycles(s);
     let thinnest = components + cycles.floor() as u64;
     let thin_why = if cycles >= 1.0 {
         format!(
@@ -181,6 +216,73 @@ pub fn reach(s: &Stratum) -> Reach {
     }
 }
 
+/// Voxels per unit of area of the thinnest cycle the flips leave, by mode and the cycle's
+/// dimension `k`: the mean over directions of the largest (embed mode) or summed (carve
+/// mode) component of a unit normal of a round k-sphere in k + 1 axes. Thin foreground
+/// joins across corners, so a digital surface needs one voxel per row along the axis
+/// nearest its normal; thin background (face steps only) needs one along every axis.
+fn thin_density(mode: Mode, k: usize) -> f64 {
+    let (largest, summed) = match k {
+        0 | 1 => (0.9003, 1.2732),
+        2 => (0.8311, 1.5),
+        _ => (0.7789, 1.6977),
+    };
+    match mode {
+        Mode::Embed => largest,
+        Mode::Carve => summed,
+    }
+}
+
+/// How much more the sweep of small sides measured than [`thin_density`] times the area:
+/// the upper quartile of where shrinking stopped, so that a bin just above the estimate is
+/// reached in most attempts, not one in two. Shrinking stops wherever the noise order
+/// leaves the cycle between the part's inner and outer surface, so the count spreads (4D
+/// side-16 shells in embed mode: 130-270 voxels, quartiles 164, 175, 195). Thin background
+/// at these radii is thicker than its flat density: a carved shell keeps about 1.6 times
+/// it (3D: 122-128 voxels, 4D: 550-614).
+fn thin_margin(mode: Mode) -> f64 {
+    match mode {
+        Mode::Embed => 1.1,
+        Mode::Carve => 1.7,
+    }
+}
+
+/// The voxels of the thin cycles the phase keeps around its holes and voids: for each
+/// part and each Betti number b_k (k >= 1), b_k round k-spheres of radius half a voxel
+/// inside the middle of the smallest instance's tube or shell (its bounding radius less
+/// the tube radius or the shell's half-thickness; the measured cycles sit that far inside,
+/// where the inner side is shorter), at [`thin_density`] with [`thin_margin`]; the plain
+/// model for [`PartShape::Other`].
+fn thin_cycles(s: &Stratum) -> f64 {
+    let tube = bettimill_shapes::TubeFloor::USUAL.radius();
+    s.parts
+        .iter()
+        .map(|part| {
+            let bound = part.radius.unwrap_or(0.0);
+            let middle = match part.shape {
+                PartShape::Tube => bound - tube - 0.5,
+                PartShape::Shell => bound - SHELL_HALF - 0.5,
+                PartShape::Other => bound - tube,
+            };
+            let r = middle.max(1.0);
+            let density = |k: usize| match (part.shape, s.mode) {
+                (PartShape::Other, Mode::Embed) => 0.5,
+                (PartShape::Other, Mode::Carve) => 1.0,
+                _ => thin_density(s.mode, k) * thin_margin(s.mode),
+            };
+            part.betti
+                .iter()
+                .enumerate()
+                .skip(1)
+                .map(|(k, &b)| b as f64 * density(k) * sphere_area(k, r))
+                .sum::<f64>()
+        })
+        .sum()
+}
+
+/// A shell's least half-thickness, as the constructions build it.
+const SHELL_HALF: f64 = 1.5;
+
 /// The voxels of the solid's outer layers that a tunnel of the smallest cross-section
 /// along `axes` axes opens: on both faces of each axis, its cross-section (a round
 /// (d - axes)-ball, its radius widened by `round` for the voxels its edge touches) times
@@ -200,18 +302,36 @@ fn tunnel_openings(s: &Stratum, axes: u32, round: f64) -> u64 {
 fn carve_lowest(s: &Stratum, walls: u64) -> (u64, String) {
     let d = s.dim;
     let inside_side = (s.side as u64).saturating_sub(2);
+    // The solid keeps its own topology as the cavities grow: a voxel of each component
+    // inside a cavity, and a thin sheet across the box through every hole of the cavities
+    // (a line through a 3D handle, a plane through a 4D one), attached to the layers.
+    let solid = &s.solid_betti;
+    let sheets = |box_side: u64| -> u64 {
+        let inner = solid.first().copied().unwrap_or(1).saturating_sub(1);
+        (1..d.saturating_sub(1)).fold(inner, |acc, k| {
+            let b = solid.get(k).copied().unwrap_or(0);
+            acc.saturating_add(b.saturating_mul(power(box_side, k)))
+        })
+    };
     // Layers `inset` thick inside a solid of `width` per axis, and the walls between
-    // cavities across its box.
+    // cavities and the sheets across its box.
     let kept = |width: u64, inset: u64| -> (u64, u64) {
         let box_side = width.saturating_sub(2 * inset);
         let layers = power(width, d) - power(box_side, d);
-        (layers, walls.saturating_mul(power(box_side, d - 1)))
+        let wall = walls.saturating_mul(power(box_side, d - 1));
+        (layers, wall.saturating_add(sheets(box_side)))
     };
+    let holes = (1..d.saturating_sub(1)).any(|k| solid.get(k).is_some_and(|&b| b > 0));
     let with_walls = |what: String, wall: u64| -> String {
-        if wall > 0 {
-            format!("{what}, and its cavities meet along walls of about {wall} voxels")
-        } else {
-            what
+        match (wall > 0, holes) {
+            (false, _) => what,
+            (true, false) => {
+                format!("{what}, and its cavities meet along walls of about {wall} voxels")
+            }
+            (true, true) => format!(
+                "{what}, and it keeps walls where its cavities meet and thin sheets across \
+                 the box through their holes, about {wall} voxels"
+            ),
         }
     };
     let inset = bettimill_shapes::CAVITY_INSET as u64;
@@ -294,6 +414,12 @@ mod tests {
             phase_betti: phase_betti.to_vec(),
             tunnel: None,
             smallest_radius: Some(4.0),
+            parts: vec![Part {
+                betti: phase_betti.to_vec(),
+                radius: Some(4.0),
+                shape: PartShape::Tube,
+            }],
+            solid_betti: Vec::new(),
         }
     }
 
@@ -336,12 +462,63 @@ mod tests {
         assert_eq!(ball.lowest, 2);
         // Two objects meet along a wall across the image.
         assert_eq!(ball.highest, 22 * 22 * 22 - 22 * 22);
-        // A shell keeps half a sphere of its core radius (4 - 2) in embed mode, a whole one
-        // as a cavity.
-        let shell = reach(&stratum(3, 24, Mode::Embed, &[1, 0, 1]));
+        // A shell of bounding radius 4 keeps a sphere of radius 4 - 1.5 - 0.5 = 2: one voxel
+        // per row along the axis nearest its normal in embed mode, one along every axis
+        // (and thicker, the margin) as a cavity.
+        let shell = |mode| {
+            reach(&Stratum {
+                parts: vec![Part {
+                    betti: vec![1, 0, 1],
+                    radius: Some(4.0),
+                    shape: PartShape::Shell,
+                }],
+                ..stratum(3, 24, mode, &[1, 0, 1])
+            })
+        };
         let area = 4.0 * std::f64::consts::PI * 4.0;
-        assert_eq!(shell.lowest, 1 + (area / 2.0).floor() as u64);
-        let cavity = reach(&stratum(3, 24, Mode::Carve, &[1, 0, 1]));
-        assert_eq!(cavity.highest, 22 * 22 * 22 - 1 - area.floor() as u64);
+        assert_eq!(
+            shell(Mode::Embed).lowest,
+            1 + (area * 0.8311 * 1.1).floor() as u64
+        );
+        assert_eq!(
+            shell(Mode::Carve).highest,
+            22 * 22 * 22 - 1 - (area * 1.5 * 1.7).floor() as u64
+        );
+    }
+
+    #[test]
+    fn a_scene_s_holes_are_its_objects_own() {
+        // A ball of radius 2 and a handle of radius 5.25 (a loop of radius 2.75): the
+        // handle's loop, not one of the ball's size.
+        let part = |betti: &[u64], radius| Part {
+            betti: betti.to_vec(),
+            radius: Some(radius),
+            shape: PartShape::Tube,
+        };
+        let scene = reach(&Stratum {
+            parts: vec![part(&[1, 0], 2.0), part(&[1, 1], 5.25)],
+            ..stratum(2, 32, Mode::Embed, &[2, 1])
+        });
+        let r: f64 = 5.25 - 2.0 - 0.5;
+        let loop_voxels = 2.0 * std::f64::consts::PI * r * 0.9003 * 1.1;
+        assert_eq!(scene.lowest, 2 + loop_voxels.floor() as u64);
+    }
+
+    #[test]
+    fn a_carved_solid_keeps_a_sheet_through_each_hole() {
+        // A handle cavity in 3D: the solid keeps a line across the 18-voxel box through
+        // the handle's hole; in 4D a plane of 18 x 18.
+        let handle = |dim, solid_betti: &[u64]| {
+            reach(&Stratum {
+                solid_betti: solid_betti.to_vec(),
+                ..stratum(dim, 24, Mode::Carve, &[1; 2])
+            })
+        };
+        let layers3 = 22 * 22 * 22 - 18 * 18 * 18;
+        assert_eq!(handle(3, &[1, 1, 1]).lowest, layers3 + 18);
+        let layers4 = 22u64.pow(4) - 18u64.pow(4);
+        assert_eq!(handle(4, &[1, 0, 1, 1]).lowest, layers4 + 18 * 18);
+        // A shell cavity leaves a ball of solid inside it, which shrinks to a voxel.
+        assert_eq!(handle(3, &[2, 0, 1]).lowest, layers3 + 1);
     }
 }

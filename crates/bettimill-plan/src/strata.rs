@@ -198,6 +198,29 @@ pub(crate) fn reach_in(dim: Dim, side: u32, solid: Solid, stratum: &Stratum) -> 
             })
             .collect(),
     };
+    let smallest_radius =
+        stratum
+            .family
+            .smallest_object_radius(dim, stratum.mode, TubeFloor::USUAL);
+    // A scene's holes are its objects' own, each at its own size, and a Betti class's
+    // those of the construction it is built as.
+    let parts = match objects(&stratum.family, dim, stratum.mode) {
+        several if several.len() > 1 && tunnel.is_none() => several
+            .iter()
+            .map(|object| reach::Part {
+                betti: object
+                    .expected_betti(dim, Mode::Embed)
+                    .unwrap_or_else(|_| vec![1]),
+                radius: object.smallest_object_radius(dim, stratum.mode, TubeFloor::USUAL),
+                shape: part_shape(object),
+            })
+            .collect(),
+        one => vec![reach::Part {
+            betti: phase_betti.clone(),
+            radius: smallest_radius,
+            shape: one.first().map_or(reach::PartShape::Other, part_shape),
+        }],
+    };
     reach::reach(&reach::Stratum {
         dim: d,
         side,
@@ -205,10 +228,44 @@ pub(crate) fn reach_in(dim: Dim, side: u32, solid: Solid, stratum: &Stratum) -> 
         solid,
         phase_betti,
         tunnel,
-        smallest_radius: stratum
-            .family
-            .smallest_object_radius(dim, stratum.mode, TubeFloor::USUAL),
+        smallest_radius,
+        parts,
+        solid_betti: match stratum.mode {
+            Mode::Carve => b.clone(),
+            Mode::Embed => Vec::new(),
+        },
     })
+}
+
+/// The objects a sample of `family` is built of in `dim` and `mode`: a scene's (each
+/// Betti class among them as the construction it is built as), or the one.
+fn objects(family: &Family, dim: Dim, mode: Mode) -> Vec<Family> {
+    match family {
+        Family::Scene { objects: several } => several
+            .iter()
+            .flat_map(|object| objects(object, dim, mode))
+            .collect(),
+        Family::Betti { .. } => match family.realisation(dim, mode) {
+            Some(built) => objects(&built, dim, mode),
+            None => vec![family.clone()],
+        },
+        one => vec![one.clone()],
+    }
+}
+
+/// What the holes and voids of one object of `family` are wrapped in.
+fn part_shape(family: &Family) -> reach::PartShape {
+    match family {
+        Family::Ball
+        | Family::Handle
+        | Family::S2xB2
+        | Family::BumpyS2xB2
+        | Family::Curve
+        | Family::Loop => reach::PartShape::Tube,
+        Family::Shell | Family::BumpyShell => reach::PartShape::Shell,
+        Family::Tentacled { object, .. } => part_shape(object),
+        _ => reach::PartShape::Other,
+    }
 }
 
 /// Refuses a manifest with a binned stratum that no sample can bring into its bin: every
@@ -222,19 +279,29 @@ pub(crate) fn check_reach(manifest: &Manifest, strata: &[Stratum]) -> Result<(),
             continue;
         };
         let r = stratum_reach(manifest, stratum);
+        // The way on, in both units: a fraction rounded outwards to the 4 decimals shown,
+        // so that the one printed is itself a bin end that works.
         let why = if hi < r.lowest {
+            let end = (share(r.lowest + 1) * 1e4).ceil() / 1e4;
             format!(
-                "its samples keep at least {} foreground voxels ({:.4} of the image): {}",
+                "its samples keep at least {} foreground voxels ({:.4} of the image): {}; \
+                 a bin must end above {} voxels (at {end:.4} or more as a fraction) to be \
+                 built, or leave this combination out",
                 r.lowest,
                 share(r.lowest),
-                r.lowest_why
+                r.lowest_why,
+                r.lowest
             )
         } else if lo > r.highest {
+            let start = (share(r.highest) * 1e4).floor() / 1e4;
             format!(
-                "its samples have at most {} foreground voxels ({:.4} of the image): {}",
+                "its samples have at most {} foreground voxels ({:.4} of the image): {}; \
+                 a bin must start at or below {} voxels (at {start:.4} or less as a \
+                 fraction) to be built, or leave this combination out",
                 r.highest,
                 share(r.highest),
-                r.highest_why
+                r.highest_why,
+                r.highest
             )
         } else {
             continue;

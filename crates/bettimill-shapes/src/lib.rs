@@ -353,6 +353,16 @@ impl Family {
             .reduce(f64::min)
     }
 
+    /// The construction a Betti class is built as in `dim` and `mode` (shells, handlebodies
+    /// or sums and balls, a scene of them when there are several); `None` for a named
+    /// family, or a class no construction gives.
+    pub fn realisation(&self, dim: Dim, mode: Mode) -> Option<Family> {
+        match self {
+            Family::Betti { betti } => betti_class::realise(betti, dim, mode).ok(),
+            _ => None,
+        }
+    }
+
     /// The smallest side length at which [`Family::check_fits`] succeeds (up to 1024).
     pub fn min_side(&self, dim: Dim, mode: Mode) -> Result<usize, ShapeError> {
         labels::expected(self, dim, mode)?;
