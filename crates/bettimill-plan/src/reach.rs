@@ -38,8 +38,9 @@
 //! come from a sweep of small sides in 2D, 3D and 4D, both modes (the example
 //! `cargo run --release -p bettimill-sample --example reach -- MANIFEST` measures a
 //! manifest's strata against them): a bin just past an estimate is reached in most attempts,
-//! so all 16 attempts of a sample failing is rare; tunnels, whose cross-section is drawn per
-//! sample whatever the bin, stop over a wide range, and the estimate sits inside it.
+//! so all 16 attempts of a sample failing is rare. A tunnel's cross-section is drawn per
+//! sample whatever the bin, so its samples stop over a wide range; the estimate takes the
+//! median cross-section, which about half the attempts reach.
 
 use bettimill_grid::Mode;
 use bettimill_types::Solid;
@@ -63,6 +64,9 @@ pub struct Stratum {
     /// The smallest bounding radius of one object with the usual tubes (of a tunnel's
     /// cross-section), if known.
     pub smallest_radius: Option<f64>,
+    /// A tunnel's largest cross-section radius: each sample draws its own uniformly from
+    /// [`Stratum::smallest_radius`] up to this.
+    pub largest_radius: Option<f64>,
     /// The objects (cavities) that make up the phase, each with the Betti numbers and
     /// smallest bounding radius of its own: a scene's holes are those of its objects, at
     /// their own sizes.
@@ -183,21 +187,27 @@ pub fn reach(s: &Stratum) -> Reach {
             let (lowest, lowest_why) = carve_lowest(s, walls);
             let (thinnest, thin_why) = match s.tunnel {
                 // A tunnel keeps its openings in the layers, and a line (a sheet, along two
-                // axes) across the box.
+                // axes) across the box. Its cross-section is drawn per sample whatever the
+                // bin, so the openings are those of the median one: a sample reaches a bin
+                // up to this count in about half its attempts (the sweep: 45-85%).
                 Some(axes) => {
                     let inset = bettimill_shapes::CAVITY_INSET as u64;
                     let across = power(
                         inside_side.saturating_sub(2 * inset),
                         (axes as usize).clamp(1, d - 1),
                     );
+                    let smallest = s.smallest_radius.unwrap_or(0.0);
+                    let median = (smallest + s.largest_radius.unwrap_or(smallest)) / 2.0;
                     // Thin background runs diagonally in steps when the tunnel is
-                    // turned, which about doubles it.
-                    let kept = 2 * (tunnel_openings(s, axes, 0.5) + across);
+                    // turned, which about doubles the cut.
+                    let kept = tunnel_openings(s, axes, median, 0.0) + 2 * across;
                     (
                         kept,
                         format!(
                             "tunnel keeps where it opens the solid's faces and a thin cut \
-                             across, about {kept} voxels at the least"
+                             across, about {kept} voxels with the median cross-section \
+                             (radius {median:.1}; a thinner one, drawn in fewer than half \
+                             the attempts, keeps fewer)"
                         ),
                     )
                 }
@@ -283,16 +293,15 @@ fn thin_cycles(s: &Stratum) -> f64 {
 /// A shell's least half-thickness, as the constructions build it.
 const SHELL_HALF: f64 = 1.5;
 
-/// The voxels of the solid's outer layers that a tunnel of the smallest cross-section
-/// along `axes` axes opens: on both faces of each axis, its cross-section (a round
+/// The voxels of the solid's outer layers that a tunnel of cross-section `radius` along
+/// `axes` axes opens: on both faces of each axis, its cross-section (a round
 /// (d - axes)-ball, its radius widened by `round` for the voxels its edge touches) times
 /// the other axes it runs along.
-fn tunnel_openings(s: &Stratum, axes: u32, round: f64) -> u64 {
+fn tunnel_openings(s: &Stratum, axes: u32, radius: f64, round: f64) -> u64 {
     let d = s.dim;
     let inside_side = (s.side as u64).saturating_sub(2);
     let axes = (axes as usize).clamp(1, d - 1);
-    let opening = ball_volume(d - axes, s.smallest_radius.unwrap_or(0.0) + round)
-        * power(inside_side, axes - 1) as f64;
+    let opening = ball_volume(d - axes, radius + round) * power(inside_side, axes - 1) as f64;
     let inset = bettimill_shapes::CAVITY_INSET as f64;
     (2.0 * axes as f64 * inset * opening).ceil() as u64
 }
@@ -342,7 +351,12 @@ fn carve_lowest(s: &Stratum, walls: u64) -> (u64, String) {
         // sample whose tunnel is drawn thin keeps nearly all of the layers.
         let (layers, _) = kept(inside_side, inset);
         return (
-            layers.saturating_sub(tunnel_openings(s, axes, 0.0)),
+            layers.saturating_sub(tunnel_openings(
+                s,
+                axes,
+                s.smallest_radius.unwrap_or(0.0),
+                0.0,
+            )),
             format!(
                 "the solid's outer {inset} layers inside the border stay as built, less \
                  where a tunnel of the smallest cross-section opens them"
@@ -414,6 +428,7 @@ mod tests {
             phase_betti: phase_betti.to_vec(),
             tunnel: None,
             smallest_radius: Some(4.0),
+            largest_radius: None,
             parts: vec![Part {
                 betti: phase_betti.to_vec(),
                 radius: Some(4.0),
@@ -440,6 +455,18 @@ mod tests {
             ..stratum(2, 30, Mode::Carve, &[1, 0])
         });
         assert_eq!(t.lowest, 28 * 28 - 24 * 24 - 2 * 2 * 8);
+    }
+
+    #[test]
+    fn a_tunnel_s_thinnest_keeps_the_openings_of_its_median_cross_section() {
+        // 2D side 30 along one axis, radius drawn in 4..12: the median 8 opens both layers
+        // of two faces over 2 * 8 voxels, and the cut across the 24-voxel box is doubled.
+        let t = reach(&Stratum {
+            tunnel: Some(1),
+            largest_radius: Some(12.0),
+            ..stratum(2, 30, Mode::Carve, &[1, 0])
+        });
+        assert_eq!(t.highest, 28 * 28 - (2 * 2 * 16 + 2 * 24));
     }
 
     #[test]

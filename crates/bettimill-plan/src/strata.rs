@@ -229,6 +229,7 @@ pub(crate) fn reach_in(dim: Dim, side: u32, solid: Solid, stratum: &Stratum) -> 
         phase_betti,
         tunnel,
         smallest_radius,
+        largest_radius: tunnel.map(|_| bettimill_shapes::largest_tunnel_radius(side as usize)),
         parts,
         solid_betti: match stratum.mode {
             Mode::Carve => b.clone(),

@@ -1,7 +1,7 @@
 //! The plan's reach estimate against real builds: a bin that ends just past where the plan
 //! says shrinking stops (or starts just short of where growth stops) plans and every one
 //! of its samples is built, and a bin just beyond it is refused, for thin phases with
-//! holes and voids in 2D, 3D and 4D, in both modes.
+//! holes and voids in 2D, 3D and 4D, in both modes, and for tunnels.
 
 use bettimill_plan::Plan;
 use bettimill_sample::make_sample;
@@ -89,6 +89,31 @@ fn a_thin_cavity_s_bin_builds_and_one_above_it_is_refused() {
     check(2, 32, "carve", "family = \"shell\"", End::Highest);
     check(3, 24, "carve", "family = \"shell\"", End::Highest);
     check(4, 16, "carve", "family = \"shell\"", End::Highest);
+}
+
+#[test]
+fn a_tunnel_s_bin_builds_and_one_above_it_is_refused() {
+    check(
+        2,
+        32,
+        "carve",
+        "family = \"tunnel\"\nintervals = 1",
+        End::Highest,
+    );
+    check(
+        3,
+        24,
+        "carve",
+        "family = \"tunnel\"\nintervals = 1",
+        End::Highest,
+    );
+    check(
+        4,
+        16,
+        "carve",
+        "family = \"tunnel\"\nintervals = 2",
+        End::Highest,
+    );
 }
 
 #[test]

@@ -46,6 +46,12 @@ pub const CAVITY_INSET: usize = place::GAP as usize;
 /// Layers of a boxed solid ([`Solid::Box`]) around its cavities that stay as built.
 pub const BOX_WALL: usize = generate::BOX_WALL as usize;
 
+/// The largest bounding radius of a tunnel's cross-section in a carved cube of `side`: each
+/// sample draws it uniformly between the family's smallest and this, whatever its bin.
+pub fn largest_tunnel_radius(side: usize) -> f64 {
+    place::Region::for_mode(side, Mode::Carve).budget()
+}
+
 /// A knot: the core curve of a knotted solid torus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
