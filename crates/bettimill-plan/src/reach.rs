@@ -29,7 +29,8 @@
 //!   voxel per row along the axis nearest the normal; thin background joins only across
 //!   faces, so it needs one along every axis. Where shrinking stops varies with the noise
 //!   order, so the count is raised to the upper quartile the sweep measured
-//!   (`thin_margin`). Other objects (tori, handlebodies, sums, knots) keep the plain
+//!   (`thin_margin`). An embedded 3D torus shell keeps a thin torus about its middle. Other
+//!   objects (4D tori, handlebodies, sums, knots, carved torus shells) keep the plain
 //!   sphere model at half a voxel per unit area (one in carve mode), which the sweep's
 //!   builds of them stopped near or below. Also an estimate.
 //!
@@ -95,6 +96,11 @@ pub enum PartShape {
     /// A round shell: a sphere about its middle, its bounding radius less the shell's
     /// 1.5-voxel half-thickness.
     Shell,
+    /// A 3D torus shell: a thickened torus whose smallest instance has a tube hole `h`
+    /// (its bounding radius less the shell's half-thickness, over 3) as its minor radius
+    /// and `2h` as its major one. In embed mode its thin cycle is a torus about its middle;
+    /// as a cavity it keeps [`PartShape::Other`]'s model, which its builds stopped around.
+    TorusShell,
     /// Anything else (tori, handlebodies, sums, knots): spheres of its bounding radius less
     /// a tube, at half a voxel per unit of area in embed mode and one in carve mode. The
     /// round model overshoots these (a torus shell's thin surface is a torus, not a sphere
@@ -261,23 +267,30 @@ fn thin_margin(mode: Mode) -> f64 {
 /// part and each Betti number b_k (k >= 1), b_k round k-spheres of radius half a voxel
 /// inside the middle of the smallest instance's tube or shell (its bounding radius less
 /// the tube radius or the shell's half-thickness; the measured cycles sit that far inside,
-/// where the inner side is shorter), at [`thin_density`] with [`thin_margin`]; the plain
-/// model for [`PartShape::Other`].
+/// where the inner side is shorter), at [`thin_density`] with [`thin_margin`]; a torus
+/// for a 3D torus shell in embed mode; the plain model for [`PartShape::Other`].
 fn thin_cycles(s: &Stratum) -> f64 {
+    use std::f64::consts::PI;
     let tube = bettimill_shapes::TubeFloor::USUAL.radius();
     s.parts
         .iter()
         .map(|part| {
             let bound = part.radius.unwrap_or(0.0);
+            if part.shape == PartShape::TorusShell && s.mode == Mode::Embed {
+                // One thin torus carries both its loops and its void.
+                let hole = (bound - SHELL_HALF) / 3.0;
+                let area = 4.0 * PI * PI * (2.0 * hole) * (hole - 0.5).max(1.0);
+                return area * thin_density(s.mode, 2) * thin_margin(s.mode);
+            }
             let middle = match part.shape {
                 PartShape::Tube => bound - tube - 0.5,
                 PartShape::Shell => bound - SHELL_HALF - 0.5,
-                PartShape::Other => bound - tube,
+                PartShape::TorusShell | PartShape::Other => bound - tube,
             };
             let r = middle.max(1.0);
             let density = |k: usize| match (part.shape, s.mode) {
-                (PartShape::Other, Mode::Embed) => 0.5,
-                (PartShape::Other, Mode::Carve) => 1.0,
+                (PartShape::Other | PartShape::TorusShell, Mode::Embed) => 0.5,
+                (PartShape::Other | PartShape::TorusShell, Mode::Carve) => 1.0,
                 _ => thin_density(s.mode, k) * thin_margin(s.mode),
             };
             part.betti
@@ -529,6 +542,21 @@ mod tests {
         let r: f64 = 5.25 - 2.0 - 0.5;
         let loop_voxels = 2.0 * std::f64::consts::PI * r * 0.9003 * 1.1;
         assert_eq!(scene.lowest, 2 + loop_voxels.floor() as u64);
+    }
+
+    #[test]
+    fn a_torus_shell_keeps_a_thin_torus() {
+        // Bounding radius 9.75: hole 2.75, a thin torus of radii 5.5 and 2.25.
+        let torus = reach(&Stratum {
+            parts: vec![Part {
+                betti: vec![1, 2, 1],
+                radius: Some(9.75),
+                shape: PartShape::TorusShell,
+            }],
+            ..stratum(3, 32, Mode::Embed, &[1, 2, 1])
+        });
+        let area = 4.0 * std::f64::consts::PI.powi(2) * 5.5 * 2.25;
+        assert_eq!(torus.lowest, 1 + (area * 0.8311 * 1.1).floor() as u64);
     }
 
     #[test]

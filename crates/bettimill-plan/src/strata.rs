@@ -212,13 +212,15 @@ pub(crate) fn reach_in(dim: Dim, side: u32, solid: Solid, stratum: &Stratum) -> 
                     .expected_betti(dim, Mode::Embed)
                     .unwrap_or_else(|_| vec![1]),
                 radius: object.smallest_object_radius(dim, stratum.mode, TubeFloor::USUAL),
-                shape: part_shape(object),
+                shape: part_shape(object, dim),
             })
             .collect(),
         one => vec![reach::Part {
             betti: phase_betti.clone(),
             radius: smallest_radius,
-            shape: one.first().map_or(reach::PartShape::Other, part_shape),
+            shape: one
+                .first()
+                .map_or(reach::PartShape::Other, |o| part_shape(o, dim)),
         }],
     };
     reach::reach(&reach::Stratum {
@@ -254,8 +256,8 @@ fn objects(family: &Family, dim: Dim, mode: Mode) -> Vec<Family> {
     }
 }
 
-/// What the holes and voids of one object of `family` are wrapped in.
-fn part_shape(family: &Family) -> reach::PartShape {
+/// What the holes and voids of one object of `family` in `dim` axes are wrapped in.
+fn part_shape(family: &Family, dim: Dim) -> reach::PartShape {
     match family {
         Family::Ball
         | Family::Handle
@@ -264,7 +266,10 @@ fn part_shape(family: &Family) -> reach::PartShape {
         | Family::Curve
         | Family::Loop => reach::PartShape::Tube,
         Family::Shell | Family::BumpyShell => reach::PartShape::Shell,
-        Family::Tentacled { object, .. } => part_shape(object),
+        // A 2D torus shell is an annulus, built as a shell.
+        Family::TorusShell if dim.get() == 2 => reach::PartShape::Shell,
+        Family::TorusShell if dim.get() == 3 => reach::PartShape::TorusShell,
+        Family::Tentacled { object, .. } => part_shape(object, dim),
         _ => reach::PartShape::Other,
     }
 }

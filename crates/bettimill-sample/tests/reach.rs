@@ -82,6 +82,7 @@ fn a_thin_shell_s_bin_builds_and_one_below_it_is_refused() {
     check(3, 24, "embed", "family = \"shell\"", End::Lowest);
     check(4, 16, "embed", "family = \"shell\"", End::Lowest);
     check(4, 16, "embed", "family = \"s2_x_b2\"", End::Lowest);
+    check(3, 26, "embed", "family = \"torus_shell\"", End::Lowest);
 }
 
 #[test]
