@@ -35,8 +35,10 @@
 //! - Only voxels in the phase's box change, and the box never includes the outermost
 //!   layer (the simple-point test needs every neighbour of a voxel to exist).
 //! - Work and memory follow the phase's frontier, not the image: after one scan of the
-//!   box, nothing visits or allocates per voxel of the image but bitsets (one bit a voxel)
-//!   and, for a phase of two or more components, their labels ([`Apart`], a byte a voxel).
+//!   part of the box next to the phase (its extent, which a [`Phase`] keeps as the steps
+//!   grow it), nothing visits or allocates per voxel of the image but bitsets (one bit a
+//!   voxel) and, for a phase of two or more components, their labels ([`Apart`], a byte a
+//!   voxel).
 //! - Components of the phase that start at least [`APART`] + 1 apart (as placement leaves
 //!   them) stay so when the caller passes an [`Apart`]: growth never presses two objects or
 //!   two cavities against each other.
@@ -145,9 +147,9 @@ pub fn deform(
     settings: &DeformSettings,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
-    let phase = Phase::foreground(image);
+    let mut phase = Phase::foreground(image);
     let mut apart = Apart::new(image, &phase);
-    deform_phase(image, settings, &phase, apart.as_mut(), seed)
+    deform_phase(image, settings, &mut phase, apart.as_mut(), seed)
 }
 
 /// Deforms `phase` of `image` in place without changing its topology: grows, shrinks,
@@ -157,13 +159,16 @@ pub fn deform(
 /// every step and to the targeting), the phase's components keep at least [`APART`]
 /// voxels between them as they grow.
 ///
+/// `phase` is made from `image` and passed to every step; each step records in it where
+/// the phase grew (see [`Phase`]).
+///
 /// Deterministic: the same image, settings, phase and seed give the same result on any
 /// machine and any number of threads. Returns an error (leaving the image untouched) only
 /// for invalid settings.
 pub fn deform_phase(
     image: &mut BinaryImage,
     settings: &DeformSettings,
-    phase: &Phase,
+    phase: &mut Phase,
     apart: Option<&mut Apart>,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
@@ -178,7 +183,7 @@ pub fn deform_phase(
 pub fn deform_phase_counted(
     image: &mut BinaryImage,
     settings: &DeformSettings,
-    phase: &Phase,
+    phase: &mut Phase,
     apart: Option<&mut Apart>,
     seed: u64,
     foreground: u64,
@@ -194,6 +199,7 @@ pub fn deform_phase_counted(
             field: err.field,
             reason: err.reason,
         })?;
+    phase.find_extent(image);
     let mut report = match settings.method {
         Method::Moves => {
             let noise =
@@ -210,7 +216,7 @@ pub fn deform_phase_counted(
         }
         Method::Dilate | Method::Erode => morphology::run(
             image,
-            &morphology::Morphology {
+            &mut morphology::Morphology {
                 phase,
                 grow: settings.method == Method::Dilate,
                 steps: settings.steps,
@@ -309,10 +315,10 @@ pub fn target_hypervolume(
     hi: u64,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
-    let phase = Phase::foreground(image);
+    let mut phase = Phase::foreground(image);
     let goal = morphology::nearest_end(image.count_foreground(), lo, hi);
     let mut apart = Apart::new(image, &phase);
-    morphology::target(image, lo, hi, goal, &phase, apart.as_mut(), seed)
+    morphology::target(image, lo, hi, goal, &mut phase, apart.as_mut(), seed)
 }
 
 /// Brings the foreground count into `[lo, hi]` by topology-preserving growth or
@@ -335,7 +341,7 @@ pub fn target_hypervolume_phase(
     lo: u64,
     hi: u64,
     goal: u64,
-    phase: &Phase,
+    phase: &mut Phase,
     apart: Option<&mut Apart>,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
@@ -376,6 +382,75 @@ mod tests {
             draw_settings(&fixed, 11),
             DeformSettings::new(Method::Dilate, 3)
         );
+    }
+
+    #[test]
+    fn a_phase_kept_by_its_steps_finds_the_frontier_a_fresh_one_finds() {
+        use crate::phase::Layout;
+        // Two balls in a 4D image (embed) and a cavity in a solid (carve); every method
+        // and the targeting grow the phase somewhere, and the extent it records must hold
+        // all of it: the frontiers are those of a phase found afresh.
+        let side = 20;
+        let mut objects = BinaryImage::zeros(&[side; 4]).unwrap();
+        let mut solid = BinaryImage::zeros(&[side; 4]).unwrap();
+        for v in 0..objects.len() {
+            let c = objects.coords(v);
+            let dist = |centre: i64| c.iter().map(|&x| (x as i64 - centre).pow(2)).sum::<i64>();
+            objects.data_mut()[v] = (dist(6) <= 9 || dist(13) <= 4) as u8;
+            let inside = c.iter().all(|&x| (2..side - 2).contains(&x));
+            solid.data_mut()[v] = (inside && dist(9) > 9) as u8;
+        }
+        let fresh = |image: &BinaryImage, phase: &Phase| {
+            if phase.value == 1 {
+                Phase::foreground(image)
+            } else {
+                Phase::cavities(image, &phase.lo, &phase.hi)
+            }
+        };
+        let check = |image: &BinaryImage, phase: &Phase, what: &str| {
+            for flip_from in [0, 1] {
+                assert_eq!(
+                    Layout::new(image, phase).frontier(image, flip_from),
+                    Layout::new(image, &fresh(image, phase)).frontier(image, flip_from),
+                    "{what}: value {} from {flip_from}",
+                    phase.value
+                );
+            }
+        };
+        let cases = [
+            (objects.clone(), Phase::foreground(&objects)),
+            (
+                solid.clone(),
+                Phase::cavities(&solid, &[3; 4], &[side - 4; 4]),
+            ),
+        ];
+        for (mut image, mut phase) in cases {
+            let methods = [
+                Method::Dilate,
+                Method::Tentacles,
+                Method::Moves,
+                Method::Erode,
+            ];
+            for (i, method) in methods.into_iter().enumerate() {
+                let steps = if method == Method::Moves { 200 } else { 3 };
+                let settings = DeformSettings {
+                    growth_probability: 0.5,
+                    count: 3,
+                    ..DeformSettings::new(method, steps)
+                };
+                deform_phase(&mut image, &settings, &mut phase, None, i as u64).unwrap();
+                check(&image, &phase, &format!("{method:?}"));
+            }
+            // The phase grows by 40 voxels: the foreground rises for objects, falls for
+            // cavities.
+            let goal = if phase.value == 1 {
+                image.count_foreground() + 40
+            } else {
+                image.count_foreground() - 40
+            };
+            target_hypervolume_phase(&mut image, goal, goal, goal, &mut phase, None, 3).unwrap();
+            check(&image, &phase, "targeting");
+        }
     }
 
     #[test]

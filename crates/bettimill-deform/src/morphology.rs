@@ -10,10 +10,10 @@
 //! gives the paper's lumpy thick-and-thin results; with probability 1 this is plain
 //! topology-preserving dilation (thickening) or erosion (thinning).
 //!
-//! Only the frontier is ever visited: it is found by one scan of the box, then kept up to
-//! date from the flips (a voxel joins it when a face neighbour flips, and leaves it when
-//! it flips itself), so an iteration costs what its frontier costs, not what the image
-//! does. The noise of a candidate is computed once, when it is first ranked (in parallel:
+//! Only the frontier is ever visited: it is found by one scan of the part of the box next
+//! to the phase (see [`Phase`]), then kept up to date from the flips (a voxel joins it
+//! when a face neighbour flips, and leaves it when it flips itself), so an iteration costs
+//! what its frontier costs, not what the image does. The noise of a candidate is computed once, when it is first ranked (in parallel:
 //! each value depends only on its coordinates), and kept with it for as long as it stays
 //! on the frontier; it is never stored for the whole image.
 //!
@@ -107,7 +107,7 @@ fn best_by_key(keyed: &[(u32, usize)], keep: usize) -> Vec<usize> {
 
 /// What one growth or shrinking run needs besides the image.
 pub(crate) struct Morphology<'a> {
-    pub(crate) phase: &'a Phase,
+    pub(crate) phase: &'a mut Phase,
     /// True to grow the phase, false to shrink it.
     pub(crate) grow: bool,
     pub(crate) steps: u32,
@@ -119,7 +119,7 @@ pub(crate) struct Morphology<'a> {
 
 pub(crate) fn run(
     image: &mut BinaryImage,
-    job: &Morphology,
+    job: &mut Morphology,
     mut apart: Option<&mut Apart>,
 ) -> Result<DeformReport, DeformError> {
     let dim = image.dim();
@@ -232,6 +232,9 @@ pub(crate) fn run(
                 if let Some(label) = label {
                     data[v] = flip_to;
                     flipped += 1;
+                    if job.grow {
+                        job.phase.joined(layout.coords(v));
+                    }
                     if let Some(apart) = apart.as_deref_mut() {
                         if job.grow {
                             apart.join(v, label);
@@ -289,7 +292,7 @@ pub(crate) fn target(
     lo: u64,
     hi: u64,
     goal: u64,
-    phase: &Phase,
+    phase: &mut Phase,
     mut apart: Option<&mut Apart>,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
@@ -308,6 +311,7 @@ pub(crate) fn target(
     if (lo..=hi).contains(&start) {
         return Ok(report);
     }
+    phase.find_extent(image);
     // The foreground grows by flipping background voxels, whichever side the phase is.
     let grow_foreground = start < lo;
     let (inside, flip_to) = if grow_foreground {
@@ -389,6 +393,9 @@ pub(crate) fn target(
             if let Some(label) = label {
                 data[v] = flip_to;
                 flipped_list.push(v);
+                if grows_phase {
+                    phase.joined(layout.coords(v));
+                }
                 if let Some(apart) = apart.as_deref_mut() {
                     // What undoing the flip restores: no label for a voxel that joined,
                     // its label for one that left.
@@ -727,8 +734,10 @@ mod tests {
                 let want = target_reference(&mut expected, lo, hi, goal, &phase, round);
                 for pool in &pools {
                     let mut found = image.clone();
+                    // Each run keeps its own copy of the phase's extent.
+                    let mut phase = phase;
                     let got =
-                        pool.install(|| target(&mut found, lo, hi, goal, &phase, None, round));
+                        pool.install(|| target(&mut found, lo, hi, goal, &mut phase, None, round));
                     assert_eq!(got, want, "{shape:?} round {round}");
                     assert_eq!(found.data(), expected.data(), "{shape:?} round {round}");
                     if got.is_ok() {
@@ -751,8 +760,9 @@ mod tests {
         for shape in SHAPES {
             for round in 0..8u64 {
                 let (image, phase) = case(shape, round, &mut rng);
+                let mut job_phase = phase;
                 let job = Morphology {
-                    phase: &phase,
+                    phase: &mut job_phase,
                     grow: round % 4 < 2,
                     steps: 1 + round as u32 % 3,
                     growth_probability: [1.0, 0.4, 0.7, 0.2][round as usize % 4],
@@ -764,7 +774,12 @@ mod tests {
                 let applied = run_reference(&mut expected, &job);
                 for pool in &pools {
                     let mut found = image.clone();
-                    let report = pool.install(|| run(&mut found, &job, None)).unwrap();
+                    let mut phase = phase;
+                    let mut job = Morphology {
+                        phase: &mut phase,
+                        ..job
+                    };
+                    let report = pool.install(|| run(&mut found, &mut job, None)).unwrap();
                     assert_eq!(report.applied, applied, "{shape:?} round {round}");
                     assert_eq!(found.data(), expected.data(), "{shape:?} round {round}");
                 }

@@ -102,7 +102,7 @@ impl Geometry {
 pub(crate) fn run(
     image: &mut BinaryImage,
     mut noise: NoiseCache,
-    phase: &Phase,
+    phase: &mut Phase,
     mut apart: Option<&mut Apart>,
     steps: u32,
     max_distance: u32,
@@ -249,6 +249,7 @@ pub(crate) fn run(
         match target {
             Some((z, label)) => {
                 image.data_mut()[z] = inside;
+                phase.joined(geometry.layout.coords(z));
                 if let Some(apart) = apart.as_deref_mut() {
                     apart.join(z, label);
                 }

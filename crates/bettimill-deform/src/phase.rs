@@ -16,6 +16,12 @@
 use bettimill_grid::BinaryImage;
 
 /// The phase to deform: voxels of `value` within the inclusive box `lo ..= hi`.
+///
+/// A phase also learns where its voxels are (its extent: a box holding them), so that the
+/// frontier scans of the deformations read that part of the box, not all of it: the first
+/// deformation finds it in the image, and each keeps it as it changes that image. A phase
+/// belongs to one image from its first deformation on; an image changed otherwise needs a
+/// new phase.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Phase {
     /// 1 for the objects of embed mode, 0 for the cavities of carve mode.
@@ -24,6 +30,49 @@ pub struct Phase {
     pub lo: [usize; 4],
     /// The box's highest coordinate on each axis, inclusive.
     pub hi: [usize; 4],
+    /// `None` until a deformation looks for it.
+    extent: Option<Extent>,
+}
+
+/// A box that holds every voxel of value `value` within the box `lo ..= hi` grown by one
+/// layer (the voxels a frontier of that box reads), or `None` when there is none. It is
+/// only ever a superset: a voxel leaving the phase leaves it as it is. It speaks for the
+/// value and box it was found for: a phase whose public fields are changed afterwards
+/// (tests narrow the box or swap the value) looks for it again.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Extent {
+    value: u8,
+    lo: [usize; 4],
+    hi: [usize; 4],
+    found: Option<([usize; 4], [usize; 4])>,
+}
+
+impl Extent {
+    /// The bounding box of the voxels of `value` in the box `lo ..= hi` grown by one
+    /// layer (clipped to the image).
+    fn find(image: &BinaryImage, value: u8, lo: [usize; 4], hi: [usize; 4]) -> Extent {
+        let d = image.dim().get();
+        let shape = image.shape();
+        let mut region_lo = [0usize; 4];
+        let mut region_hi = [0usize; 4];
+        let mut empty = false;
+        for a in 0..d {
+            region_lo[a] = lo[a].saturating_sub(1);
+            region_hi[a] = (hi[a] + 1).min(shape[a] - 1);
+            empty |= lo[a] > hi[a];
+        }
+        let found = if empty {
+            None
+        } else {
+            image.value_box(value, &region_lo, &region_hi)
+        };
+        Extent {
+            value,
+            lo,
+            hi,
+            found,
+        }
+    }
 }
 
 impl Phase {
@@ -39,19 +88,78 @@ impl Phase {
             value: 1,
             lo: [1; 4],
             hi,
+            extent: None,
         }
     }
 
     /// The cavities of a carved solid, editable within `lo ..= hi` (which the caller keeps
     /// inside the solid, away from its outer faces).
     pub fn cavities(image: &BinaryImage, lo: &[usize], hi: &[usize]) -> Phase {
-        let mut phase = Phase::foreground(image);
-        phase.value = 0;
+        let mut box_lo = [1usize; 4];
+        let mut box_hi = [0usize; 4];
         for a in 0..image.dim().get() {
-            phase.lo[a] = lo[a].max(1);
-            phase.hi[a] = hi[a].min(phase.hi[a]);
+            box_lo[a] = lo[a].max(1);
+            box_hi[a] = hi[a].min(image.shape()[a].saturating_sub(2));
         }
-        phase
+        Phase {
+            value: 0,
+            lo: box_lo,
+            hi: box_hi,
+            extent: None,
+        }
+    }
+
+    /// The extent this phase's value and box have in `image`, unless it is known: what a
+    /// deformation does before its first scan. A scan of the box grown by one layer; from
+    /// then on the deformations keep it.
+    pub(crate) fn find_extent(&mut self, image: &BinaryImage) {
+        if self.extent_known().is_none() {
+            self.extent = Some(Extent::find(image, self.value, self.lo, self.hi));
+        }
+    }
+
+    /// The extent, when it is known for this value and box.
+    fn extent_known(&self) -> Option<&Extent> {
+        self.extent
+            .as_ref()
+            .filter(|e| (e.value, e.lo, e.hi) == (self.value, self.lo, self.hi))
+    }
+
+    /// Records that the voxel at `coords` joined the phase (a flip into its value), so
+    /// that the extent still holds every voxel of the phase.
+    #[inline]
+    pub(crate) fn joined(&mut self, coords: [usize; 4]) {
+        let Some(extent) = self.extent.as_mut() else {
+            return;
+        };
+        extent.found = Some(match extent.found {
+            None => (coords, coords),
+            Some((mut lo, mut hi)) => {
+                for a in 0..4 {
+                    lo[a] = lo[a].min(coords[a]);
+                    hi[a] = hi[a].max(coords[a]);
+                }
+                (lo, hi)
+            }
+        });
+    }
+
+    /// The part of the box a frontier can lie in: the extent grown by one layer, within
+    /// the box (`lo ..= hi` as given, before [`Layout`] keeps it off the outermost
+    /// layer); `None` when the frontier is empty. The whole box when the extent is not
+    /// known.
+    fn frontier_box(&self, d: usize) -> Option<([usize; 4], [usize; 4])> {
+        let Some(extent) = self.extent_known() else {
+            return Some((self.lo, self.hi));
+        };
+        let (found_lo, found_hi) = extent.found?;
+        let mut lo = self.lo;
+        let mut hi = self.hi;
+        for a in 0..d {
+            lo[a] = lo[a].max(found_lo[a].saturating_sub(1));
+            hi[a] = hi[a].min(found_hi[a] + 1);
+        }
+        Some((lo, hi))
     }
 
     /// The flat indices of the phase's voxels (value [`Phase::value`] inside the box), in
@@ -94,13 +202,15 @@ impl Phase {
 }
 
 /// Flat-index geometry of an image and a phase's box.
+#[derive(Clone, Copy)]
 pub(crate) struct Layout {
     pub(crate) d: usize,
     pub(crate) strides: [usize; 4],
     pub(crate) lo: [usize; 4],
     pub(crate) hi: [usize; 4],
-    /// The phase's value.
-    pub(crate) value: u8,
+    /// The part of the box the frontier lies in (see [`Phase::frontier_box`]), `None`
+    /// when it is empty.
+    scan: Option<([usize; 4], [usize; 4])>,
 }
 
 impl Layout {
@@ -117,12 +227,17 @@ impl Layout {
             lo[a] = phase.lo[a].max(1);
             hi[a] = phase.hi[a].min(shape[a].saturating_sub(2));
         }
+        let scan = phase.frontier_box(d).map(|(scan_lo, scan_hi)| {
+            let within_lo = std::array::from_fn(|a| if a < d { scan_lo[a].max(lo[a]) } else { 0 });
+            let within_hi = std::array::from_fn(|a| if a < d { scan_hi[a].min(hi[a]) } else { 0 });
+            (within_lo, within_hi)
+        });
         Layout {
             d,
             strides,
             lo,
             hi,
-            value: phase.value,
+            scan,
         }
     }
 
@@ -205,12 +320,37 @@ impl Layout {
     /// the other value: what growing (`flip_from` = the other phase) or shrinking
     /// (`flip_from` = the phase) would flip next. In increasing flat order.
     ///
+    /// Only the part of the box next to the phase's extent is scanned: a voxel that the
+    /// phase grows into has a face neighbour in the phase (in the box grown by one layer,
+    /// so in the extent), and one it shrinks from is in the phase; both lie within the
+    /// extent grown by one layer. The voxels found, and their order, are those of a scan of
+    /// the whole box (debug builds compare the two).
+    pub(crate) fn frontier(&self, image: &BinaryImage, flip_from: u8) -> Vec<usize> {
+        let Some((lo, hi)) = self.scan else {
+            debug_assert_eq!(
+                self.frontier_of_box(image, flip_from),
+                Vec::<usize>::new(),
+                "the phase has no voxel near its box"
+            );
+            return Vec::new();
+        };
+        let found = Layout { lo, hi, ..*self }.frontier_of_box(image, flip_from);
+        debug_assert_eq!(
+            found,
+            self.frontier_of_box(image, flip_from),
+            "the extent holds every voxel of the phase"
+        );
+        found
+    }
+
+    /// [`Layout::frontier`] by a scan of the whole box.
+    ///
     /// The rows along the last axis that the box's voxels can touch (the box's rows and
     /// their face neighbours) are packed first, one bit a voxel set where it holds the
     /// other value, eight voxels a multiply. A row's frontier is then a few word
     /// operations: its own bits shifted by one (the neighbours along the row) or'ed with
     /// the face-neighbouring rows' bits, kept where the voxel itself holds `flip_from`.
-    pub(crate) fn frontier(&self, image: &BinaryImage, flip_from: u8) -> Vec<usize> {
+    fn frontier_of_box(&self, image: &BinaryImage, flip_from: u8) -> Vec<usize> {
         let mut out = Vec::new();
         if self.is_empty() {
             return out;
@@ -218,14 +358,11 @@ impl Layout {
         let d = self.d;
         let row_len = image.shape()[d - 1];
         let other = PackedRows::of(image, self, 1 - flip_from);
-        let (bits, words, first_row) = (&other.bits, other.words, other.first_row);
-        // The leading axes' steps in rows. An axis the image lacks steps 0, which reads
-        // the row itself: its bits are where the voxels hold the other value, and those
-        // are dropped below, so it adds nothing.
-        let mut steps = [0usize; 3];
-        for (step, &stride) in steps.iter_mut().zip(&self.strides[..d - 1]) {
-            *step = stride / row_len * words;
-        }
+        let (bits, words) = (&other.bits, other.words);
+        // The leading axes' steps in the packed words. An axis the image lacks steps 0,
+        // which reads the row itself: its bits are where the voxels hold the other value,
+        // and those are dropped below, so it adds nothing.
+        let steps = other.steps;
         if words == 1 {
             // Rows of up to 64 voxels, the sides people train on: one word a row, and the
             // rows of the box visited a line of them at a time along the last leading axis.
@@ -233,9 +370,9 @@ impl Layout {
             let line = d - 2;
             let mut c = self.lo;
             loop {
-                let start = (0..line).map(|a| c[a] * self.strides[a]).sum::<usize>() / row_len
-                    + self.lo[line] * steps[line]
-                    - first_row;
+                c[line] = self.lo[line];
+                let start = other.at(&c);
+                let first_voxel = (0..=line).map(|a| c[a] * self.strides[a]).sum::<usize>();
                 for k in 0..=self.hi[line] - self.lo[line] {
                     let at = start + k * steps[line];
                     let own = bits[at];
@@ -247,7 +384,8 @@ impl Layout {
                         | bits[at + steps[1]]
                         | bits[at - steps[2]]
                         | bits[at + steps[2]];
-                    push_bits(&mut out, (first_row + at) * row_len, touching & !own & span);
+                    let base = first_voxel + k * self.strides[line];
+                    push_bits(&mut out, base, touching & !own & span);
                 }
                 // The next line: odometer over the axes before it.
                 let mut axis = line;
@@ -352,16 +490,25 @@ fn push_bits(out: &mut Vec<usize>, base: usize, mut found: u64) {
 
 /// Rows along the last axis packed one bit a voxel (bit `i` of a row's words: voxel `i`
 /// holds the value asked for), for the rows a box's frontier reads: the box's rows and
-/// their face neighbours. The other rows are left empty and never read.
+/// their face neighbours.
 struct PackedRows {
     bits: Vec<u64>,
     words: usize,
-    /// The row `bits` starts at: rows of one word keep only the rows from the box's first
-    /// to its last (grown by one); longer rows keep every row of the image.
-    first_row: usize,
+    /// The words between one row and the next along each leading axis.
+    steps: [usize; 3],
+    /// The leading coordinates of the row `bits` starts at.
+    origin: [usize; 4],
 }
 
 impl PackedRows {
+    /// The first word of the row at leading coordinates `c`.
+    #[inline]
+    fn at(&self, c: &[usize; 4]) -> usize {
+        (0..3)
+            .map(|a| (c[a] - self.origin[a]) * self.steps[a])
+            .sum()
+    }
+
     fn of(image: &BinaryImage, layout: &Layout, value: u8) -> PackedRows {
         let data = image.data();
         let d = layout.d;
@@ -373,62 +520,75 @@ impl PackedRows {
             let word = u64::from_le_bytes(chunk.try_into().expect("eight bytes"));
             ((word ^ flip) & LOW_BYTES).wrapping_mul(GATHER) >> 56
         };
-        // The rows of the box grown by one on the leading axes lie between these two.
-        let row_of = |leading: &[usize; 4]| -> usize {
-            (0..d - 1)
-                .map(|a| leading[a] * layout.strides[a])
-                .sum::<usize>()
-                / row_len
-        };
-        let first_row = row_of(&std::array::from_fn(|a| layout.lo[a].saturating_sub(1)));
-        let last_row = row_of(&std::array::from_fn(|a| layout.hi[a] + 1));
+        // The box grown by one layer on the leading axes (it keeps off the outermost
+        // layer, so the grown box is in the image).
+        let mut rows = *layout;
+        for a in 0..d - 1 {
+            rows.lo[a] -= 1;
+            rows.hi[a] += 1;
+        }
         if words == 1 {
-            // Short rows: the voxels from the first row to the last packed as one run of
-            // bits (long loops, eight voxels a multiply), then each row's bits cut out.
-            // Only those rows are kept (and nothing is zeroed first).
-            let voxels = &data[first_row * row_len..(last_row + 1) * row_len];
-            let mut blocks = voxels.chunks_exact(64);
-            let mut run: Vec<u64> = blocks
-                .by_ref()
-                .map(|block| {
+            // Short rows: only the grown box's rows are packed, in its own C order, so the
+            // work follows the box, not the image. The rows of a line along the last
+            // leading axis follow each other in memory: they are packed as one run of bits
+            // (long loops, eight voxels a multiply), then each row's bits cut out.
+            let line = d - 2;
+            let mut steps = [0usize; 3];
+            let mut step = 1;
+            for a in (0..d - 1).rev() {
+                steps[a] = step;
+                step *= rows.hi[a] - rows.lo[a] + 1;
+            }
+            let line_rows = rows.hi[line] - rows.lo[line] + 1;
+            let mask = u64::MAX >> (64 - row_len);
+            let mut bits = Vec::with_capacity(step);
+            let mut run: Vec<u64> = Vec::with_capacity((line_rows * row_len).div_ceil(64) + 1);
+            let mut c = rows.lo;
+            loop {
+                let first = (0..=line).map(|a| c[a] * layout.strides[a]).sum::<usize>();
+                let voxels = &data[first..first + line_rows * row_len];
+                let mut blocks = voxels.chunks_exact(64);
+                run.clear();
+                run.extend(blocks.by_ref().map(|block| {
                     let mut packed = 0u64;
                     for (k, chunk) in block.chunks_exact(8).enumerate() {
                         packed |= gather(chunk) << (8 * k);
                     }
                     packed
-                })
-                .collect();
-            let mut tail = 0u64;
-            for (i, &v) in blocks.remainder().iter().enumerate() {
-                tail |= u64::from(v == value) << i;
-            }
-            run.extend([tail, 0]);
-            let mask = u64::MAX >> (64 - row_len);
-            let bits = (0..=last_row - first_row)
-                .map(|r| {
+                }));
+                let mut tail = 0u64;
+                for (i, &v) in blocks.remainder().iter().enumerate() {
+                    tail |= u64::from(v == value) << i;
+                }
+                run.extend([tail, 0]);
+                bits.extend((0..line_rows).map(|r| {
                     let at = r * row_len;
                     let pair = u128::from(run[at / 64]) | u128::from(run[at / 64 + 1]) << 64;
                     (pair >> (at % 64)) as u64 & mask
-                })
-                .collect();
-            return PackedRows {
-                bits,
-                words,
-                first_row,
-            };
+                }));
+                // The next line: odometer over the axes before it.
+                let mut axis = line;
+                loop {
+                    if axis == 0 {
+                        let mut origin = [0usize; 4];
+                        origin[..d - 1].copy_from_slice(&rows.lo[..d - 1]);
+                        return PackedRows {
+                            bits,
+                            words,
+                            steps,
+                            origin,
+                        };
+                    }
+                    axis -= 1;
+                    if c[axis] < rows.hi[axis] {
+                        c[axis] += 1;
+                        break;
+                    }
+                    c[axis] = rows.lo[axis];
+                }
+            }
         }
         let mut bits = vec![0u64; data.len() / row_len * words];
-        let mut rows = Layout {
-            d,
-            strides: layout.strides,
-            lo: layout.lo,
-            hi: layout.hi,
-            value: layout.value,
-        };
-        for a in 0..d - 1 {
-            rows.lo[a] -= 1;
-            rows.hi[a] += 1;
-        }
         rows.for_each_row(|first, _| {
             let row = first / row_len;
             let voxels = &data[row * row_len..(row + 1) * row_len];
@@ -448,10 +608,15 @@ impl PackedRows {
                 *out = packed;
             }
         });
+        let mut steps = [0usize; 3];
+        for (step, &stride) in steps.iter_mut().zip(&layout.strides[..d - 1]) {
+            *step = stride / row_len * words;
+        }
         PackedRows {
             bits,
             words,
-            first_row: 0,
+            steps,
+            origin: [0; 4],
         }
     }
 }
@@ -574,6 +739,15 @@ mod tests {
                         .collect();
                     assert_eq!(
                         layout.frontier(&image, flip_from),
+                        want,
+                        "{shape:?} 1/{density} value {value} corner {corner} from {flip_from}"
+                    );
+                    // The same box with its extent found: only the part near the phase is
+                    // scanned, and the frontier is the same.
+                    let mut found = phase;
+                    found.find_extent(&image);
+                    assert_eq!(
+                        Layout::new(&image, &found).frontier(&image, flip_from),
                         want,
                         "{shape:?} 1/{density} value {value} corner {corner} from {flip_from}"
                     );

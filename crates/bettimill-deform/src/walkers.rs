@@ -63,6 +63,8 @@ struct Painter<'a> {
     layout: Layout,
     tester: &'a SimpleTester,
     apart: Option<&'a mut Apart>,
+    /// The phase painted, which records where it grew.
+    phase: &'a mut Phase,
     value: u8,
     report: DeformReport,
 }
@@ -94,6 +96,7 @@ impl Painter<'_> {
                 };
                 if let Some(label) = label {
                     image.data_mut()[v] = self.value;
+                    self.phase.joined(self.layout.coords(v));
                     if let Some(apart) = self.apart.as_deref_mut() {
                         apart.join(v, label);
                     }
@@ -116,7 +119,7 @@ impl Painter<'_> {
 /// the phase's frontier.
 pub(crate) fn run(
     image: &mut BinaryImage,
-    phase: &Phase,
+    phase: &mut Phase,
     apart: Option<&mut Apart>,
     count: u32,
     steps: u32,
@@ -124,10 +127,12 @@ pub(crate) fn run(
     seed: u64,
 ) -> DeformReport {
     let layout = Layout::new(image, phase);
+    let (value, other) = (phase.value, phase.other());
     let mut painter = Painter {
         tester: &SimpleTester::new(image.dim()),
         apart,
-        value: phase.value,
+        value,
+        phase,
         report: DeformReport {
             applied: 0,
             rejected: 0,
@@ -142,7 +147,7 @@ pub(crate) fn run(
         return painter.report;
     }
     let d = painter.layout.d;
-    let starts = painter.layout.frontier(image, phase.other());
+    let starts = painter.layout.frontier(image, other);
     if starts.is_empty() {
         return painter.report;
     }
@@ -164,10 +169,10 @@ pub(crate) fn run(
         for (a, dir) in direction.iter_mut().enumerate().take(d) {
             let s = painter.layout.strides[a];
             let data = image.data();
-            if data[start - s] == phase.value {
+            if data[start - s] == value {
                 *dir += 1.0;
             }
-            if data[start + s] == phase.value {
+            if data[start + s] == value {
                 *dir -= 1.0;
             }
         }

@@ -20,14 +20,10 @@ fn stop(
     seed: u64,
 ) -> Result<u64, DeformError> {
     let mut image = construction.image.clone();
+    // Each run from the construction's image starts from the phase made from it.
+    let mut phase = construction.phase;
     match bettimill_deform::target_hypervolume_phase(
-        &mut image,
-        goal,
-        goal,
-        goal,
-        &construction.phase,
-        None,
-        seed,
+        &mut image, goal, goal, goal, &mut phase, None, seed,
     ) {
         Ok(report) => Ok(report.foreground_after),
         Err(DeformError::HypervolumeUnreachable { reached, .. }) => Ok(reached),

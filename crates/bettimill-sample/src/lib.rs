@@ -334,7 +334,7 @@ pub fn make_sample_observed(
             })
         };
         report(Stage::Generate, 0.0);
-        let (generated, phase) = match generate(plan, task, attempt) {
+        let (generated, mut phase) = match generate(plan, task, attempt) {
             Ok(made) => made,
             Err(err) => {
                 last = format!("generation failed: {err}");
@@ -369,7 +369,7 @@ pub fn make_sample_observed(
                 match bettimill_deform::deform_phase_counted(
                     &mut image,
                     &settings,
-                    &phase,
+                    &mut phase,
                     apart.as_mut(),
                     seed,
                     foreground,
@@ -396,7 +396,7 @@ pub fn make_sample_observed(
             let goal = lo + ((u128::from(draw) * (u128::from(hi - lo) + 1)) >> 64) as u64;
             let mut target = |apart: Option<&mut bettimill_deform::Apart>| {
                 bettimill_deform::target_hypervolume_phase(
-                    &mut image, lo, hi, goal, &phase, apart, seed,
+                    &mut image, lo, hi, goal, &mut phase, apart, seed,
                 )
             };
             // A bin the parts cannot reach while kept apart (the image leaves them too
