@@ -29,11 +29,22 @@
 //!
 //! The compressed size of an array of side `s` in `d` dimensions is
 //! `128 + s^d` bytes without compression and otherwise
-//! `max(s^d x FLOOR[c], s^(d-1) x BYTES_PER_FACE_VOXEL[c][d][mode])`: these images are a
-//! few smooth solids, so their compressed size follows their boundary (a side^(d-1)
-//! surface), not their volume; `FLOOR` is the best ratio the compressor reaches on
-//! constant data. Tar headers and padding are added exactly, and the label as
-//! [`LABEL_BYTES`]. The result never exceeds [`Plan::sample_bytes`], the uncompressed bound.
+//!
+//! ```text
+//! max(s^d x FLOOR[c], s^(d-1) x BYTES_PER_FACE_VOXEL[c][d][mode],
+//!     phase boundary x PHASE_BYTES_PER_AREA_VOXEL[c] x (deforms ? DEFORM_PHASE_FACTOR[d] : 1))
+//! ```
+//!
+//! These images are a few solids, so their compressed size follows the boundary of the
+//! topological phase (the cavities in carve mode, the objects in embed mode), not their
+//! volume. Where a hypervolume bin gives the phase's volume, its boundary is that of
+//! `components` balls holding the bin's middle volume (so it grows with the phase's share of
+//! the image, like side^(d-1) x share^((d-1)/d)), and deformation roughens it; otherwise
+//! the phase's size is the construction's own and the side^(d-1) term stands for it. A
+//! pooled copy holds the same phase at its smaller side. `FLOOR` is the best ratio the
+//! compressor reaches on constant data. Tar headers and padding are added exactly, and the
+//! label as [`LABEL_BYTES`]. The result never exceeds [`Plan::sample_bytes`], the
+//! uncompressed bound.
 //!
 //! Constants come from `ci/calibrate-plan.sh` (one-worker builds of one family, side and
 //! mode each under `/usr/bin/time`, user + system seconds) and `ci/bench-4d-mixed-128.sh`;
@@ -113,6 +124,26 @@ pub const BYTES_PER_FACE_VOXEL: [[[f64; 2]; 3]; 2] = [
     [[1.2, 1.2], [0.25, 0.6], [0.15, 0.27]],
     // zstd
     [[1.0, 1.0], [0.12, 0.32], [0.12, 0.16]],
+];
+
+/// Compressed bytes per voxel of a binned stratum's phase boundary (the surface of
+/// `components` balls holding the bin's middle volume of the phase, capped by the cube), by
+/// compression (gzip, zstd). Without deformation, 3D and 4D carve and embed at sides 32-96
+/// with the phase 2-35% of the image measure 0.45-0.75 with zstd (the larger the phase,
+/// the lower) and about the same with gzip.
+pub const PHASE_BYTES_PER_AREA_VOXEL: [f64; 2] = [0.75, 0.55];
+
+/// Factor on the phase boundary's bytes for a plan that deforms, by dimension: the
+/// flagship's deformation sequence (erosion, dilation, tentacles, walks, up to 20,000
+/// moves) roughens the boundary, 1.1-1.6x the bytes in 4D (more where the phase is small)
+/// and 1.7-2.3x in 3D. 2D is not calibrated and uses 3D's.
+pub const DEFORM_PHASE_FACTOR: [f64; 3] = [2.0, 2.0, 1.3];
+
+/// Volume of the unit ball in 2, 3 and 4 dimensions.
+const BALL_VOLUME: [f64; 3] = [
+    std::f64::consts::PI,
+    4.0 / 3.0 * std::f64::consts::PI,
+    std::f64::consts::PI * std::f64::consts::PI / 2.0,
 ];
 
 /// The best compression ratio of each compressor on constant data (bytes out per byte in):
@@ -288,8 +319,9 @@ fn deform_seconds(plan: &Plan, volume: f64) -> f64 {
     ns * 1e-9
 }
 
-/// The model's bytes of one array of side `side` as stored (before its tar header).
-pub fn array_bytes(plan: &Plan, mode: Mode, side: u32) -> u64 {
+/// The model's bytes of one array of side `side` of a sample of `stratum` as stored
+/// (before its tar header).
+pub fn array_bytes(plan: &Plan, stratum: &Stratum, side: u32) -> u64 {
     let d = plan.dimension.get();
     let volume = voxels(plan, side);
     let c = match plan.compression {
@@ -298,8 +330,53 @@ pub fn array_bytes(plan: &Plan, mode: Mode, side: u32) -> u64 {
         Compression::Zstd => 1,
     };
     let surface = (side as f64).powi(d as i32 - 1);
-    let bytes = (volume * FLOOR[c]).max(surface * BYTES_PER_FACE_VOXEL[c][d - 2][mode_index(mode)]);
+    let mut bytes =
+        (volume * FLOOR[c]).max(surface * BYTES_PER_FACE_VOXEL[c][d - 2][mode_index(stratum.mode)]);
+    if let Some(area) = phase_area(plan, stratum) {
+        // The copies are pooled from the full image: the same phase at a smaller scale.
+        let scale = (side as f64 / plan.side as f64).powi(d as i32 - 1);
+        let rough = if plan.deform.is_some() {
+            DEFORM_PHASE_FACTOR[d - 2]
+        } else {
+            1.0
+        };
+        bytes = bytes.max(area * scale * PHASE_BYTES_PER_AREA_VOXEL[c] * rough);
+    }
     (bytes.ceil() as u64).clamp(20, NPY_HEADER + volume as u64)
+}
+
+/// The model's boundary of a binned stratum's phase (its cavities in carve mode, its
+/// objects in embed mode) in voxels of the full image: the surface of `components` balls
+/// that hold the bin's middle volume of the phase between them. A ball is at most as wide
+/// as the cube inside its empty border; a phase larger than such balls fills the cube
+/// past its faces, and its boundary (the part inside the cube) shrinks to none as the
+/// phase fills the cube. `None` where the bin does not say the phase's volume: unbinned
+/// strata, and carve in a box sized for the bin (its cavities are small).
+fn phase_area(plan: &Plan, stratum: &Stratum) -> Option<f64> {
+    let (lo, hi) = stratum.hypervolume?;
+    let d = plan.dimension.get();
+    let room = (plan.side as f64 - 2.0).max(0.0).powi(d as i32);
+    let middle = (lo as f64 + hi as f64) / 2.0;
+    let phase = match stratum.mode {
+        Mode::Embed => middle,
+        Mode::Carve if plan.solid == bettimill_types::Solid::Cube => (room - middle).max(0.0),
+        Mode::Carve => return None,
+    };
+    let k = stratum.components.max(1) as f64;
+    let unit = BALL_VOLUME[d - 2];
+    let radius = (phase / k / unit).powf(1.0 / d as f64);
+    let half = (plan.side as f64 - 2.0).max(0.0) / 2.0;
+    let sphere = |r: f64| k * d as f64 * unit * r.powi(d as i32 - 1);
+    if radius <= half {
+        return Some(sphere(radius));
+    }
+    let widest = k * unit * half.powi(d as i32);
+    let left = if room > widest {
+        ((room - phase) / (room - widest)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    Some(sphere(half) * left)
 }
 
 /// Bytes of a tar member of `len` bytes: a 512-byte header and the data padded to 512.
@@ -311,7 +388,7 @@ fn member(len: u64) -> u64 {
 pub fn sample_compressed_bytes(plan: &Plan, stratum: &Stratum) -> u64 {
     let arrays: u64 = std::iter::once(plan.side)
         .chain(plan.resolutions.iter().copied())
-        .map(|side| member(array_bytes(plan, stratum.mode, side)))
+        .map(|side| member(array_bytes(plan, stratum, side)))
         .sum();
     let bytes = arrays + member(LABEL_BYTES) + member(stratum.index.to_string().len() as u64);
     bytes.min(plan.sample_bytes)
@@ -415,10 +492,59 @@ mod tests {
     }
 
     #[test]
+    fn bytes_grow_with_the_phase_share() {
+        let bytes = |dimension: u32, mode: &str, bins: &str, extra: &str| {
+            let text = manifest(
+                dimension,
+                64,
+                mode,
+                &format!("{extra}\n[hypervolume]\nunit = \"fraction\"\nbins = [{bins}]\n"),
+                "family = \"ball\"",
+            )
+            .replace("\"gzip\"", "\"zstd\"");
+            estimate(&plan(&text)).compressed_bytes
+        };
+        // Carve: the lower the bin, the more of the cube the cavities take (4D: 6%, 18% and
+        // 28% of the cube; 3D: 15% and 35%).
+        for (dimension, bins) in [
+            (
+                4,
+                ["[0.82, 0.83]", "[0.70, 0.71]", "[0.60, 0.61]"].as_slice(),
+            ),
+            (3, ["[0.75, 0.76]", "[0.55, 0.56]"].as_slice()),
+        ] {
+            let sizes: Vec<u64> = bins
+                .iter()
+                .map(|b| bytes(dimension, "carve", b, ""))
+                .collect();
+            assert!(
+                sizes.windows(2).all(|w| w[0] < w[1]),
+                "{dimension}D carve {sizes:?}"
+            );
+        }
+        let small = bytes(4, "embed", "[0.05, 0.06]", "");
+        let large = bytes(4, "embed", "[0.30, 0.31]", "");
+        assert!(large > 2 * small, "embed: {small} then {large}");
+        // A deformed phase has a rougher boundary.
+        let deformed = bytes(
+            3,
+            "carve",
+            "[0.55, 0.56]",
+            "[deform]\nmethod = \"moves\"\nsteps = 200\n",
+        );
+        assert!(deformed > bytes(3, "carve", "[0.55, 0.56]", ""));
+        // A phase that fills most of the cube leaves little boundary inside it.
+        assert!(bytes(4, "carve", "[0.25, 0.26]", "") < bytes(4, "carve", "[0.60, 0.61]", ""));
+        // The measured 4D side-64 carve ball in a 55-65% bin: 248 kB a sample.
+        let ball = bytes(4, "carve", "[0.55, 0.65]", "") / 8;
+        assert!((124_000..496_000).contains(&ball), "{ball}");
+    }
+
+    #[test]
     fn uncompressed_arrays_are_counted_exactly() {
         let plan = plan(&manifest(2, 32, "embed", "", "family = \"ball\"").replace("gzip", "none"));
         // 128-byte npy header + 1024 voxels, in a 512-byte tar header + 1536 bytes.
-        assert_eq!(array_bytes(&plan, Mode::Embed, 32), 1152);
+        assert_eq!(array_bytes(&plan, &plan.strata[0], 32), 1152);
         assert_eq!(
             sample_compressed_bytes(&plan, &plan.strata[0]),
             (512 + 1536) + (512 + 1536) + (512 + 512)
