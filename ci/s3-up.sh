@@ -20,7 +20,7 @@
 #
 # Environment:
 #   S3_CI_DIR    PID file, log, env file, recording (default /tmp/bettimill-s3)
-#   S3_CI_PORT   port on 127.0.0.1 (default 39768)
+#   S3_CI_PORT   port on 127.0.0.1 (default 29768, below the kernel's ephemeral ports)
 #   S3_CI_KEEP   1: keep the objects across a restart (default 0)
 #   S3_CI_VENV   the server's venv (default $REPO/.venv-s3; a venv of its own, see
 #                ci/s3-requirements.txt)
@@ -29,7 +29,7 @@ set -euo pipefail
 
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 S3_CI_DIR=${S3_CI_DIR:-/tmp/bettimill-s3}
-PORT=${S3_CI_PORT:-39768}
+PORT=${S3_CI_PORT:-29768}
 VENV=${S3_CI_VENV:-$REPO/.venv-s3}
 PYTHON=${PYTHON:-python3}
 REQUIREMENTS="$REPO/ci/s3-requirements.txt"

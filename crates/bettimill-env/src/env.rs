@@ -149,7 +149,7 @@ impl EnvVars {
     pub const S3_CI_DIR: &'static str = "S3_CI_DIR";
 
     /// Internal, read by ci/s3-up.sh: the local S3 server's port on 127.0.0.1 (default
-    /// 39768).
+    /// 29768).
     #[doc(hidden)]
     pub const S3_CI_PORT: &'static str = "S3_CI_PORT";
 
