@@ -266,8 +266,18 @@ impl Apart {
     }
 }
 
-/// Whether `v` may join the phase: always without a separation to keep.
-pub(crate) fn joins(apart: Option<&Apart>, image: &BinaryImage, v: usize) -> Option<u8> {
+/// Whether `v` may join `phase`, and the label it takes: refused where it would narrow a
+/// gap below the phase's clearance, or bring two components within [`APART`]; always
+/// otherwise.
+pub(crate) fn joins(
+    apart: Option<&Apart>,
+    phase: &Phase,
+    image: &BinaryImage,
+    v: usize,
+) -> Option<u8> {
+    if !crate::clearance::leaves_room(image, v, phase.value, phase.clearance()) {
+        return None;
+    }
     match apart {
         Some(apart) => apart.joins(image, v),
         None => Some(0),

@@ -48,6 +48,7 @@
 //!   influence each other's test) gives the same answers on any number of threads.
 
 mod apart;
+mod clearance;
 mod field;
 pub mod hitmiss;
 mod morphology;
@@ -451,6 +452,65 @@ mod tests {
             target_hypervolume_phase(&mut image, goal, goal, goal, &mut phase, None, 3).unwrap();
             check(&image, &phase, "targeting");
         }
+    }
+
+    /// A 3D U: two arms joined by a base, six voxels apart; the narrowest background run
+    /// between the arms (along x, over the rows above the base) after `grow`.
+    fn gap_after(grow: impl Fn(&mut BinaryImage, &mut Phase)) -> usize {
+        let side = 24;
+        let mut image = BinaryImage::zeros(&[side; 3]).unwrap();
+        for v in 0..image.len() {
+            let [x, y, z, _] = image.coords(v);
+            let arm = (4..8).contains(&x) || (14..18).contains(&x);
+            let base = (4..18).contains(&x) && (4..8).contains(&y);
+            image.data_mut()[v] =
+                ((arm || base) && (4..20).contains(&y) && (6..18).contains(&z)) as u8;
+        }
+        let mut phase = Phase::foreground(&image);
+        grow(&mut image, &mut phase);
+        let mut narrowest = side;
+        for y in 9..20 {
+            for z in 7..17 {
+                let run = (8..14).filter(|&x| !image.get(&[x, y, z])).count();
+                narrowest = narrowest.min(run);
+            }
+        }
+        narrowest
+    }
+
+    #[test]
+    fn growth_with_a_clearance_leaves_gaps_open_that_plain_growth_fills() {
+        let dilate = |clearance: u32| {
+            gap_after(|image, phase| {
+                *phase = phase.with_clearance(clearance);
+                deform_phase(
+                    image,
+                    &DeformSettings::new(Method::Dilate, 8),
+                    phase,
+                    None,
+                    3,
+                )
+                .unwrap();
+            })
+        };
+        // Filling a U's gap keeps it a ball, so plain growth closes it.
+        assert_eq!(dilate(0), 0);
+        assert_eq!(dilate(1), 0);
+        let kept = dilate(4);
+        assert!((2..=6).contains(&kept), "gap {kept}");
+        let target = |clearance: u32| {
+            gap_after(|image, phase| {
+                *phase = phase.with_clearance(clearance);
+                let goal = image.count_foreground() + 3500;
+                target_hypervolume_phase(image, goal, goal, goal, phase, None, 5)
+                    .unwrap_or_else(|e| panic!("clearance {clearance}: {e}"));
+                assert_eq!(image.count_foreground(), goal);
+            })
+        };
+        let filled = target(0);
+        assert!(filled <= 1, "gap {filled}");
+        let kept = target(4);
+        assert!((2..=6).contains(&kept), "gap {kept}");
     }
 
     #[test]

@@ -221,7 +221,7 @@ pub(crate) fn run(
                     if !ok {
                         None
                     } else if job.grow {
-                        apart::joins(apart.as_deref(), image, v)
+                        apart::joins(apart.as_deref(), job.phase, image, v)
                     } else {
                         Some(0)
                     }
@@ -385,7 +385,7 @@ pub(crate) fn target(
             let label = if !simple {
                 None
             } else if grows_phase {
-                apart::joins(apart.as_deref(), image, v)
+                apart::joins(apart.as_deref(), phase, image, v)
             } else {
                 Some(0)
             };

@@ -241,7 +241,7 @@ pub(crate) fn run(
         candidates.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         let target = candidates.iter().find_map(|&(_, z)| {
             if memo.is_simple(&tester, tester.configuration_in(image.data(), &strides, z)) {
-                apart::joins(apart.as_deref(), image, z).map(|label| (z, label))
+                apart::joins(apart.as_deref(), phase, image, z).map(|label| (z, label))
             } else {
                 None
             }

@@ -32,6 +32,9 @@ pub struct Phase {
     pub hi: [usize; 4],
     /// `None` until a deformation looks for it.
     extent: Option<Extent>,
+    /// The narrowest gap growth may leave between parts of the phase that do not touch
+    /// (see [`crate::clearance`]); 0 and 1 leave growth unrestricted.
+    clearance: u32,
 }
 
 /// A box that holds every voxel of value `value` within the box `lo ..= hi` grown by one
@@ -89,6 +92,7 @@ impl Phase {
             lo: [1; 4],
             hi,
             extent: None,
+            clearance: 0,
         }
     }
 
@@ -106,6 +110,7 @@ impl Phase {
             lo: box_lo,
             hi: box_hi,
             extent: None,
+            clearance: 0,
         }
     }
 
@@ -198,6 +203,20 @@ impl Phase {
     /// The value a voxel of the other phase has.
     pub(crate) fn other(&self) -> u8 {
         1 - self.value
+    }
+
+    /// This phase, growing from now on only where it leaves gaps of at least `clearance`
+    /// voxels between parts of itself that do not touch: a voxel joins only if, along
+    /// each direction from a neighbour inside it through the voxel to a neighbour outside,
+    /// the next `clearance - 1` voxels are outside too.
+    pub fn with_clearance(mut self, clearance: u32) -> Phase {
+        self.clearance = clearance;
+        self
+    }
+
+    /// The narrowest gap growth may leave (0 and 1: unrestricted).
+    pub fn clearance(&self) -> u32 {
+        self.clearance
     }
 }
 

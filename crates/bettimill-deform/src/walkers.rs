@@ -90,7 +90,7 @@ impl Painter<'_> {
                     continue;
                 }
                 let label = if self.tester.is_simple(image, v) {
-                    apart::joins(self.apart.as_deref(), image, v)
+                    apart::joins(self.apart.as_deref(), self.phase, image, v)
                 } else {
                     None
                 };

@@ -1,0 +1,112 @@
+//! Keeping the gaps of a growing phase open.
+//!
+//! Growth by simple points keeps the topology but not the width of what carries it: a
+//! hole, a cavity's wall or the space between two parts narrows until one voxel is left,
+//! because that last voxel is the first one whose flip is not simple. Constructions leave
+//! gaps of two or three voxels, and growth towards a hypervolume bin or a few dilation
+//! steps take most of them to one, so nearly every hole of a binned sample closes under a
+//! single dilation. A network trained on such data learns holes of one width only.
+//!
+//! A phase with a clearance `c` (see [`crate::Phase::with_clearance`]) lets a voxel join
+//! only if it leaves at least `c` voxels outside the phase between itself and any part of
+//! the phase ahead of it: along each of the 3^d - 1 directions from a neighbour inside the
+//! phase through the voxel to a neighbour outside, the next `c - 1` voxels must be outside
+//! the phase too. A direction whose next voxel is already inside is a concave corner, not
+//! a gap, and decides nothing. Gaps narrower than `c` at construction stay as they are:
+//! growth next to them is refused, and no flip here ever widens a gap by growth.
+//!
+//! The test reads only the image, so decisions made together against one state of it
+//! (the parity subfields of `morphology`) stay deterministic; two voxels of one subfield
+//! that narrow one gap from both sides can leave it up to two voxels under `c`.
+
+use bettimill_grid::BinaryImage;
+
+/// Whether `v`, outside the phase of value `value`, may join it with the clearance
+/// `clearance` (always when `clearance` is 0 or 1).
+pub(crate) fn leaves_room(image: &BinaryImage, v: usize, value: u8, clearance: u32) -> bool {
+    if clearance < 2 {
+        return true;
+    }
+    let data = image.data();
+    let d = image.dim().get();
+    let shape = image.shape();
+    let strides = image.strides();
+    let c = image.coords(v);
+    // The voxel `t` steps from `v` along `o`, or `None` outside the image.
+    let at = |o: &[i64; 4], t: i64| -> Option<usize> {
+        let mut flat = 0usize;
+        for a in 0..d {
+            let x = c[a] as i64 + t * o[a];
+            if x < 0 || x >= shape[a] as i64 {
+                return None;
+            }
+            flat += x as usize * strides[a];
+        }
+        Some(flat)
+    };
+    for k in 0..3usize.pow(d as u32) {
+        let mut o = [0i64; 4];
+        let mut rest = k;
+        for axis in o.iter_mut().take(d) {
+            *axis = (rest % 3) as i64 - 1;
+            rest /= 3;
+        }
+        if o.iter().all(|&x| x == 0) {
+            continue;
+        }
+        let behind = at(&o, -1).is_some_and(|u| data[u] == value);
+        let open_ahead = at(&o, 1).is_some_and(|u| data[u] != value);
+        if !(behind && open_ahead) {
+            continue;
+        }
+        for t in 2..=i64::from(clearance) {
+            match at(&o, t) {
+                None => break,
+                Some(u) if data[u] == value => return false,
+                Some(_) => {}
+            }
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 2D image of `rows` (`#` the phase).
+    fn picture(rows: &[&str]) -> BinaryImage {
+        let mut image = BinaryImage::zeros(&[rows.len(), rows[0].len()]).unwrap();
+        for (y, row) in rows.iter().enumerate() {
+            for (x, ch) in row.chars().enumerate() {
+                if ch == '#' {
+                    let i = image.index(&[y, x]);
+                    image.data_mut()[i] = 1;
+                }
+            }
+        }
+        image
+    }
+
+    #[test]
+    fn a_voxel_that_would_narrow_a_gap_below_the_clearance_is_refused() {
+        // Column 2 faces the far wall (column 5) across columns 2-4.
+        let image = picture(&["#.....#", "##...##", "##...##", "##...##", "#.....#"]);
+        let v = image.index(&[2, 2]);
+        // Joining leaves 2 voxels (columns 3, 4) before the far wall.
+        assert!(leaves_room(&image, v, 1, 2));
+        assert!(!leaves_room(&image, v, 1, 3));
+        assert!(leaves_room(&image, v, 1, 0));
+        assert!(leaves_room(&image, v, 1, 1));
+    }
+
+    #[test]
+    fn growth_on_an_open_face_or_into_a_concave_corner_is_free() {
+        let image = picture(&["......", "......", "###...", "###...", "#####.", "#####."]);
+        // Beside a flat face with nothing ahead.
+        assert!(leaves_room(&image, image.index(&[1, 1]), 1, 8));
+        // Into the corner where the step meets the face: the next voxel ahead along the
+        // diagonal is inside already.
+        assert!(leaves_room(&image, image.index(&[3, 3]), 1, 8));
+    }
+}
