@@ -53,6 +53,11 @@ pub struct Label {
     /// settings this sample drew (empty when the manifest asks for none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub deform: Vec<DeformSettings>,
+    /// The gap width growth kept, as this sample drew it from the manifest's `clearance`
+    /// (0 when hypervolume targeting could only reach the bin without it); absent when
+    /// the manifest sets none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance: Option<u32>,
     /// The foreground voxel bin `[lo, hi]` the sample was brought into, if binned.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hypervolume_bin: Option<(u64, u64)>,

@@ -30,7 +30,7 @@
 
 use bettimill_grid::{Dim, Mode};
 use bettimill_types::MAX_4D_SIDE;
-use bettimill_types::{Deformation, Solid};
+use bettimill_types::{Deformation, Solid, Spread};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -111,6 +111,12 @@ pub struct Manifest {
     /// box sized for the hypervolume bin.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solid: Option<Solid>,
+    /// The narrowest gap, in voxels, that growth of the topological phase may leave
+    /// between two of its parts that do not touch: across a hole, a cavity's wall, or
+    /// between components. One value, or a range `[lo, hi]` drawn per sample; 0 or 1 (the
+    /// default) leaves growth unrestricted. Gaps narrower at construction stay as built.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance: Option<Spread<u32>>,
     /// Optional topology-preserving deformations applied in order to the phase that
     /// carries each sample's topology (one `[deform]` table or an array of `[[deform]]`
     /// tables; the schema, its defaults and ranges are `bettimill_types::deform`'s).
@@ -858,6 +864,11 @@ impl Manifest {
                 "classes",
                 "at least one [[classes]] entry is needed",
             ));
+        }
+        if let Some(clearance) = &self.clearance {
+            if let Err(err) = bettimill_types::deform::validate_clearance(clearance) {
+                return Err(ManifestError::invalid(source, "clearance", err.reason));
+            }
         }
         if let Some(deform) = &self.deform {
             if let Err((field, err)) = deform.validate() {

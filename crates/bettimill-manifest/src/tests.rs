@@ -452,3 +452,30 @@ fn a_class_error_escapes_control_characters() {
     assert!(err.contains("a\\u{0}b"), "{err}");
     assert!(err.contains("test.toml:10:"), "{err}");
 }
+
+#[test]
+fn a_clearance_out_of_range_is_refused_with_the_range() {
+    for (setting, wanted) in [
+        ("clearance = 9", "at most 8"),
+        ("clearance = [4, 2]", "write it as [low, high]"),
+    ] {
+        let text = GOOD.replace("seed = 1\n", &format!("seed = 1\n{setting}\n"));
+        match parse(&text) {
+            Err(ManifestError::Invalid {
+                field,
+                line,
+                reason,
+                ..
+            }) => {
+                assert_eq!((field.as_str(), line), ("clearance", 9), "{setting}");
+                assert!(reason.contains(wanted), "{setting}: {reason}");
+            }
+            other => panic!("{setting}: expected a refusal, got {other:?}"),
+        }
+    }
+    let text = GOOD.replace("seed = 1\n", "seed = 1\nclearance = [0, 8]\n");
+    assert_eq!(
+        parse(&text).unwrap().clearance,
+        Some(bettimill_types::Spread::Range([0, 8]))
+    );
+}

@@ -36,7 +36,7 @@ use bettimill_manifest::{Manifest, ManifestError};
 use bettimill_shapes::Family;
 /// The thinnest tube of a stratum's constructions ([`Stratum::tube_floor`]).
 pub use bettimill_shapes::TubeFloor;
-use bettimill_types::{Deformation, Solid};
+use bettimill_types::{Deformation, Solid, Spread};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -169,6 +169,10 @@ pub struct Plan {
     pub deform: Option<Deformation>,
     /// Carve mode's solid.
     pub solid: Solid,
+    /// The narrowest gap growth of the topological phase may leave, drawn per sample
+    /// (`None`: unrestricted).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance: Option<Spread<u32>>,
     /// Upper bound of one sample's bytes in a shard, uncompressed.
     pub sample_bytes: u64,
 }
@@ -381,6 +385,7 @@ impl Plan {
             resolutions: manifest.resolutions.clone(),
             deform: manifest.deform.clone(),
             solid: manifest.solid.unwrap_or_default(),
+            clearance: manifest.clearance,
             sample_bytes,
         })
     }

@@ -343,6 +343,14 @@ pub fn make_sample_observed(
         };
         let mut image = generated.image;
         let mut applied = Vec::new();
+        // The gap width growth keeps, drawn per sample (uniform over the range) so that a
+        // stratum holds holes and gaps of many widths.
+        let clearance = plan.clearance.map(|range| {
+            let (lo, hi) = range.bounds();
+            let draw = sub_seed("bettimill clearance v1", &task.seed, attempt);
+            lo + ((u128::from(draw) * u128::from(hi - lo + 1)) >> 64) as u32
+        });
+        phase = phase.with_clearance(clearance.unwrap_or(0));
         // The phase's components: the objects of embed mode (b0), the cavities of carve
         // mode (b_{d-1} of the solid, by Alexander duality). Only two or more need labels
         // to be kept apart.
@@ -387,6 +395,7 @@ pub fn make_sample_observed(
                 continue;
             }
         }
+        let mut kept_clearance = true;
         if let Some((lo, hi)) = stratum.hypervolume {
             report(Stage::Hypervolume, 0.0);
             let seed = sub_seed("bettimill hypervolume seed v1", &task.seed, attempt);
@@ -394,17 +403,23 @@ pub fn make_sample_observed(
             // that a bin's samples spread over it instead of piling on its nearer end.
             let draw = sub_seed("bettimill hypervolume goal v1", &task.seed, attempt);
             let goal = lo + ((u128::from(draw) * (u128::from(hi - lo) + 1)) >> 64) as u64;
-            let mut target = |apart: Option<&mut bettimill_deform::Apart>| {
+            let mut target = |apart: Option<&mut bettimill_deform::Apart>, phase: &mut Phase| {
                 bettimill_deform::target_hypervolume_phase(
-                    &mut image, lo, hi, goal, &mut phase, apart, seed,
+                    &mut image, lo, hi, goal, phase, apart, seed,
                 )
             };
-            // A bin the parts cannot reach while kept apart (the image leaves them too
-            // little room) is reached as without the separation: the plan accepted it.
-            let reached = match target(apart.as_mut()) {
-                Err(_) if apart.is_some() => target(None),
-                reached => reached,
-            };
+            // A bin the parts cannot reach while kept apart and their gaps kept open (the
+            // image leaves them too little room) is reached without the clearance, then
+            // without the separation: the plan accepted it.
+            let mut reached = target(apart.as_mut(), &mut phase);
+            if reached.is_err() && phase.clearance() > 1 {
+                phase = phase.with_clearance(0);
+                kept_clearance = false;
+                reached = target(apart.as_mut(), &mut phase);
+            }
+            if reached.is_err() && apart.is_some() {
+                reached = target(None, &mut phase);
+            }
             if let Err(err) = reached {
                 last = format!("hypervolume targeting failed: {err}");
                 continue;
@@ -472,6 +487,7 @@ pub fn make_sample_observed(
             tool_version: TOOL_VERSION.to_string(),
             construction: generated.construction,
             deform: applied,
+            clearance: clearance.map(|c| if kept_clearance { c } else { 0 }),
             hypervolume_bin: stratum.hypervolume,
             resolutions,
         };

@@ -57,6 +57,21 @@ pub const DEFAULT_COUNT: u32 = 4;
 
 /// The largest `max_distance`; the target search of a move visits (2m+1)^d voxels.
 pub const MAX_DISTANCE: u32 = 8;
+/// The widest clearance a manifest may ask for; a joining voxel reads this far along
+/// each of the 3^d - 1 directions.
+pub const MAX_CLEARANCE: u32 = 8;
+
+/// Checks a manifest's `clearance`: each value at most [`MAX_CLEARANCE`], a range written
+/// `[low, high]`.
+pub fn validate_clearance(clearance: &Spread<u32>) -> Result<(), SettingError> {
+    check_range(
+        "clearance",
+        clearance,
+        |v| v <= MAX_CLEARANCE,
+        &format!("at most {MAX_CLEARANCE}"),
+    )
+}
+
 /// The most fractal octaves the noise sums.
 pub const MAX_OCTAVES: u32 = 24;
 /// The most steps (moves, iterations, tentacle or walk length) one step may ask for.

@@ -10,7 +10,7 @@ pub mod deform;
 pub use deform::{
     DeformSettings, DeformStep, Deformation, Method, SettingError, Solid, Spread,
     DEFAULT_GROWTH_PROBABILITY, DEFAULT_MAX_DISTANCE, DEFAULT_NOISE_FREQUENCY, DEFAULT_OCTAVES,
-    MAX_COUNT, MAX_DISTANCE, MAX_OCTAVES, MAX_STEPS,
+    MAX_CLEARANCE, MAX_COUNT, MAX_DISTANCE, MAX_OCTAVES, MAX_STEPS,
 };
 
 /// The largest side of a 4D cube whose Betti numbers the exact route computes: with a
