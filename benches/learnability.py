@@ -52,7 +52,10 @@ handle needs a bounding radius of 5.25 voxels and the image offers 5.5), with th
 independent generator's shapes scaled to keep their proportions; ``--kinds`` makes only
 the listed kinds (a side-24 run of every kind takes hours); ``--confusion`` prints, for
 every training and held-out kind, the share of each class answered right and the wrong
-answer it gets most (which shapes a model misreads, and as what).
+answer it gets most (which shapes a model misreads, and as what); ``--scales N`` trains
+nothing and prints, per kind and class, how wide the holes and gaps of N held-out samples
+are (the fewest Chebyshev dilations after which a Betti number is smaller) and how thin
+their parts (the fewest erosions that change them).
 
 Run by hand (not in CI), from the repository root, with bettimill and torch installed
 (``ci/python-env.sh`` makes a venv with torch; build the package into it with
@@ -112,6 +115,8 @@ DEFORMS = {
 # 0.1-1% of the image, its hollow blobs 3-8%, and a model trained on 0.4-6% read nearly
 # every hollow blob as a 2-sphere. The smallest bin stays above the thinnest 4D shell
 # (about 140 voxels, 0.2%).
+# The manifests' `clearance` (--clearance); None leaves it out.
+CLEARANCE = None
 BINS = [[0.0025, 0.004], [0.004, 0.01], [0.01, 0.02], [0.02, 0.035], [0.035, 0.06], [0.06, 0.09]]
 # Every deformation in turn, each sample drawing its strengths (from none) per step, as
 # the 4d-mixed-128 preset does.
@@ -181,6 +186,8 @@ def manifest(kind_deform, mode, samples, seed, single, classes=CLASSES, bins=Non
         f"shard_size = {samples}",
         f"seed = {seed}",
     ]
+    if CLEARANCE is not None:
+        lines.append(f"clearance = {CLEARANCE}")
     for c in classes:
         lines += ["", "[[classes]]", f"betti = {toml_value(c)}"]
     if kind_deform is not None:
@@ -504,6 +511,8 @@ def kind_samples(name, recipe, args, classes, single, count, seed):
     accepted = []
     if name == "families":
         key = f"families {bettimill.__version__} {args.mode} {count} {seed} {classes} {FAMILIES} {CHAIN} {BINS}{side}"
+        if CLEARANCE is not None:
+            key += f" clearance {CLEARANCE}"
         voxels, betti = cached(args.cache, key,
                                lambda: family_samples(args.mode, classes, count, seed, args.threads))
     elif name == "independent":
@@ -612,6 +621,66 @@ def confusion(model, voxels, betti):
     return "; ".join(lines)
 
 
+def chebyshev_step(image, grow):
+    """`image` dilated (grow) or eroded by one voxel in the Chebyshev metric (the 3^4 cube),
+    outside the image counting as background."""
+    out = image.copy()
+    for axis in range(4):
+        step = out.copy()
+        for shift in (1, -1):
+            moved = np.roll(out, shift, axis=axis)
+            edge = [slice(None)] * 4
+            edge[axis] = 0 if shift == 1 else -1
+            moved[tuple(edge)] = False
+            step = (step | moved) if grow else (step & moved)
+        out = step
+    return out
+
+
+def feature_scales(image, most=6):
+    """(closing, opening): the fewest Chebyshev dilations of the foreground after which one
+    of its Betti numbers is smaller (its narrowest hole or gap has closed: parts merged, a
+    hole filled; new holes that rough surfaces make do not count), and the fewest erosions
+    after which its Betti numbers differ (its thinnest part has broken or vanished); `most`
+    + 1 when none up to `most` does. Closing 1 means a hole or gap at most two voxels
+    wide."""
+    shape = image.astype(bool)
+    label = bettimill.betti(shape.astype(np.uint8))
+    found = []
+    for grow in (True, False):
+        current, scale = shape, most + 1
+        for k in range(1, most + 1):
+            current = chebyshev_step(current, grow)
+            now = bettimill.betti(current.astype(np.uint8))
+            if (any(n < o for n, o in zip(now, label)) if grow else now != label):
+                scale = k
+                break
+        found.append(scale)
+    return tuple(found)
+
+
+def scales_table(data, count):
+    """Per kind and class of the held-out samples: how many have closing (opening) scale
+    1, 2, 3, 4 and more: the widths of their holes and gaps (and of their parts)."""
+    print(f"Feature scales of the first {count} held-out samples of each kind, 4D side {SIDE}: per "
+          "class, the number of samples whose closing scale (fewest Chebyshev dilations after which a "
+          "Betti number is smaller: how wide the narrowest hole or gap is) and opening scale "
+          "(fewest erosions that change them: how thick the thinnest part is) is 1, 2, 3, 4+.\n")
+    print("| kind | class | samples | closing 1 / 2 / 3 / 4+ | opening 1 / 2 / 3 / 4+ |")
+    print("|---|---|---|---|---|")
+    for kind, (_, _, voxels, betti) in data.items():
+        found = {}
+        for image, label in zip(voxels[:count], betti[:count]):
+            found.setdefault(tuple(int(b) for b in label), []).append(feature_scales(image))
+        for label in sorted(found):
+            pairs = np.array(found[label])
+            cells = []
+            for column in (0, 1):
+                hist = np.bincount(np.minimum(pairs[:, column], 4), minlength=5)[1:]
+                cells.append(" / ".join(str(n) for n in hist))
+            print(f"| {kind} | {list(label)} | {len(pairs)} | {cells[0]} | {cells[1]} |")
+
+
 def chance(betti):
     _, counts = np.unique(betti, axis=0, return_counts=True)
     return counts.max() / len(betti)
@@ -654,16 +723,22 @@ def main():
     parser.add_argument("--kinds", help="comma-separated kinds to make (held-out columns); default all")
     parser.add_argument("--side", type=int, default=16,
                         help="the images' side (the independent generator scales its shapes with it)")
+    parser.add_argument("--clearance", help="the manifests' `clearance` (e.g. '[1, 5]'): the narrowest gap "
+                             "growth leaves, drawn per sample")
     parser.add_argument("--augment", action="store_true",
                         help="train on a random symmetry of the 4D cube of each batch")
     parser.add_argument("--fresh", action="store_true",
                         help="a single kind's training sees every sample once: --train x --epochs "
                              "distinct samples (from another seed than the held-out ones), one epoch")
+    parser.add_argument("--scales", type=int, metavar="N",
+                        help="print the feature scales (widths of holes, gaps and parts) of the first N "
+                             "held-out samples of each kind per class, and stop without training")
     parser.add_argument("--confusion", action="store_true",
                         help="print each training's score per true class on every held-out kind")
     args = parser.parse_args()
-    global SIDE
+    global SIDE, CLEARANCE
     SIDE = args.side
+    CLEARANCE = args.clearance
     if args.quick:
         args.train, args.test, args.mix, args.epochs = 50, 20, 100, 2
     if args.cache:
@@ -674,6 +749,11 @@ def main():
 
     started = time.perf_counter()
     data, deforms, single, make = datasets(args)
+    if args.scales:
+        scales_table(data, args.scales)
+        print(f"\nCommand: `python benches/learnability.py {' '.join(sys.argv[1:])}`; "
+              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; bettimill {bettimill.__version__}.")
+        return
     columns = list(data)
     runs = [(k, [k]) for k in columns]
     # The mixes need every kind they are made of (all of them unless --kinds leaves some out).
@@ -730,7 +810,8 @@ def main():
           f"{args.mix} in a mix, {args.test} held out a kind, {args.epochs} epochs, "
           f"BettiNet4d width {args.width}"
           + ("; a single kind's training sees each of its samples once" if args.fresh else "")
-          + ("; each batch in a random symmetry of the cube" if args.augment else "") + ").\n")
+          + ("; each batch in a random symmetry of the cube" if args.augment else "")
+          + (f"; bettimill's manifests with `clearance = {CLEARANCE}`" if CLEARANCE else "") + ").\n")
     ranged = args.repeats > 1
     print("| trained on | samples | " + " | ".join(f"held-out {k}" for k in columns)
           + (" | independent, range over trainings" if ranged else "") + " | training s |")
