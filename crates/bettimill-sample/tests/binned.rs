@@ -10,6 +10,8 @@
 //! A 64^4 image stands in for the preset's 128^4 (the same code paths: box, walls,
 //! volume bisection, pooling by 2), so the test stays cheap.
 
+mod common;
+
 use bettimill_plan::Plan;
 use bettimill_sample::{make_sample, Sample};
 use bettimill_shapes::TubeFloor;
@@ -149,25 +151,5 @@ fn binned_samples_land_in_their_bins_verified_and_keep_their_topology_at_half_si
 
 #[test]
 fn binned_samples_are_the_same_bytes_on_any_thread_count() {
-    let plan = plan();
-    let tasks: Vec<_> = plan
-        .shards()
-        .flat_map(|s| plan.shard_tasks(&s))
-        .take(6)
-        .collect();
-    let build = |threads: usize| -> Vec<Vec<(String, Vec<u8>)>> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
-            tasks
-                .iter()
-                .map(|task| make_sample(&plan, task).unwrap().fields())
-                .collect()
-        })
-    };
-    let one = build(1);
-    assert_eq!(one, build(2), "1 vs 2 threads");
-    assert_eq!(one, build(4), "1 vs 4 threads");
+    common::assert_same_bytes_on_any_thread_count(&plan(), 6);
 }

@@ -2,6 +2,8 @@
 //! it in its label, is verified like any other, and is the same bytes on any number of
 //! threads.
 
+mod common;
+
 use bettimill_plan::Plan;
 use bettimill_sample::make_sample;
 use std::collections::BTreeSet;
@@ -70,25 +72,5 @@ fn a_manifest_without_clearance_labels_none() {
 
 #[test]
 fn samples_with_a_clearance_are_the_same_bytes_on_any_thread_count() {
-    let plan = plan(MANIFEST);
-    let tasks: Vec<_> = plan
-        .shards()
-        .flat_map(|s| plan.shard_tasks(&s))
-        .take(6)
-        .collect();
-    let build = |threads: usize| -> Vec<Vec<(String, Vec<u8>)>> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
-            tasks
-                .iter()
-                .map(|task| make_sample(&plan, task).unwrap().fields())
-                .collect()
-        })
-    };
-    let one = build(1);
-    assert_eq!(one, build(2), "1 vs 2 threads");
-    assert_eq!(one, build(4), "1 vs 4 threads");
+    common::assert_same_bytes_on_any_thread_count(&plan(MANIFEST), 6);
 }
