@@ -19,7 +19,15 @@
 //! (the parity subfields of `morphology`) stay deterministic; two voxels of one subfield
 //! that narrow one gap from both sides can leave it up to two voxels under `c`.
 
-use bettimill_grid::BinaryImage;
+use bettimill_grid::neighbourhood::full_offsets;
+use bettimill_grid::{BinaryImage, Dim};
+use std::sync::OnceLock;
+
+/// The 3^d - 1 directions of each dimension, listed once: every growth candidate reads them.
+fn directions(dim: Dim) -> &'static [[i8; 4]] {
+    static TABLES: [OnceLock<Vec<[i8; 4]>>; 4] = [const { OnceLock::new() }; 4];
+    TABLES[dim.get() - 1].get_or_init(|| full_offsets(dim))
+}
 
 /// Whether `v`, outside the phase of value `value`, may join it with the clearance
 /// `clearance` (always when `clearance` is 0 or 1).
@@ -33,10 +41,10 @@ pub(crate) fn leaves_room(image: &BinaryImage, v: usize, value: u8, clearance: u
     let strides = image.strides();
     let c = image.coords(v);
     // The voxel `t` steps from `v` along `o`, or `None` outside the image.
-    let at = |o: &[i64; 4], t: i64| -> Option<usize> {
+    let at = |o: &[i8; 4], t: i64| -> Option<usize> {
         let mut flat = 0usize;
         for a in 0..d {
-            let x = c[a] as i64 + t * o[a];
+            let x = c[a] as i64 + t * i64::from(o[a]);
             if x < 0 || x >= shape[a] as i64 {
                 return None;
             }
@@ -44,23 +52,14 @@ pub(crate) fn leaves_room(image: &BinaryImage, v: usize, value: u8, clearance: u
         }
         Some(flat)
     };
-    for k in 0..3usize.pow(d as u32) {
-        let mut o = [0i64; 4];
-        let mut rest = k;
-        for axis in o.iter_mut().take(d) {
-            *axis = (rest % 3) as i64 - 1;
-            rest /= 3;
-        }
-        if o.iter().all(|&x| x == 0) {
-            continue;
-        }
-        let behind = at(&o, -1).is_some_and(|u| data[u] == value);
-        let open_ahead = at(&o, 1).is_some_and(|u| data[u] != value);
+    for o in directions(image.dim()) {
+        let behind = at(o, -1).is_some_and(|u| data[u] == value);
+        let open_ahead = at(o, 1).is_some_and(|u| data[u] != value);
         if !(behind && open_ahead) {
             continue;
         }
         for t in 2..=i64::from(clearance) {
-            match at(&o, t) {
+            match at(o, t) {
                 None => break,
                 Some(u) if data[u] == value => return false,
                 Some(_) => {}
