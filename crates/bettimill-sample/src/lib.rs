@@ -207,6 +207,12 @@ fn sub_seed(domain: &str, seed: &[u8; 32], attempt: u32) -> u64 {
     u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes"))
 }
 
+/// A point of `lo ..= hi` from a uniform u64 `draw` (multiply and shift: no modulo bias
+/// beyond 2^-64, no loop).
+fn draw_between(draw: u64, lo: u64, hi: u64) -> u64 {
+    lo + ((u128::from(draw) * (u128::from(hi - lo) + 1)) >> 64) as u64
+}
+
 /// A u64 seed in the named domain for (sample seed, attempt, deformation step).
 fn step_seed(domain: &str, seed: &[u8; 32], attempt: u32, step: &[u8]) -> u64 {
     let bytes = derive_seed(domain, &[seed, &attempt.to_le_bytes(), step]);
@@ -348,7 +354,7 @@ pub fn make_sample_observed(
         let clearance = plan.clearance.map(|range| {
             let (lo, hi) = range.bounds();
             let draw = sub_seed("bettimill clearance v1", &task.seed, attempt);
-            lo + ((u128::from(draw) * u128::from(hi - lo + 1)) >> 64) as u32
+            draw_between(draw, lo.into(), hi.into()) as u32
         });
         phase = phase.with_clearance(clearance.unwrap_or(0));
         // The phase's components: the objects of embed mode (b0), the cavities of carve
@@ -402,7 +408,7 @@ pub fn make_sample_observed(
             // A count outside the bin moves to a point of the bin drawn per sample, so
             // that a bin's samples spread over it instead of piling on its nearer end.
             let draw = sub_seed("bettimill hypervolume goal v1", &task.seed, attempt);
-            let goal = lo + ((u128::from(draw) * (u128::from(hi - lo) + 1)) >> 64) as u64;
+            let goal = draw_between(draw, lo, hi);
             let mut target = |apart: Option<&mut bettimill_deform::Apart>, phase: &mut Phase| {
                 bettimill_deform::target_hypervolume_phase(
                     &mut image, lo, hi, goal, phase, apart, seed,
