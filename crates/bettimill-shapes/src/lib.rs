@@ -26,6 +26,7 @@ mod geometry;
 mod labels;
 mod place;
 mod recipes;
+mod rotation;
 mod sizing;
 
 pub use bettimill_grid::{BinaryImage, Dim};

@@ -16,7 +16,8 @@
 //! passed plan-time feasibility always produces a sample. Tunnels, which run from face to
 //! face, have their own placement ([`place_tunnel`]).
 
-use crate::geometry::{add, round6, sub, uniform, uniform_int, Rotation, Solid, TubeFloor, P};
+use crate::geometry::{add, round6, sub, uniform, uniform_int, Solid, TubeFloor, P};
+use crate::rotation::Rotation;
 use crate::sizing::{build, build_volume, draw_target, min_extent};
 use crate::{Family, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
