@@ -157,12 +157,13 @@ pub(crate) enum Piece {
     /// (d-1)-sphere).
     Sphere { centre: P, radius: f64, axes: usize },
     /// A star-shaped sphere inside the span of the first `axes` axes: in the direction u
-    /// its radius is `radius + sum a (u . v)^2` over `stretches` plus `sum a max(0, u .
-    /// v)^4` over `lumps` (never below `radius`), and it is lifted along the next axis by
-    /// `bend.1 (u . bend.0)^2`. Its "distance" is measured in the half-plane of the
-    /// point's direction: sqrt((|q| - r(u))^2 + (q_axes - h(u))^2 + the rest^2). A tube
-    /// around it is a disk bundle over the sphere of directions, so it has the round
-    /// sphere's tube's topology while `radius` exceeds the tube.
+    /// its radius is `radius + sum a (u . v)^2` over `stretches` (along orthogonal
+    /// directions) plus `sum a max(0, u . v)^4` over `lumps` (never below `radius`), and it
+    /// is lifted along the next axis by `bend.1 (u . bend.0)^2`. Its "distance" is measured
+    /// in the half-plane of the point's direction: sqrt((|q| - r(u))^2 + (q_axes -
+    /// h(u))^2 + the rest^2). A tube around it is a disk bundle over the sphere of
+    /// directions, so it has the round sphere's tube's topology while `radius` exceeds the
+    /// tube.
     Bumpy {
         centre: P,
         radius: f64,
@@ -452,7 +453,11 @@ impl Piece {
                 bend,
                 ..
             } => {
-                let bulge: f64 = stretches.iter().chain(lumps).map(|&(_, a)| a).sum();
+                // The stretches run along orthogonal axes, so their terms sum to at most
+                // the largest of them (a unit vector's squared components sum to one); the
+                // lumps may line up.
+                let stretch = stretches.iter().map(|&(_, a)| a).fold(0.0, f64::max);
+                let bulge: f64 = stretch + lumps.iter().map(|&(_, a)| a).sum::<f64>();
                 norm(*centre) + radius + bulge + bend.1.abs()
             }
             Piece::Polyline { points, .. } => points.iter().map(|&q| norm(q)).fold(0.0, f64::max),
