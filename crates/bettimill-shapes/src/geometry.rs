@@ -199,12 +199,77 @@ pub(crate) enum Piece {
     /// The inner piece with the axes from `keep` on ignored: a cylinder over it (the
     /// cross-section of a tunnel).
     Prism { inner: Box<Piece>, keep: usize },
+    /// The inner piece (which lies in the span of the axes before `from`) with its tube
+    /// stretched by `stretch` >= 1 along the axes from `from` on: a point is evaluated
+    /// with those coordinates divided by `stretch`. A tube of radius r around it is the
+    /// inner piece's tube under a linear map, so it has the same topology, and its
+    /// cross-section is r across the plane of the inner piece and `stretch` r away from
+    /// it: volume goes where it does not narrow the piece's holes.
+    Flat {
+        inner: Box<Piece>,
+        stretch: f64,
+        from: usize,
+    },
 }
+
+/// Grid steps over a quarter turn in [`Piece::reach`] of a flattened piece.
+const REACH_STEPS: usize = 256;
 
 /// Segments per bounding ball of a polyline.
 const CHUNK: usize = 12;
 
+fn norm_of(x: &[f64]) -> f64 {
+    x.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
 impl Piece {
+    /// `piece` with its tube stretched by `stretch` along the axes from `from` on, about
+    /// the origin: the inner piece is the given one with those coordinates divided by
+    /// `stretch`, so the skeleton itself stays where it was and only the tube around it
+    /// widens there. `None` for pieces other than points, segments, polylines and
+    /// circles.
+    pub(crate) fn flattened(piece: Piece, stretch: f64, from: usize) -> Option<Piece> {
+        let squeeze = |mut p: P| {
+            for x in p.iter_mut().skip(from) {
+                *x /= stretch;
+            }
+            p
+        };
+        let inner = match piece {
+            Piece::Point(c) => Piece::Point(squeeze(c)),
+            Piece::Segment(a, b) => Piece::Segment(squeeze(a), squeeze(b)),
+            Piece::Polyline { points, closed, .. } => {
+                Piece::polyline(points.into_iter().map(squeeze).collect(), closed)
+            }
+            Piece::Circle {
+                centre,
+                radius,
+                u,
+                v,
+            } if [u, v].iter().all(|q| q[from..].iter().all(|&x| x == 0.0)) => Piece::Circle {
+                centre: squeeze(centre),
+                radius,
+                u,
+                v,
+            },
+            Piece::Sphere {
+                centre,
+                radius,
+                axes,
+            } if axes <= from => Piece::Sphere {
+                centre: squeeze(centre),
+                radius,
+                axes,
+            },
+            _ => return None,
+        };
+        Some(Piece::Flat {
+            inner: Box::new(inner),
+            stretch,
+            from,
+        })
+    }
+
     /// A polyline piece with its chunk bounding balls.
     pub(crate) fn polyline(points: Vec<P>, closed: bool) -> Piece {
         let n = points.len();
@@ -261,7 +326,8 @@ impl Piece {
             Piece::Spun { centre, inner } => {
                 Some((*centre, inner.iter().map(Piece::extent).fold(0.0, f64::max)))
             }
-            Piece::Prism { .. } => None,
+            // A tube around it reaches farther than the radius the caller adds.
+            Piece::Prism { .. } | Piece::Flat { .. } => None,
         }
     }
 
@@ -302,6 +368,17 @@ impl Piece {
                 let rho = (q[0] * q[0] + q[1] * q[1]).sqrt();
                 let meridian = [rho, q[2], q[3], 0.0];
                 inner.iter().any(|piece| piece.within(meridian, r))
+            }
+            Piece::Flat {
+                inner,
+                stretch,
+                from,
+            } => {
+                let mut q = p;
+                for slot in q.iter_mut().skip(*from) {
+                    *slot /= stretch;
+                }
+                inner.within(q, r)
             }
             other => other.distance(p) <= r,
         }
@@ -435,6 +512,98 @@ impl Piece {
                 }
                 inner.distance(q)
             }
+            Piece::Flat {
+                inner,
+                stretch,
+                from,
+            } => {
+                let mut q = p;
+                for slot in q.iter_mut().skip(*from) {
+                    *slot /= stretch;
+                }
+                inner.distance(q)
+            }
+        }
+    }
+
+    /// An upper bound of `|x|` over a tube of radius `r` around the piece.
+    pub(crate) fn reach(&self, r: f64) -> f64 {
+        match self {
+            // A point c + S(r n) with c in the unstretched span and n a unit vector whose
+            // unstretched part has length k: |.|^2 <= (|c| + r k)^2 + stretch^2 r^2 (1 - k^2),
+            // largest at k = |c| / (r (stretch^2 - 1)) when that is below 1.
+            Piece::Flat {
+                inner,
+                stretch,
+                from,
+            } => {
+                // A point S(c + r n), c on the inner piece, n a unit vector whose
+                // unstretched part has length cos t: its norm squared is at most
+                // (a + r cos t)^2 + stretch^2 (b + r sin t)^2, with a and b the largest
+                // norms of the inner piece's unstretched and stretched parts. The maximum
+                // over t is taken on a grid, plus the most the function can rise between
+                // two grid points.
+                let (a, b) = inner.split_extent(*from);
+                let s2 = stretch * stretch;
+                let g = |t: f64| {
+                    let u = a + r * libm::cos(t);
+                    let f = b + r * libm::sin(t);
+                    u * u + s2 * f * f
+                };
+                let step = std::f64::consts::FRAC_PI_2 / REACH_STEPS as f64;
+                let top = (0..=REACH_STEPS)
+                    .map(|k| g(k as f64 * step))
+                    .fold(0.0, f64::max);
+                let slope = 2.0 * r * ((a + r) + s2 * (b + r));
+                (top + slope * step / 2.0).sqrt()
+            }
+            other => other.extent() + r,
+        }
+    }
+
+    /// Upper bounds of the norms of the piece's parts in the axes before `from` and from
+    /// `from` on.
+    fn split_extent(&self, from: usize) -> (f64, f64) {
+        let split = |p: &P| (norm_of(&p[..from]), norm_of(&p[from..]));
+        match self {
+            Piece::Point(c) => split(c),
+            // A norm's largest value on a segment or a polyline is at a vertex.
+            Piece::Segment(..) | Piece::Polyline { .. } => {
+                let points = match self {
+                    Piece::Segment(a, b) => vec![*a, *b],
+                    Piece::Polyline { points, .. } => points.clone(),
+                    _ => Vec::new(),
+                };
+                points.iter().map(split).fold((0.0, 0.0), |(a, b), (x, y)| {
+                    (f64::max(a, x), f64::max(b, y))
+                })
+            }
+            Piece::Circle {
+                centre,
+                radius,
+                u,
+                v,
+                ..
+            } => {
+                // |cos t u + sin t v| restricted to some axes is at most the root of
+                // the sum of the squares of u's and v's norms there.
+                let (cu, cf) = split(centre);
+                let (uu, uf) = split(u);
+                let (vu, vf) = split(v);
+                (
+                    cu + radius * (uu * uu + vu * vu).sqrt().min(1.0),
+                    cf + radius * (uf * uf + vf * vf).sqrt().min(1.0),
+                )
+            }
+            Piece::Sphere {
+                centre,
+                radius,
+                axes,
+            } if *axes <= from => {
+                let (cu, cf) = split(centre);
+                (cu + radius, cf)
+            }
+            other => (other.extent(), other.extent()),
         }
     }
 
@@ -468,6 +637,8 @@ impl Piece {
             }
             // Only the kept axes are bounded; the others are handled by the caller.
             Piece::Prism { inner, .. } => inner.extent(),
+            // The stretched axes hold none of the inner piece.
+            Piece::Flat { inner, .. } => inner.extent(),
         }
     }
 
@@ -497,6 +668,7 @@ impl Piece {
                 })
                 .collect(),
             Piece::Polyline { points, .. } => points.clone(),
+            Piece::Flat { inner, .. } => inner.sample_points(),
             _ => Vec::new(),
         }
     }
@@ -556,6 +728,14 @@ impl Piece {
             Piece::Prism { inner, keep } => json!({
                 "piece": "prism", "cross_section_axes": keep, "inner": inner.describe(*keep)
             }),
+            Piece::Flat {
+                inner,
+                stretch,
+                from,
+            } => json!({
+                "piece": "flattened", "stretch": round6(*stretch), "stretched_from_axis": from,
+                "inner": inner.describe(dim)
+            }),
         }
     }
 }
@@ -603,7 +783,7 @@ impl Solid {
         match self {
             Solid::Tube(parts) => parts
                 .iter()
-                .map(|(piece, r)| piece.extent() + r)
+                .map(|(piece, r)| piece.reach(*r))
                 .fold(0.0, f64::max),
             Solid::Shell {
                 piece,
@@ -636,6 +816,72 @@ impl Solid {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::SeedableRng;
+
+    /// A flattened tube: holds its skeleton, reaches `stretch` times its radius along the
+    /// stretched axes and its radius across the skeleton's plane, and `reach` bounds the
+    /// norm of every point in it while some point comes within a voxel of that bound.
+    #[test]
+    fn flattened_tubes_widen_away_from_their_plane_within_their_reach() {
+        let circle = Piece::Circle {
+            centre: ORIGIN,
+            radius: 7.0,
+            u: axis(0),
+            v: axis(1),
+        };
+        let wavy = Piece::polyline(
+            (0..40)
+                .map(|k| {
+                    let t = 2.0 * std::f64::consts::PI * k as f64 / 40.0;
+                    [
+                        6.0 * libm::cos(t),
+                        5.0 * libm::sin(t),
+                        libm::sin(2.0 * t),
+                        0.5,
+                    ]
+                })
+                .collect(),
+            true,
+        );
+        let sphere = Piece::Sphere {
+            centre: ORIGIN,
+            radius: 5.0,
+            axes: 3,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for (piece, from, stretch, r) in [
+            (circle, 2, 3.0, 2.0),
+            (wavy, 2, 2.5, 1.5),
+            (sphere, 3, 4.0, 2.0),
+        ] {
+            let flat = Piece::flattened(piece.clone(), stretch, from).unwrap();
+            let reach = flat.reach(r);
+            for point in piece.sample_points() {
+                assert!(flat.within(point, r), "{point:?} of the skeleton");
+            }
+            // Across the plane at the skeleton's first axis point, and along the first
+            // stretched axis.
+            let start = [piece.extent().min(7.0), 0.0, 0.0, 0.0];
+            if flat.within(start, 0.0) {
+                let mut along = start;
+                along[from] = 0.99 * stretch * r;
+                assert!(flat.within(along, r));
+                along[from] = 1.01 * stretch * r;
+                assert!(!flat.within(along, r));
+                assert!(flat.within(add(start, scale(axis(0), 0.99 * r)), r));
+                assert!(!flat.within(add(start, scale(axis(0), 1.01 * r)), r));
+            }
+            let mut farthest: f64 = 0.0;
+            for _ in 0..200_000 {
+                let p = [0, 1, 2, 3].map(|_| uniform(&mut rng, -reach - 1.0, reach + 1.0));
+                if flat.within(p, r) {
+                    assert!(norm(p) <= reach + 1e-9, "{p:?} beyond the reach {reach}");
+                    farthest = farthest.max(norm(p));
+                }
+            }
+            assert!(farthest > reach - 1.0, "reach {reach} is loose: {farthest}");
+        }
+    }
 
     #[test]
     fn tube_floors_for_copies() {

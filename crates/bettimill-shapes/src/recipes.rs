@@ -127,6 +127,16 @@ fn translate(piece: Piece, by: P) -> Piece {
             inner: Box::new(translate(*inner, by)),
             keep,
         },
+        // Only along the unstretched axes does this keep the inner piece in their span.
+        Piece::Flat {
+            inner,
+            stretch,
+            from,
+        } => Piece::Flat {
+            inner: Box::new(translate(*inner, by)),
+            stretch,
+            from,
+        },
         Piece::Bumpy {
             centre,
             radius,

@@ -8,7 +8,7 @@
 //! here, in the room the host leaves.
 
 use crate::curves;
-use crate::geometry::{round6, uniform, Solid, TubeFloor, INNER_GAP, TUBE_MIN};
+use crate::geometry::{round6, uniform, Piece, Solid, TubeFloor, INNER_GAP, TUBE_MIN};
 use crate::recipes::{make, share_count, tube_range, Shares};
 use crate::Family;
 use rand_chacha::ChaCha8Rng;
@@ -115,6 +115,43 @@ pub(crate) fn build(
 /// holes that stay a few voxels wide survive downscaling.
 pub(crate) const VOLUME_GROW_MIN: f64 = 12.0;
 
+/// The range the tube thickness of an object with a hole is drawn from, as a share of the
+/// thickest that fits, where the object brings the count to its bin: thin, so that its
+/// volume goes into the size of its hole (and, where the family allows, into a tube
+/// widened away from the hole, [`Piece::flattened`]) rather than into a thick tube around
+/// a hole that one dilation closes.
+const THIN_THICKNESS: (f64, f64) = (0.0, 0.35);
+
+/// Growth a widened instance keeps at least, the most first: its hole stays about
+/// `INNER_GAP / 2` plus this in radius (3.75 voxels where the room allows; 2.0 is still
+/// wider than the thickened tube's 1.25).
+const HOLE_KEEPS: [f64; 3] = [2.5, 1.5, 0.75];
+
+/// The most a tube is widened away from its hole.
+const STRETCH_MAX: f64 = 6.0;
+
+/// The share of its volume a widened instance reaches at least; short of it the tube
+/// thickens instead.
+const FLAT_REACHED: f64 = 0.75;
+
+/// Whether `family` has a hole its tube's thickness narrows: not a ball (a fixed tube)
+/// nor an open curve.
+fn with_hole(family: &Family, floor: TubeFloor) -> bool {
+    let (tube_min, tube_cap) = tube_range(family, floor);
+    tube_cap > tube_min && !matches!(family, Family::Curve)
+}
+
+/// The first axis along which `family`'s tube can widen away from its hole in dimension
+/// `dim`, if any: the third for a loop or a handle (whose skeleton lies, up to waves, in
+/// the plane of the first two), the fourth for a round 2-sphere times a disk.
+fn flattens(family: &Family, dim: usize) -> Option<usize> {
+    match family {
+        Family::Handle | Family::Loop if dim >= 3 => Some(2),
+        Family::S2xB2 if dim == 4 => Some(3),
+        _ => None,
+    }
+}
+
 /// The range the scale of an instance sized for a volume is drawn from when the room, not
 /// the volume, limits it.
 const ROOM_SCALE: (f64, f64) = (0.3, 1.0);
@@ -166,10 +203,13 @@ pub(crate) fn estimate_volume(solid: &Solid, dim: usize) -> f64 {
 /// what fits, and how the growth is shared, are drawn from `rng`, so instances of one
 /// volume still differ in shape. Where even the largest instance stays below `volume`,
 /// `draw_scale` draws the scale from [`ROOM_SCALE`] (a carved cavity, whose box takes up
-/// the rest); otherwise the largest instance is taken, its tube thickened towards the
-/// volume (an embedded object, which is the foreground itself). `None` where [`build`]
-/// would give none; tentacled objects (not sized by volume) are drawn as [`build`] draws
-/// them.
+/// the rest); otherwise the largest instance is taken (an embedded object or a full
+/// cube's cavity, which brings the count to its bin), its tube widened away from its hole
+/// where the family allows and the hole stays open ([`flattens`], [`HOLE_KEEPS`]), else
+/// thickened towards the volume. Such an instance with a hole draws a thin tube
+/// ([`THIN_THICKNESS`]). `None` where [`build`] would give none. Tentacled objects are
+/// drawn as [`build`] draws them where `draw_scale` or their host has no hole; otherwise
+/// their host is sized for the volume.
 pub(crate) fn build_volume(
     family: &Family,
     dim: usize,
@@ -179,29 +219,100 @@ pub(crate) fn build_volume(
     draw_scale: bool,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Solid, Value)> {
-    if let Family::Tentacled { .. } = family {
+    sized_for_volume(family, dim, upper, volume, floor, draw_scale, true, rng)
+}
+
+/// [`build_volume`], with tubes widened away from their holes only when `widen`: a
+/// tentacle's path is checked against its host's round tubes (`curves::add_tentacles`),
+/// so a host stays round.
+#[allow(clippy::too_many_arguments)]
+fn sized_for_volume(
+    family: &Family,
+    dim: usize,
+    upper: f64,
+    volume: f64,
+    floor: TubeFloor,
+    draw_scale: bool,
+    widen: bool,
+    rng: &mut ChaCha8Rng,
+) -> Option<(Solid, Value)> {
+    if let Family::Tentacled { object, tentacles } = family {
         let minimum = min_extent(family, dim, floor)?;
         let target = draw_target(family, minimum, upper.max(minimum), rng);
-        return build(family, dim, target, floor, rng);
+        // A host without a hole is drawn as `build` draws it, and targeting's noise-led
+        // growth makes a lumpy body of it.
+        if draw_scale || !with_hole(object, floor) {
+            return build(family, dim, target, floor, rng);
+        }
+        // A host with a hole, in the part of the room `build` gives it, carries the
+        // volume; its tentacles add a little, which targeting takes off again. Where the
+        // room holds no tentacle, the host takes all of it (rather than its minimum, whose
+        // hole targeting's growth would fill) and is sized as the object alone.
+        let host_minimum = min_extent(object, dim, floor)?;
+        let (solid, params, placed) = if target - TENTACLE_ROOM >= host_minimum {
+            let cap = (0.75 * target).min(target - TENTACLE_ROOM);
+            let host_upper = uniform(rng, host_minimum, host_minimum.max(cap));
+            let (solid, params) =
+                sized_for_volume(object, dim, host_upper, volume, floor, false, false, rng)?;
+            let (solid, placed) = curves::add_tentacles(solid, dim, *tentacles, target, rng);
+            (solid, params, placed)
+        } else {
+            let room = upper.max(host_minimum);
+            let (solid, params) =
+                sized_for_volume(object, dim, room, volume, floor, false, widen, rng)?;
+            (solid, params, 0)
+        };
+        return Some((
+            solid,
+            json!({"host": params, "tentacles_requested": tentacles, "tentacles_placed": placed}),
+        ));
     }
     let (tube_min, tube_cap) = tube_range(family, floor);
     // A family with a fixed tube (a ball) grows by `grow`; the others may thicken up to
     // what fits, keeping `VOLUME_GROW_MIN` of growth.
     let fixed_tube = tube_cap <= tube_min;
-    let shares = Shares::draw(share_count(family), rng);
-    let drawn_thickness = uniform(rng, 0.15, 0.85);
-    let extent = |tube: f64, grow: f64| -> Option<f64> {
-        make(family, dim, tube, grow, &shares).map(|s| s.extent())
+    // Where the instance is the foreground itself (or a full cube's cavity), a family
+    // with a hole draws a thin tube, so that its volume goes into the size of the hole,
+    // and one that can widens its tube away from the hole before thickening it.
+    let thin = !draw_scale && with_hole(family, floor);
+    let flat_from = if draw_scale || !widen {
+        None
+    } else {
+        flattens(family, dim)
     };
-    let base = extent(tube_min, 0.0)?;
+    let shares = Shares::draw(share_count(family), rng);
+    let drawn_thickness = if thin {
+        uniform(rng, THIN_THICKNESS.0, THIN_THICKNESS.1)
+    } else {
+        uniform(rng, 0.15, 0.85)
+    };
+    let made = |tube: f64, grow: f64, stretch: f64| -> Option<Solid> {
+        let solid = make(family, dim, tube, grow, &shares)?;
+        if stretch <= 1.0 {
+            return Some(solid);
+        }
+        let (Solid::Tube(parts), Some(from)) = (solid, flat_from) else {
+            return None;
+        };
+        parts
+            .into_iter()
+            .map(|(piece, r)| Piece::flattened(piece, stretch, from).map(|p| (p, r)))
+            .collect::<Option<Vec<_>>>()
+            .map(Solid::Tube)
+    };
+    let extent = |tube: f64, grow: f64, stretch: f64| -> Option<f64> {
+        made(tube, grow, stretch).map(|s| s.extent())
+    };
+    let base = extent(tube_min, 0.0, 1.0)?;
     if base > upper + 1e-9 {
         return None;
     }
     let grow_floor = if fixed_tube { 0.0 } else { VOLUME_GROW_MIN };
-    // The instance at scale s in [0, 1]: bounding radius from the minimum to `upper`.
-    let instance = |s: f64, thickness: f64| -> Option<(Solid, f64, f64)> {
+    // The instance at scale s in [0, 1]: bounding radius from the minimum to `upper`,
+    // its tube widened by `stretch` away from its plane.
+    let instance = |s: f64, thickness: f64, stretch: f64| -> Option<(Solid, f64, f64)> {
         let target = base + s * (upper - base);
-        let floor = if extent(tube_min, grow_floor).is_some_and(|e| e <= target) {
+        let floor = if extent(tube_min, grow_floor, 1.0).is_some_and(|e| e <= target) {
             grow_floor
         } else {
             0.0
@@ -213,25 +324,28 @@ pub(crate) fn build_volume(
             let (mut lo, mut hi) = (tube_min, target.max(tube_min));
             for _ in 0..30 {
                 let mid = (lo + hi) / 2.0;
-                match extent(mid, floor) {
+                match extent(mid, floor, 1.0) {
                     Some(e) if e <= target => lo = mid,
                     _ => hi = mid,
                 }
             }
             tube_min + thickness * (lo - tube_min)
         };
+        if stretch > 1.0 && !extent(tube, 0.0, stretch).is_some_and(|e| e <= target) {
+            return None;
+        }
         let (mut lo, mut hi) = (0.0, target.max(1.0) * 2.0);
         for _ in 0..40 {
             let mid = (lo + hi) / 2.0;
-            match extent(tube, mid) {
+            match extent(tube, mid, stretch) {
                 Some(e) if e <= target => lo = mid,
                 _ => hi = mid,
             }
         }
-        make(family, dim, tube, lo, &shares).map(|solid| (solid, tube, lo))
+        made(tube, lo, stretch).map(|solid| (solid, tube, lo))
     };
-    let volume_at = |s: f64, thickness: f64| {
-        instance(s, thickness).map(|(solid, _, _)| estimate_volume(&solid, dim))
+    let volume_at = |s: f64, thickness: f64, stretch: f64| {
+        instance(s, thickness, stretch).map(|(solid, _, _)| estimate_volume(&solid, dim))
     };
     // The scale first, at the drawn thickness. Where even the largest instance the room
     // allows stays below the volume (the room, not the volume, decides the size: most
@@ -250,23 +364,49 @@ pub(crate) fn build_volume(
         }
         lo
     };
-    let (s, thickness) = if volume_at(1.0, drawn_thickness).is_some_and(|v| v <= volume) {
-        let thicker = |t: f64| volume_at(1.0, t);
-        if draw_scale {
-            (uniform(rng, ROOM_SCALE.0, ROOM_SCALE.1), drawn_thickness)
-        } else if fixed_tube || thicker(1.0).is_some_and(|v| v <= volume) {
-            (1.0, if fixed_tube { drawn_thickness } else { 1.0 })
-        } else {
-            (1.0, bisect(&thicker, drawn_thickness, 1.0))
-        }
-    } else {
-        (
-            bisect(&|s| volume_at(s, drawn_thickness), 0.0, 1.0),
-            drawn_thickness,
-        )
+    // An embedded object that the room leaves short of its volume widens its tube away
+    // from its hole first, keeping the widest hole of `HOLE_KEEPS` with which it comes
+    // close to the volume; thickening the tube, which narrows the hole to its least, is
+    // the last resort.
+    let widened = |thickness: f64| -> Option<f64> {
+        HOLE_KEEPS.iter().find_map(|&keep| {
+            let keeps = |stretch: f64| {
+                instance(1.0, thickness, stretch)
+                    .filter(|&(_, _, grow)| grow >= keep)
+                    .map(|(solid, _, _)| estimate_volume(&solid, dim))
+            };
+            keeps(1.0)?;
+            let stretch = bisect(&keeps, 1.0, STRETCH_MAX);
+            // Close enough to the volume that targeting's growth adds little.
+            let reached = keeps(stretch)? >= FLAT_REACHED * volume;
+            (stretch > 1.0 && reached).then_some(stretch)
+        })
     };
-    let (solid, tube, grow) = instance(s, thickness)?;
-    let params = json!({
+    let (s, thickness, stretch) =
+        if volume_at(1.0, drawn_thickness, 1.0).is_some_and(|v| v <= volume) {
+            let thicker = |t: f64| volume_at(1.0, t, 1.0);
+            if draw_scale {
+                (
+                    uniform(rng, ROOM_SCALE.0, ROOM_SCALE.1),
+                    drawn_thickness,
+                    1.0,
+                )
+            } else if let Some(stretch) = flat_from.and_then(|_| widened(drawn_thickness)) {
+                (1.0, drawn_thickness, stretch)
+            } else if fixed_tube || thicker(1.0).is_some_and(|v| v <= volume) {
+                (1.0, if fixed_tube { drawn_thickness } else { 1.0 }, 1.0)
+            } else {
+                (1.0, bisect(&thicker, drawn_thickness, 1.0), 1.0)
+            }
+        } else {
+            (
+                bisect(&|s| volume_at(s, drawn_thickness, 1.0), 0.0, 1.0),
+                drawn_thickness,
+                1.0,
+            )
+        };
+    let (solid, tube, grow) = instance(s, thickness, stretch)?;
+    let mut params = json!({
         "tube_radius": round6(tube),
         "grow": round6(grow),
         "shares": shares.0.iter().map(|&x| round6(x)).collect::<Vec<_>>(),
@@ -274,5 +414,118 @@ pub(crate) fn build_volume(
         "thickness": round6(thickness),
         "volume_target": libm::round(volume),
     });
+    if stretch > 1.0 {
+        params["stretch"] = json!(round6(stretch));
+    }
     Some((solid, params))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    /// An embedded 4D handle of 2-9% of a side-24 image: widened away from its hole it
+    /// reaches the volume and keeps the hole open, where a round tube of that volume (what
+    /// a tentacle's host still is) closes the hole towards its minimum.
+    #[test]
+    fn embedded_handles_widen_their_tube_instead_of_closing_their_hole() {
+        // The volumes, and the narrowest kept hole each reaches with (the largest needs
+        // the room's whole width).
+        for (volume, keep) in [(8_000.0, 0), (15_000.0, 0), (24_000.0, 0), (30_000.0, 2)] {
+            let mut rng = ChaCha8Rng::seed_from_u64(1);
+            let (solid, params) = build_volume(
+                &Family::Handle,
+                4,
+                11.0,
+                volume,
+                TubeFloor::USUAL,
+                false,
+                &mut rng,
+            )
+            .unwrap();
+            assert!(solid.extent() <= 11.0 + 1e-9);
+            assert!(params["stretch"].as_f64().unwrap() > 1.0, "{params}");
+            let wide = params["grow"].as_f64().unwrap();
+            assert!(wide >= HOLE_KEEPS[keep], "{params}");
+            assert!(
+                estimate_volume(&solid, 4) >= FLAT_REACHED * volume,
+                "{params}"
+            );
+
+            let mut rng = ChaCha8Rng::seed_from_u64(1);
+            let (round, params) = sized_for_volume(
+                &Family::Handle,
+                4,
+                11.0,
+                volume,
+                TubeFloor::USUAL,
+                false,
+                false,
+                &mut rng,
+            )
+            .unwrap();
+            assert!(params.get("stretch").is_none());
+            let narrow = params["grow"].as_f64().unwrap();
+            assert!(narrow < wide, "{params}");
+            assert!(narrow < HOLE_KEEPS[0] || volume < 10_000.0, "{params}");
+            assert!(round.extent() <= 11.0 + 1e-9);
+        }
+    }
+
+    /// A tentacled handle with no room for tentacles (4D side 24) is its host sized for the
+    /// volume, widened, not the smallest handle; a tentacled ball is drawn as `build` draws
+    /// it, for targeting to grow into a lumpy body.
+    #[test]
+    fn tentacled_hosts_with_a_hole_are_sized_for_the_volume() {
+        let tentacled = |object| Family::Tentacled {
+            object: Box::new(object),
+            tentacles: 2,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let (solid, params) = build_volume(
+            &tentacled(Family::Handle),
+            4,
+            10.5,
+            15_000.0,
+            TubeFloor::USUAL,
+            false,
+            &mut rng,
+        )
+        .unwrap();
+        assert_eq!(params["tentacles_placed"], 0, "{params}");
+        assert!(
+            params["host"]["stretch"].as_f64().unwrap() > 1.0,
+            "{params}"
+        );
+        assert!(estimate_volume(&solid, 4) >= FLAT_REACHED * 15_000.0);
+        let (_, params) = build_volume(
+            &tentacled(Family::Ball),
+            4,
+            10.5,
+            15_000.0,
+            TubeFloor::USUAL,
+            false,
+            &mut rng,
+        )
+        .unwrap();
+        assert!(params["host"].get("volume_target").is_none(), "{params}");
+    }
+
+    /// Carved cavities of a boxed solid keep their drawn scale and thickness: no widening.
+    #[test]
+    fn cavities_of_a_box_are_not_widened() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let (_, params) = build_volume(
+            &Family::Handle,
+            4,
+            11.0,
+            24_000.0,
+            TubeFloor::USUAL,
+            true,
+            &mut rng,
+        )
+        .unwrap();
+        assert!(params.get("stretch").is_none(), "{params}");
+    }
 }
