@@ -218,6 +218,15 @@ const REACH_STEPS: usize = 256;
 /// Segments per bounding ball of a polyline.
 const CHUNK: usize = 12;
 
+/// `p` with its coordinates from `from` on divided by `stretch`: a point of a flattened
+/// piece's tube in the frame of its inner piece.
+fn squeezed(mut p: P, stretch: f64, from: usize) -> P {
+    for x in p.iter_mut().skip(from) {
+        *x /= stretch;
+    }
+    p
+}
+
 fn norm_of(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
@@ -229,12 +238,7 @@ impl Piece {
     /// widens there. `None` for pieces other than points, segments, polylines and
     /// circles.
     pub(crate) fn flattened(piece: Piece, stretch: f64, from: usize) -> Option<Piece> {
-        let squeeze = |mut p: P| {
-            for x in p.iter_mut().skip(from) {
-                *x /= stretch;
-            }
-            p
-        };
+        let squeeze = |p: P| squeezed(p, stretch, from);
         let inner = match piece {
             Piece::Point(c) => Piece::Point(squeeze(c)),
             Piece::Segment(a, b) => Piece::Segment(squeeze(a), squeeze(b)),
@@ -373,13 +377,7 @@ impl Piece {
                 inner,
                 stretch,
                 from,
-            } => {
-                let mut q = p;
-                for slot in q.iter_mut().skip(*from) {
-                    *slot /= stretch;
-                }
-                inner.within(q, r)
-            }
+            } => inner.within(squeezed(p, *stretch, *from), r),
             other => other.distance(p) <= r,
         }
     }
@@ -516,13 +514,7 @@ impl Piece {
                 inner,
                 stretch,
                 from,
-            } => {
-                let mut q = p;
-                for slot in q.iter_mut().skip(*from) {
-                    *slot /= stretch;
-                }
-                inner.distance(q)
-            }
+            } => inner.distance(squeezed(p, *stretch, *from)),
         }
     }
 

@@ -483,32 +483,27 @@ mod tests {
             tentacles: 2,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(4);
-        let (solid, params) = build_volume(
-            &tentacled(Family::Handle),
-            4,
-            10.5,
-            15_000.0,
-            TubeFloor::USUAL,
-            false,
-            &mut rng,
-        )
-        .unwrap();
+        let mut built = |object| {
+            let family = tentacled(object);
+            build_volume(
+                &family,
+                4,
+                10.5,
+                15_000.0,
+                TubeFloor::USUAL,
+                false,
+                &mut rng,
+            )
+            .unwrap()
+        };
+        let (solid, params) = built(Family::Handle);
         assert_eq!(params["tentacles_placed"], 0, "{params}");
         assert!(
             params["host"]["stretch"].as_f64().unwrap() > 1.0,
             "{params}"
         );
         assert!(estimate_volume(&solid, 4) >= FLAT_REACHED * 15_000.0);
-        let (_, params) = build_volume(
-            &tentacled(Family::Ball),
-            4,
-            10.5,
-            15_000.0,
-            TubeFloor::USUAL,
-            false,
-            &mut rng,
-        )
-        .unwrap();
+        let (_, params) = built(Family::Ball);
         assert!(params["host"].get("volume_target").is_none(), "{params}");
     }
 
