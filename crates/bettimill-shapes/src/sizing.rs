@@ -433,38 +433,31 @@ mod tests {
         // The volumes, and the narrowest kept hole each reaches with (the largest needs
         // the room's whole width).
         for (volume, keep) in [(8_000.0, 0), (15_000.0, 0), (24_000.0, 0), (30_000.0, 2)] {
-            let mut rng = ChaCha8Rng::seed_from_u64(1);
-            let (solid, params) = build_volume(
-                &Family::Handle,
-                4,
-                11.0,
-                volume,
-                TubeFloor::USUAL,
-                false,
-                &mut rng,
-            )
-            .unwrap();
+            // The same draws, widened (as `build_volume` sizes it) or kept round.
+            let sized = |widen| {
+                let mut rng = ChaCha8Rng::seed_from_u64(1);
+                let floor = TubeFloor::USUAL;
+                sized_for_volume(
+                    &Family::Handle,
+                    4,
+                    11.0,
+                    volume,
+                    floor,
+                    false,
+                    widen,
+                    &mut rng,
+                )
+                .unwrap()
+            };
+            let (solid, params) = sized(true);
             assert!(solid.extent() <= 11.0 + 1e-9);
             assert!(params["stretch"].as_f64().unwrap() > 1.0, "{params}");
             let wide = params["grow"].as_f64().unwrap();
             assert!(wide >= HOLE_KEEPS[keep], "{params}");
-            assert!(
-                estimate_volume(&solid, 4) >= FLAT_REACHED * volume,
-                "{params}"
-            );
+            let reached = estimate_volume(&solid, 4);
+            assert!(reached >= FLAT_REACHED * volume, "{params}");
 
-            let mut rng = ChaCha8Rng::seed_from_u64(1);
-            let (round, params) = sized_for_volume(
-                &Family::Handle,
-                4,
-                11.0,
-                volume,
-                TubeFloor::USUAL,
-                false,
-                false,
-                &mut rng,
-            )
-            .unwrap();
+            let (round, params) = sized(false);
             assert!(params.get("stretch").is_none());
             let narrow = params["grow"].as_f64().unwrap();
             assert!(narrow < wide, "{params}");
