@@ -199,9 +199,10 @@ pub(crate) enum Piece {
     /// The inner piece with the axes from `keep` on ignored: a cylinder over it (the
     /// cross-section of a tunnel).
     Prism { inner: Box<Piece>, keep: usize },
-    /// The inner piece (which lies in the span of the axes before `from`) with its tube
-    /// stretched by `stretch` >= 1 along the axes from `from` on: a point is evaluated
-    /// with those coordinates divided by `stretch`. A tube of radius r around it is the
+    /// The inner piece's tube stretched by `stretch` >= 1 along the axes from `from` on
+    /// (about the origin): a point is evaluated with those coordinates divided by
+    /// `stretch`. Build it with [`Piece::flattened`], which squeezes the skeleton so that it
+    /// stays where it was. A tube of radius r around it is the
     /// inner piece's tube under a linear map, so it has the same topology, and its
     /// cross-section is r across the plane of the inner piece and `stretch` r away from
     /// it: volume goes where it does not narrow the piece's holes.
@@ -235,8 +236,8 @@ impl Piece {
     /// `piece` with its tube stretched by `stretch` along the axes from `from` on, about
     /// the origin: the inner piece is the given one with those coordinates divided by
     /// `stretch`, so the skeleton itself stays where it was and only the tube around it
-    /// widens there. `None` for pieces other than points, segments, polylines and
-    /// circles.
+    /// widens there. `None` for pieces other than points, segments, polylines, and
+    /// circles and round spheres that lie in the unstretched axes.
     pub(crate) fn flattened(piece: Piece, stretch: f64, from: usize) -> Option<Piece> {
         let squeeze = |p: P| squeezed(p, stretch, from);
         let inner = match piece {

@@ -127,7 +127,8 @@ fn translate(piece: Piece, by: P) -> Piece {
             inner: Box::new(translate(*inner, by)),
             keep,
         },
-        // Only along the unstretched axes does this keep the inner piece in their span.
+        // The stretch is about the origin: this moves the tube by `by` only where `by`
+        // lies in the unstretched axes (the only use, spun rows, moves along the first).
         Piece::Flat {
             inner,
             stretch,
