@@ -1,14 +1,15 @@
 //! Keeping the components of a phase apart while it deforms.
 //!
-//! Objects are placed with at least two background voxels between any two of them (a
-//! Chebyshev distance of three). A simple-point flip can never merge two components, but
+//! Objects are placed with a gap of background voxels between any two of them: at least
+//! two (a Chebyshev distance of three), and in scenes a width drawn per sample. A
+//! simple-point flip can never merge two components, but
 //! nothing in the simple-point rule keeps them from coming within one voxel of each other,
 //! and growth presses them there: targeting a hypervolume bin or a few hundred moves leave
 //! most two-object samples with their parts one voxel apart. A network trained on such
 //! data learns that two components meet across a one-voxel gap and reads two parts
 //! farther apart as one. [`Apart`] refuses a flip that brings a voxel of the phase within
-//! [`APART`] of another component, so the placement's gap holds through every
-//! deformation, and the distance between parts stays as varied as placement made it.
+//! its gap (at least [`APART`]) of another component, so the placement's gap holds through
+//! every deformation, and the distance between parts stays as varied as placement made it.
 //!
 //! Components are labelled once (a byte a voxel of the image, only for a phase of two or
 //! more components) with the phase's own connectivity: the foreground's (3^d - 1)
@@ -18,19 +19,20 @@
 //! no other label changes).
 //!
 //! Most flips happen far from any other component, so the window need not be read there:
-//! blocks of [`BLOCK`]^d voxels record which labels have had a voxel within [`APART`] of
-//! them (none, one, or several). A voxel whose block has seen no label but its own joins
+//! blocks of `2^BLOCK_SHIFT`^d voxels record which labels have had a voxel within the gap
+//! of them (none, one, or several). A voxel whose block has seen no label but its own joins
 //! without a look at its window; only near another component is the window read. A block's
 //! record only ever gains labels (a voxel leaving the phase does not clear it), which can
-//! cost a window read, never a wrong answer: the window read decides.
+//! cost a window read, never a wrong answer: the window read decides. The window is read
+//! as rows along the last axis, each a slice of the labels.
 
 use crate::phase::{chebyshev_ball, Layout, Phase};
 use bettimill_grid::neighbourhood::{face_offsets, flat_offsets, full_offsets};
 use bettimill_grid::BinaryImage;
 
-/// The Chebyshev distance within which a voxel joining the phase may have no voxel of
-/// another component: two, as the placement's gap leaves (three apart means two voxels
-/// between them).
+/// The narrowest gap [`Apart`] keeps: the Chebyshev distance within which a voxel joining
+/// the phase may have no voxel of another component is at least two, as the placement's
+/// narrowest gap leaves (three apart means two voxels between them).
 pub const APART: i64 = 2;
 
 /// log2 of the side of the blocks that record which components are near.
@@ -49,14 +51,18 @@ pub struct Apart {
     value: u8,
     /// Flat offsets of the neighbours whose label a joining voxel takes.
     adjacent: Vec<isize>,
-    /// The window of radius [`APART`] without its centre, as coordinate and flat offsets.
-    window: Vec<([i64; 4], isize)>,
+    /// The Chebyshev distance within which a joining voxel may have no voxel of another
+    /// component (the gap kept, in background voxels).
+    gap: i64,
+    /// The rows of the window of radius `gap`: offsets along the leading axes, as
+    /// coordinates and flat; each row spans `-gap ..= gap` along the last axis.
+    rows: Vec<([i64; 4], isize)>,
     shape: [i64; 4],
     /// The image's flat strides.
     strides: [usize; 4],
     d: usize,
     /// Per block of `2^BLOCK_SHIFT` voxels a side: 0 when no component has had a voxel
-    /// within [`APART`] of it, `k` when only component `k`, [`MIXED`] when several.
+    /// within `gap` of it, `k` when only component `k`, [`MIXED`] when several.
     near: Vec<u8>,
     /// Flat strides of the block grid.
     block_strides: [usize; 4],
@@ -65,10 +71,18 @@ pub struct Apart {
 }
 
 impl Apart {
-    /// Labels the components of `phase` in `image`. `None` when there are fewer than two
-    /// (nothing to keep apart) or more than 254 (a byte cannot tell them apart beside its marker; such a
-    /// phase keeps only the simple-point rule).
+    /// Labels the components of `phase` in `image` to keep them [`APART`] apart (see
+    /// [`Apart::keeping`]).
     pub fn new(image: &BinaryImage, phase: &Phase) -> Option<Apart> {
+        Apart::keeping(image, phase, APART)
+    }
+
+    /// Labels the components of `phase` in `image` to keep a gap of `gap` background
+    /// voxels between them (at least [`APART`]: a narrower gap is [`APART`]). `None` when
+    /// there are fewer than two (nothing to keep apart) or more than 254 (a byte cannot
+    /// tell them apart beside its marker; such a phase keeps only the simple-point rule).
+    pub fn keeping(image: &BinaryImage, phase: &Phase, gap: i64) -> Option<Apart> {
+        let gap = gap.max(APART);
         let layout = Layout::new(image, phase);
         if layout.is_empty() {
             return None;
@@ -124,7 +138,15 @@ impl Apart {
         if overflow || components < 2 {
             return None;
         }
-        let window = chebyshev_ball(image, APART);
+        // The rows of the window: the window's offsets whose last coordinate is its lowest.
+        let rows = chebyshev_ball(image, gap)
+            .into_iter()
+            .filter(|(off, _)| off[d - 1] == -gap)
+            .map(|(mut off, flat)| {
+                off[d - 1] = 0;
+                (off, flat + gap as isize)
+            })
+            .collect();
         let mut shape = [1i64; 4];
         for (s, &n) in shape.iter_mut().zip(image.shape()) {
             *s = n as i64;
@@ -145,7 +167,8 @@ impl Apart {
             labels,
             value: phase.value,
             adjacent,
-            window,
+            gap,
+            rows,
             shape,
             strides: image_strides,
             d,
@@ -173,16 +196,21 @@ impl Apart {
         Some(apart)
     }
 
-    /// Records `label` in every block within [`APART`] of the voxels `first ..= last` of
-    /// one row along the last axis.
+    /// The gap kept between components, in background voxels.
+    pub fn gap(&self) -> i64 {
+        self.gap
+    }
+
+    /// Records `label` in every block within `gap` of the voxels `first ..= last` of one
+    /// row along the last axis.
     fn mark(&mut self, first: usize, last: usize, label: u8) {
         let mut lo = [0usize; 4];
         let mut hi = [0usize; 4];
         for a in 0..self.d {
             let x = (first / self.strides[a]) as i64 % self.shape[a];
             let y = (last / self.strides[a]) as i64 % self.shape[a];
-            lo[a] = ((x - APART).max(0) as usize) >> BLOCK_SHIFT;
-            hi[a] = (((y + APART) as usize) >> BLOCK_SHIFT).min(self.blocks[a] - 1);
+            lo[a] = ((x - self.gap).max(0) as usize) >> BLOCK_SHIFT;
+            hi[a] = (((y + self.gap) as usize) >> BLOCK_SHIFT).min(self.blocks[a] - 1);
         }
         let mut at = lo;
         loop {
@@ -211,7 +239,7 @@ impl Apart {
 
     /// Whether `v`, not in the phase, may join it: `Some(label)` of the component it would
     /// join (0 if it touches none: a flip that the simple-point test refuses anyway), or
-    /// `None` when a voxel of another component lies within [`APART`] of it. Reads the
+    /// `None` when a voxel of another component lies within the gap of it. Reads the
     /// image as it is; changes nothing.
     pub(crate) fn joins(&self, image: &BinaryImage, v: usize) -> Option<u8> {
         let data = image.data();
@@ -229,22 +257,33 @@ impl Apart {
         if seen == 0 || seen == own {
             return Some(own);
         }
-        let deep = (0..self.d).all(|a| {
-            let x = c[a] as i64;
-            x >= APART && x + APART < self.shape[a]
+        let last = self.d - 1;
+        let x = c[last] as i64;
+        // The row's span along the last axis, clipped to the image, relative to its centre.
+        let from = (x - self.gap).max(0) - x;
+        let to = (x + self.gap).min(self.shape[last] - 1) - x;
+        let deep = (0..last).all(|a| {
+            let y = c[a] as i64;
+            y >= self.gap && y + self.gap < self.shape[a]
         });
-        for &(off, flat) in &self.window {
+        for &(off, flat) in &self.rows {
             if !deep
-                && !(0..self.d).all(|a| {
-                    let x = c[a] as i64 + off[a];
-                    x >= 0 && x < self.shape[a]
+                && !(0..last).all(|a| {
+                    let y = c[a] as i64 + off[a];
+                    y >= 0 && y < self.shape[a]
                 })
             {
                 continue;
             }
-            let w = (v as isize + flat) as usize;
-            let label = self.labels[w];
-            if label != 0 && label != own && data[w] == self.value {
+            let centre = v as isize + flat;
+            let span = (centre + from as isize) as usize..=(centre + to as isize) as usize;
+            let labels = &self.labels[span.clone()];
+            if labels.iter().any(|&label| label != 0 && label != own)
+                && labels
+                    .iter()
+                    .zip(&data[span])
+                    .any(|(&label, &value)| label != 0 && label != own && value == self.value)
+            {
                 return None;
             }
         }
@@ -267,7 +306,8 @@ impl Apart {
 }
 
 /// Whether `v` may join `phase`, and the label it takes: refused where it would narrow a
-/// gap below the phase's clearance, or bring two components within [`APART`]; always
+/// gap below the phase's clearance, or bring two components within the gap [`Apart`]
+/// keeps; always
 /// otherwise.
 pub(crate) fn joins(
     apart: Option<&Apart>,
@@ -281,5 +321,78 @@ pub(crate) fn joins(
     match apart {
         Some(apart) => apart.joins(image, v),
         None => Some(0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// The answer [`Apart::joins`] gives, from every voxel of the window one by one.
+    fn joins_by_every_voxel(apart: &Apart, image: &BinaryImage, v: usize) -> Option<u8> {
+        let data = image.data();
+        let own = apart
+            .adjacent
+            .iter()
+            .map(|&o| (v as isize + o) as usize)
+            .find(|&w| data[w] == apart.value && apart.labels[w] != 0)
+            .map_or(0, |w| apart.labels[w]);
+        let c = image.coords(v);
+        for (off, flat) in chebyshev_ball(image, apart.gap) {
+            if (0..apart.d).all(|a| (0..apart.shape[a]).contains(&(c[a] as i64 + off[a]))) {
+                let w = (v as isize + flat) as usize;
+                let label = apart.labels[w];
+                if label != 0 && label != own && data[w] == apart.value {
+                    return None;
+                }
+            }
+        }
+        Some(own)
+    }
+
+    /// Reading the window as rows, after the blocks' shortcut, answers as reading every
+    /// voxel of it, at every gap, near the faces and far from them.
+    #[test]
+    fn rows_and_blocks_answer_as_every_voxel_of_the_window() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for shape in [vec![40usize, 37], vec![19, 17, 21], vec![13, 11, 12, 14]] {
+            for gap in [APART, 3, 5] {
+                // About one voxel of the phase a window, so that some joins are refused
+                // and some allowed.
+                let mut image = BinaryImage::zeros(&shape).unwrap();
+                let window = (2 * gap as usize + 1).pow(shape.len() as u32);
+                for _ in 0..(image.len() / window).max(4) {
+                    let v = rng.gen_range(0..image.len());
+                    image.data_mut()[v] = 1;
+                }
+                let phase = Phase::foreground(&image);
+                let apart = Apart::keeping(&image, &phase, gap).expect("many components");
+                let (mut refused, mut allowed) = (0, 0);
+                for v in 0..image.len() {
+                    let c = image.coords(v);
+                    let inner = (0..shape.len()).all(|a| c[a] >= 1 && c[a] + 1 < shape[a]);
+                    if !inner || image.data()[v] == 1 {
+                        continue;
+                    }
+                    let expected = joins_by_every_voxel(&apart, &image, v);
+                    assert_eq!(
+                        apart.joins(&image, v),
+                        expected,
+                        "{shape:?} gap {gap} at {c:?}"
+                    );
+                    if expected.is_some() {
+                        allowed += 1;
+                    } else {
+                        refused += 1;
+                    }
+                }
+                assert!(
+                    refused > 0 && allowed > 0,
+                    "{shape:?} gap {gap}: {refused} {allowed}"
+                );
+            }
+        }
     }
 }

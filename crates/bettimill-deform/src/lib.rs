@@ -39,9 +39,9 @@
 //!   grow it), nothing visits or allocates per voxel of the image but bitsets (one bit a
 //!   voxel) and, for a phase of two or more components, their labels ([`Apart`], a byte a
 //!   voxel).
-//! - Components of the phase that start at least [`APART`] + 1 apart (as placement leaves
-//!   them) stay so when the caller passes an [`Apart`]: growth never presses two objects or
-//!   two cavities against each other.
+//! - Components of the phase that start a gap apart (at least [`APART`] background voxels,
+//!   as placement leaves them) keep it when the caller passes an [`Apart`] made for that
+//!   gap: growth never presses two objects or two cavities against each other.
 //! - Results depend only on the input image, the settings and the seed: the randomness is
 //!   `ChaCha8Rng`, the noise is `bettimill-noise`, and the only parallel step (simple-point
 //!   decisions within one 3^d parity subfield, whose voxels are 3 apart and so cannot
@@ -156,9 +156,9 @@ pub fn deform(
 /// Deforms `phase` of `image` in place without changing its topology: grows, shrinks,
 /// moves or extends the voxels of the phase's value inside its box, and nothing else.
 ///
-/// With `apart` (made by [`Apart::new`] from the image before its first step and passed to
-/// every step and to the targeting), the phase's components keep at least [`APART`]
-/// voxels between them as they grow.
+/// With `apart` (made by [`Apart::new`] or [`Apart::keeping`] from the image before its
+/// first step and passed to every step and to the targeting), the phase's components keep
+/// its gap between them as they grow.
 ///
 /// `phase` is made from `image` and passed to every step; each step records in it where
 /// the phase grew (see [`Phase`]).

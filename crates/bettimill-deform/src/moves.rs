@@ -142,11 +142,11 @@ pub(crate) fn run(
     let ball = chebyshev_ball(image, m);
 
     // Voxels whose state can change whether a source succeeds: the Chebyshev ball of
-    // radius m + 1 around a flipped voxel, centre included (m + 1 + APART when components
+    // radius m + 1 around a flipped voxel, centre included (m + 1 + the gap when components
     // are kept apart: a target's separation test reads that far), scanned as rows along
     // the last axis (offsets of the leading axes here; the row spans -reach ..= reach on
     // the last).
-    let reach = m + 1 + if apart.is_some() { apart::APART } else { 0 };
+    let reach = m + 1 + apart.as_deref().map_or(0, Apart::gap);
     let reach_side = 2 * reach + 1;
     let mut refresh_rows: Vec<([i64; 4], isize)> = Vec::new();
     for k in 0..reach_side.pow(d as u32 - 1) {

@@ -31,8 +31,8 @@ fn two_balls(side: usize, radius: i64, gap: i64, background: u8) -> BinaryImage 
 }
 
 /// The smallest Chebyshev distance between voxels of value `value` in different
-/// components (face-connected for 0, (3^3 - 1)-connected for 1), looking up to 3 apart;
-/// 4 when no two components come that close.
+/// components (face-connected for 0, (3^3 - 1)-connected for 1), looking up to 7 apart;
+/// 8 when no two components come that close.
 fn closest_components(image: &BinaryImage, value: u8) -> i64 {
     let shape = image.shape().to_vec();
     let mut labels = vec![0u32; image.len()];
@@ -69,14 +69,14 @@ fn closest_components(image: &BinaryImage, value: u8) -> i64 {
             }
         }
     }
-    let mut closest = 4;
+    let mut closest = 8;
     for v in 0..image.len() {
         if labels[v] == 0 {
             continue;
         }
         let c = image.coords(v);
-        for o in 0..343i64 {
-            let off = [o / 49 - 3, o / 7 % 7 - 3, o % 7 - 3];
+        for o in 0..15i64.pow(3) {
+            let off = [o / 225 - 7, o / 15 % 15 - 7, o % 15 - 7];
             let w = [
                 c[0] as i64 + off[0],
                 c[1] as i64 + off[1],
@@ -173,6 +173,52 @@ fn growing_cavities_keep_their_gap() {
     .unwrap();
     assert_eq!(targeted.count_foreground(), goal);
     assert_eq!(closest_components(&targeted, 0), 3);
+}
+
+#[test]
+fn a_wider_gap_is_kept_as_wide() {
+    // Two balls five voxels apart, kept so by growth that would press them to three.
+    let image = two_balls(40, 6, 5, 0);
+    assert_eq!(closest_components(&image, 1), 6);
+    let start = image.count_foreground();
+    for gap in [5, 2] {
+        let phase = Phase::foreground(&image);
+        for (method, steps) in [(Method::Dilate, 8), (Method::Moves, 3000)] {
+            let mut out = image.clone();
+            let mut apart = Apart::keeping(&image, &phase, gap);
+            assert_eq!(apart.as_ref().map(Apart::gap), Some(gap));
+            let mut deformed = phase;
+            deform_phase(
+                &mut out,
+                &grow(method, steps, 1),
+                &mut deformed,
+                apart.as_mut(),
+                5,
+            )
+            .unwrap();
+            assert_eq!(
+                closest_components(&out, 1),
+                gap + 1,
+                "{method:?}, gap {gap}"
+            );
+        }
+        let mut targeted = image.clone();
+        let mut apart = Apart::keeping(&image, &phase, gap);
+        let mut phase = phase;
+        let goal = start * 3;
+        target_hypervolume_phase(
+            &mut targeted,
+            goal,
+            goal,
+            goal,
+            &mut phase,
+            apart.as_mut(),
+            5,
+        )
+        .unwrap();
+        assert_eq!(targeted.count_foreground(), goal);
+        assert_eq!(closest_components(&targeted, 1), gap + 1, "gap {gap}");
+    }
 }
 
 #[test]
