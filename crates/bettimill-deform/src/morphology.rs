@@ -420,8 +420,17 @@ pub(crate) fn target(
                 });
             } else {
                 report.rejected += 1;
+                // A simple voxel that the separation alone refuses (no clearance in play)
+                // while the phase grows stays refused: no voxel leaves the phase here, so
+                // the other component it comes too near is still there, and its own
+                // component is still beside it. It stays queued, so it is never tried
+                // again; the flips are those of trying it every iteration.
+                let settled = simple
+                    && grows_phase
+                    && phase.clearance() < 2
+                    && apart.as_deref().is_some_and(|a| a.own(image, v) != 0);
                 // Still on the inside with a face neighbour outside: still frontier.
-                if queued.insert(v) {
+                if queued.insert(v) && !settled {
                     carried.push((key, v));
                 }
             }
