@@ -15,9 +15,9 @@
 //! a gap, and decides nothing. Gaps narrower than `c` at construction stay as they are:
 //! growth next to them is refused, and no flip here ever widens a gap by growth.
 //!
-//! The test reads only the image, so decisions made together against one state of it
-//! (the parity subfields of `morphology`) stay deterministic; two voxels of one subfield
-//! that narrow one gap from both sides can leave it up to two voxels under `c`.
+//! The test reads only the image. A parity subfield of `morphology` decides its members
+//! one after another against the image as the earlier ones left it, so two voxels of one
+//! subfield never narrow one gap from both sides.
 
 use bettimill_grid::neighbourhood::full_offsets;
 use bettimill_grid::{BinaryImage, Dim};

@@ -211,26 +211,20 @@ pub(crate) fn run(
                     .map(|&v| memo.is_simple(&tester, tester.configuration_in(frozen, &strides, v)))
                     .collect()
             };
-            // Some(label) for a voxel that flips (the component it joins when the phase
-            // grows): members of one subfield are 3 apart, so the separation test of one
-            // reads no voxel another flips either.
-            let decided: Vec<Option<u8>> = members
-                .iter()
-                .zip(simple)
-                .map(|(&v, ok)| {
-                    if !ok {
-                        None
-                    } else if job.grow {
-                        apart::joins(apart.as_deref(), job.phase, image, v)
-                    } else {
-                        Some(0)
-                    }
-                })
-                .collect();
-            let data = image.data_mut();
-            for (&v, label) in members.iter().zip(decided) {
+            // A simple voxel flips unless growth would bring it too near another
+            // component; that test reads the image as the subfield's earlier members
+            // left it (a gap wider than the subfields' spacing of 3 reaches voxels they
+            // flip), so no two flips of one subfield together narrow a gap.
+            for (&v, ok) in members.iter().zip(simple) {
+                let label = if !ok {
+                    None
+                } else if job.grow {
+                    apart::joins(apart.as_deref(), job.phase, image, v)
+                } else {
+                    Some(0)
+                };
                 if let Some(label) = label {
-                    data[v] = flip_to;
+                    image.data_mut()[v] = flip_to;
                     flipped += 1;
                     if job.grow {
                         job.phase.joined(layout.coords(v));
