@@ -58,6 +58,12 @@ pub struct Label {
     /// the manifest sets none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clearance: Option<u32>,
+    /// The gap, in background voxels, that growth kept between the components of the
+    /// topological phase: the construction's `gap_voxels` (drawn per sample in a scene),
+    /// 2 or 0 where hypervolume targeting could reach the bin only with the narrowest gap
+    /// or without one; absent when the phase has one component.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub separation: Option<u32>,
     /// The foreground voxel bin `[lo, hi]` the sample was brought into, if binned.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hypervolume_bin: Option<(u64, u64)>,

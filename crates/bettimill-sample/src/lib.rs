@@ -10,7 +10,7 @@
 //! setting (deformation, resolutions), and the label a sample must carry is the plan's
 //! stratum's, decided once when the manifest was planned.
 
-use bettimill_deform::Phase;
+use bettimill_deform::{Phase, APART};
 pub use bettimill_format::{Label, Pooling, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
 use bettimill_grid::{BinaryImage, Mode};
@@ -359,14 +359,15 @@ pub fn make_sample_observed(
         phase = phase.with_clearance(clearance.unwrap_or(0));
         // The phase's components: the objects of embed mode (b0), the cavities of carve
         // mode (b_{d-1} of the solid, by Alexander duality). Only two or more need labels
-        // to be kept apart.
+        // to be kept apart, by the gap placement drew for them.
         let components = if phase.value == 1 {
             stratum.betti[0]
         } else {
             stratum.betti[stratum.betti.len() - 1]
         };
-        let mut apart = if components >= 2 {
-            bettimill_deform::Apart::new(&image, &phase)
+        let separated = components >= 2;
+        let mut apart = if separated {
+            bettimill_deform::Apart::keeping(&image, &phase, generated.gap as i64)
         } else {
             None
         };
@@ -409,22 +410,28 @@ pub fn make_sample_observed(
             // that a bin's samples spread over it instead of piling on its nearer end.
             let draw = sub_seed("bettimill hypervolume goal v1", &task.seed, attempt);
             let goal = draw_between(draw, lo, hi);
-            let mut target = |apart: Option<&mut bettimill_deform::Apart>, phase: &mut Phase| {
-                bettimill_deform::target_hypervolume_phase(
-                    &mut image, lo, hi, goal, phase, apart, seed,
-                )
+            let target = |image: &mut BinaryImage,
+                          apart: Option<&mut bettimill_deform::Apart>,
+                          phase: &mut Phase| {
+                bettimill_deform::target_hypervolume_phase(image, lo, hi, goal, phase, apart, seed)
             };
             // A bin the parts cannot reach while kept apart and their gaps kept open (the
             // image leaves them too little room) is reached without the clearance, then
-            // without the separation: the plan accepted it.
-            let mut reached = target(apart.as_mut(), &mut phase);
+            // with the narrowest gap between parts, then without the separation: the plan
+            // accepted it.
+            let mut reached = target(&mut image, apart.as_mut(), &mut phase);
             if reached.is_err() && phase.clearance() > 1 {
                 phase = phase.with_clearance(0);
                 kept_clearance = false;
-                reached = target(apart.as_mut(), &mut phase);
+                reached = target(&mut image, apart.as_mut(), &mut phase);
+            }
+            if reached.is_err() && apart.as_ref().is_some_and(|a| a.gap() > APART) {
+                apart = bettimill_deform::Apart::new(&image, &phase);
+                reached = target(&mut image, apart.as_mut(), &mut phase);
             }
             if reached.is_err() && apart.is_some() {
-                reached = target(None, &mut phase);
+                apart = None;
+                reached = target(&mut image, None, &mut phase);
             }
             if let Err(err) = reached {
                 last = format!("hypervolume targeting failed: {err}");
@@ -494,6 +501,7 @@ pub fn make_sample_observed(
             construction: generated.construction,
             deform: applied,
             clearance: clearance.map(|c| if kept_clearance { c } else { 0 }),
+            separation: separated.then(|| apart.as_ref().map_or(0, |a| a.gap() as u32)),
             hypervolume_bin: stratum.hypervolume,
             resolutions,
         };

@@ -387,15 +387,16 @@ fn component_sizes(image: &[u8], side: usize) -> Vec<usize> {
 }
 
 /// The smallest Chebyshev distance between voxels of different components of a 3D
-/// foreground, looking up to 3 apart (3 when none is closer).
-fn closest_components(image: &[u8], side: usize) -> i64 {
+/// foreground, looking up to `within` apart (`within` when none is closer).
+fn closest_components(image: &[u8], side: usize, within: i64) -> i64 {
     let labels = component_labels(image, side);
-    let mut closest = 3;
+    let mut closest = within;
     for (i, &l) in labels.iter().enumerate().filter(|(_, &l)| l != 0) {
         let (x, y, z) = (i / (side * side), i / side % side, i % side);
-        for dx in -2i64..=2 {
-            for dy in -2i64..=2 {
-                for dz in -2i64..=2 {
+        let reach = within - 1;
+        for dx in -reach..=reach {
+            for dy in -reach..=reach {
+                for dz in -reach..=reach {
                     let (a, b, c) = (x as i64 + dx, y as i64 + dy, z as i64 + dz);
                     let inside = |v: i64| (0..side as i64).contains(&v);
                     if !(inside(a) && inside(b) && inside(c)) {
@@ -414,9 +415,10 @@ fn closest_components(image: &[u8], side: usize) -> i64 {
 
 #[test]
 fn parts_of_a_deformed_scene_keep_the_gap_they_were_placed_with() {
-    // Objects are placed two background voxels apart; growth to the bin and moves press
-    // them together unless the deformation keeps them apart. Parts that always meet across
-    // a one-voxel gap would teach a network that this is what two components look like.
+    // Objects are placed a gap apart that each sample draws (two background voxels or
+    // more); growth to the bin and moves press them together unless the deformation keeps
+    // them apart. Parts that always meet across a one- or two-voxel gap would teach a
+    // network that this is what two components look like.
     let text = r#"
 schema_version = 1
 name = "apart"
@@ -444,13 +446,26 @@ method = "moves"
 steps = 600
 "#;
     let (_, samples) = build(text);
-    let closest: Vec<i64> = samples
+    let found: Vec<(i64, i64)> = samples
         .iter()
-        .map(|s| closest_components(s.image.data(), 32))
+        .map(|s| {
+            let gap = s.label.separation.expect("two parts record their gap");
+            let placed = s.label.construction["gap_voxels"].as_i64().expect("a gap");
+            assert!(
+                gap == 0 || gap == 2 || i64::from(gap) == placed,
+                "{gap} {placed}"
+            );
+            (i64::from(gap), closest_components(s.image.data(), 32, 8))
+        })
         .collect();
     assert!(
-        closest.iter().all(|&c| c >= 3),
-        "closest parts: {closest:?}"
+        found.iter().all(|&(gap, closest)| closest > gap),
+        "(gap, closest parts): {found:?}"
+    );
+    let gaps: BTreeSet<i64> = found.iter().map(|&(gap, _)| gap).collect();
+    assert!(
+        gaps.len() >= 3 && gaps.iter().all(|gap| (2..=6).contains(gap)),
+        "gaps drawn: {gaps:?}"
     );
 }
 

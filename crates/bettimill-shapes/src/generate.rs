@@ -248,6 +248,7 @@ pub(crate) fn generate_for(
                 Ok((
                     vec![place_tunnel(family, d, side, region, floor, rng)?],
                     "tunnel",
+                    crate::place::GAP,
                 ))
             } else {
                 let canvas = PlacementArea {
@@ -280,7 +281,7 @@ pub(crate) fn generate_for(
         }
         other => other,
     };
-    let (solid, (placed, strategy)) = match in_box {
+    let (solid, (placed, strategy, gap)) = match in_box {
         Ok(found) if binned_carve => {
             let target = foreground.expect("sized for a foreground count");
             (refit_box(d, side, target, &found.0, &axes), found)
@@ -334,7 +335,7 @@ pub(crate) fn generate_for(
         // (fallbacks that keep a feasible request from failing), or "tunnel".
         ("placement", json!(strategy)),
         ("betti_field", json!("z2")),
-        ("gap_voxels", json!(crate::place::GAP)),
+        ("gap_voxels", json!(gap)),
         (
             "cube_margin",
             json!(if mode == Mode::Carve { CUBE_MARGIN } else { 0 }),
@@ -370,6 +371,7 @@ pub(crate) fn generate_for(
         construction: sort_keys(construction),
         knot_type,
         components,
+        gap: gap as usize,
     })
 }
 

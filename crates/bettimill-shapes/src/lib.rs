@@ -300,6 +300,10 @@ pub struct Generated {
     /// may be deformed; the solid's outer layers beyond it stay as built. `None` in embed
     /// mode, where the objects may be deformed anywhere but the outermost layer.
     pub phase_box: Option<(Vec<usize>, Vec<usize>)>,
+    /// The background voxels placement kept between any two objects (the construction's
+    /// `gap_voxels`): drawn per sample in a scene, so growth that keeps it (see
+    /// `bettimill_deform::Apart::keeping`) leaves parts at many distances.
+    pub gap: usize,
 }
 
 impl Family {
