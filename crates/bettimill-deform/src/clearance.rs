@@ -40,6 +40,36 @@ pub(crate) fn leaves_room(image: &BinaryImage, v: usize, value: u8, clearance: u
     let shape = image.shape();
     let strides = image.strides();
     let c = image.coords(v);
+    let reach = i64::from(clearance);
+    // Every voxel read lies within `clearance` of `v` along each axis: far enough from the
+    // faces, a read is a flat offset with no bounds to test.
+    let deep = (0..d).all(|a| c[a] as i64 >= reach && c[a] as i64 + reach < shape[a] as i64);
+    if deep {
+        for o in directions(image.dim()) {
+            let step: isize = (0..d)
+                .map(|a| isize::from(o[a]) * strides[a] as isize)
+                .sum();
+            let at = |t: isize| data[(v as isize + t * step) as usize];
+            if at(-1) != value || at(1) == value {
+                continue;
+            }
+            if (2..=reach as isize).any(|t| at(t) == value) {
+                return false;
+            }
+        }
+        return true;
+    }
+    leaves_room_anywhere(image, v, value, clearance)
+}
+
+/// [`leaves_room`] for a voxel anywhere in the image, each read tested against its faces.
+fn leaves_room_anywhere(image: &BinaryImage, v: usize, value: u8, clearance: u32) -> bool {
+    let data = image.data();
+    let d = image.dim().get();
+    let shape = image.shape();
+    let strides = image.strides();
+    let c = image.coords(v);
+    let reach = i64::from(clearance);
     // The voxel `t` steps from `v` along `o`, or `None` outside the image.
     let at = |o: &[i8; 4], t: i64| -> Option<usize> {
         let mut flat = 0usize;
@@ -58,7 +88,7 @@ pub(crate) fn leaves_room(image: &BinaryImage, v: usize, value: u8, clearance: u
         if !(behind && open_ahead) {
             continue;
         }
-        for t in 2..=i64::from(clearance) {
+        for t in 2..=reach {
             match at(o, t) {
                 None => break,
                 Some(u) if data[u] == value => return false,
@@ -85,6 +115,32 @@ mod tests {
             }
         }
         image
+    }
+
+    /// Far from the faces, flat offsets answer as reads tested against the faces.
+    #[test]
+    fn deep_voxels_answer_as_voxels_anywhere() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        for shape in [vec![30usize, 31], vec![14, 15, 13], vec![11, 12, 10, 13]] {
+            let mut image = BinaryImage::zeros(&shape).unwrap();
+            for voxel in image.data_mut() {
+                *voxel = u8::from(rng.gen_bool(0.3));
+            }
+            for clearance in [2, 3, 4] {
+                let (mut open, mut shut) = (0, 0);
+                for v in 0..image.len() {
+                    let fast = leaves_room(&image, v, 1, clearance);
+                    assert_eq!(fast, leaves_room_anywhere(&image, v, 1, clearance));
+                    if fast {
+                        open += 1;
+                    } else {
+                        shut += 1;
+                    }
+                }
+                assert!(open > 0 && shut > 0, "{shape:?} {clearance}: {open} {shut}");
+            }
+        }
     }
 
     #[test]
