@@ -59,17 +59,14 @@ pub(crate) fn leaves_room(image: &BinaryImage, v: usize, value: u8, clearance: u
         }
         return true;
     }
-    leaves_room_anywhere(image, v, value, clearance)
+    leaves_room_anywhere(image, c, value, reach)
 }
 
-/// [`leaves_room`] for a voxel anywhere in the image, each read tested against its faces.
-fn leaves_room_anywhere(image: &BinaryImage, v: usize, value: u8, clearance: u32) -> bool {
-    let data = image.data();
+/// [`leaves_room`] for the voxel at `c` anywhere in the image, each read tested against
+/// its faces; `reach` is the clearance.
+fn leaves_room_anywhere(image: &BinaryImage, c: [usize; 4], value: u8, reach: i64) -> bool {
+    let (data, shape, strides) = (image.data(), image.shape(), image.strides());
     let d = image.dim().get();
-    let shape = image.shape();
-    let strides = image.strides();
-    let c = image.coords(v);
-    let reach = i64::from(clearance);
     // The voxel `t` steps from `v` along `o`, or `None` outside the image.
     let at = |o: &[i8; 4], t: i64| -> Option<usize> {
         let mut flat = 0usize;
@@ -131,7 +128,9 @@ mod tests {
                 let (mut open, mut shut) = (0, 0);
                 for v in 0..image.len() {
                     let fast = leaves_room(&image, v, 1, clearance);
-                    assert_eq!(fast, leaves_room_anywhere(&image, v, 1, clearance));
+                    let anywhere =
+                        leaves_room_anywhere(&image, image.coords(v), 1, i64::from(clearance));
+                    assert_eq!(fast, anywhere);
                     if fast {
                         open += 1;
                     } else {

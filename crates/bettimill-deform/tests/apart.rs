@@ -157,22 +157,24 @@ fn growing_cavities_keep_their_gap() {
         assert_eq!(closest_components(&out, 0), 3, "{method:?}");
     }
     // Targeting a lower foreground count grows the cavities.
-    let mut targeted = image.clone();
     let goal = image.count_foreground() - 2000;
-    let mut apart = Apart::new(&image, &phase);
-    let mut phase = phase;
-    target_hypervolume_phase(
-        &mut targeted,
-        goal,
-        goal,
-        goal,
-        &mut phase,
-        apart.as_mut(),
-        9,
-    )
-    .unwrap();
-    assert_eq!(targeted.count_foreground(), goal);
+    let targeted = targeted(&image, phase, Apart::new(&image, &phase), goal, 9);
     assert_eq!(closest_components(&targeted, 0), 3);
+}
+
+/// `image` brought to exactly `goal` foreground voxels by targeting `phase`, its parts kept
+/// apart by `apart`.
+fn targeted(
+    image: &BinaryImage,
+    mut phase: Phase,
+    mut apart: Option<Apart>,
+    goal: u64,
+    seed: u64,
+) -> BinaryImage {
+    let mut out = image.clone();
+    target_hypervolume_phase(&mut out, goal, goal, goal, &mut phase, apart.as_mut(), seed).unwrap();
+    assert_eq!(out.count_foreground(), goal);
+    out
 }
 
 #[test]
@@ -202,21 +204,8 @@ fn a_wider_gap_is_kept_as_wide() {
                 "{method:?}, gap {gap}"
             );
         }
-        let mut targeted = image.clone();
-        let mut apart = Apart::keeping(&image, &phase, gap);
-        let mut phase = phase;
-        let goal = start * 3;
-        target_hypervolume_phase(
-            &mut targeted,
-            goal,
-            goal,
-            goal,
-            &mut phase,
-            apart.as_mut(),
-            5,
-        )
-        .unwrap();
-        assert_eq!(targeted.count_foreground(), goal);
+        let apart = Apart::keeping(&image, &phase, gap);
+        let targeted = targeted(&image, phase, apart, start * 3, 5);
         assert_eq!(closest_components(&targeted, 1), gap + 1, "gap {gap}");
     }
 }
