@@ -237,7 +237,7 @@ impl Piece {
     /// the origin: the inner piece is the given one with those coordinates divided by
     /// `stretch`, so the skeleton itself stays where it was and only the tube around it
     /// widens there. `None` for pieces other than points, segments, polylines, and
-    /// circles and round spheres that lie in the unstretched axes.
+    /// circles and round or bumpy spheres that lie in the unstretched axes.
     pub(crate) fn flattened(piece: Piece, stretch: f64, from: usize) -> Option<Piece> {
         let squeeze = |p: P| squeezed(p, stretch, from);
         let inner = match piece {
@@ -266,6 +266,17 @@ impl Piece {
                 radius,
                 axes,
             },
+            // Its bumps lie in its own axes; its lift along the next one, a stretched axis
+            // when `axes == from`, is squeezed with it, so the skeleton stays where it was.
+            mut bumpy @ Piece::Bumpy { axes, .. } if axes <= from => {
+                if let Piece::Bumpy { centre, bend, .. } = &mut bumpy {
+                    *centre = squeeze(*centre);
+                    if axes == from {
+                        bend.1 /= stretch;
+                    }
+                }
+                bumpy
+            }
             _ => return None,
         };
         Some(Piece::Flat {
@@ -596,6 +607,18 @@ impl Piece {
                 let (cu, cf) = split(centre);
                 (cu + radius, cf)
             }
+            // Its bumps stay in its own axes, and its lift runs along the next one.
+            Piece::Bumpy {
+                centre, axes, bend, ..
+            } if *axes <= from => {
+                let (cu, cf) = split(centre);
+                let bumps = self.extent() - norm(*centre) - bend.1.abs();
+                if *axes < from {
+                    (cu + bumps + bend.1.abs(), cf)
+                } else {
+                    (cu + bumps, cf + bend.1.abs())
+                }
+            }
             other => (other.extent(), other.extent()),
         }
     }
@@ -630,8 +653,19 @@ impl Piece {
             }
             // Only the kept axes are bounded; the others are handled by the caller.
             Piece::Prism { inner, .. } => inner.extent(),
-            // The stretched axes hold none of the inner piece.
-            Piece::Flat { inner, .. } => inner.extent(),
+            // The inner piece's parts along the stretched axes are stretched with them.
+            Piece::Flat {
+                inner,
+                stretch,
+                from,
+            } => {
+                let (a, b) = inner.split_extent(*from);
+                if b == 0.0 {
+                    inner.extent()
+                } else {
+                    libm::sqrt(a * a + stretch * stretch * b * b)
+                }
+            }
         }
     }
 
@@ -841,11 +875,28 @@ mod tests {
             radius: 5.0,
             axes: 3,
         };
+        // Bumps and a lift into the stretched axis, all largest along the first axis, so
+        // that the bound is reached there.
+        let bumpy = Piece::Bumpy {
+            centre: ORIGIN,
+            radius: 5.0,
+            axes: 3,
+            stretches: vec![(axis(0), 1.0), (axis(1), 0.5)],
+            lumps: vec![(axis(0), 0.8)],
+            bend: (axis(0), 1.5),
+        };
+        // Its skeleton stays where it was, lift included.
+        let tip = [6.8, 0.0, 0.0, 1.5];
+        assert!(bumpy.distance(tip) < 1e-12);
+        assert!(Piece::flattened(bumpy.clone(), 3.0, 3)
+            .unwrap()
+            .within(tip, 1e-9));
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         for (piece, from, stretch, r) in [
             (circle, 2, 3.0, 2.0),
             (wavy, 2, 2.5, 1.5),
             (sphere, 3, 4.0, 2.0),
+            (bumpy, 3, 3.0, 2.0),
         ] {
             let flat = Piece::flattened(piece.clone(), stretch, from).unwrap();
             let reach = flat.reach(r);

@@ -122,9 +122,9 @@ pub(crate) const VOLUME_GROW_MIN: f64 = 12.0;
 /// a hole that one dilation closes.
 const THIN_THICKNESS: (f64, f64) = (0.0, 0.35);
 
-/// Growth a widened instance keeps at least, the most first: its hole stays about
-/// `INNER_GAP / 2` plus this in radius (3.75 voxels where the room allows; 2.0 is still
-/// wider than the thickened tube's 1.25).
+/// Growth of its hole ([`hole_share`] of the growth) a widened instance keeps at least,
+/// the most first: its hole stays about `INNER_GAP / 2` plus this in radius (3.75 voxels
+/// where the room allows; 2.0 is still wider than the thickened tube's 1.25).
 const HOLE_KEEPS: [f64; 3] = [2.5, 1.5, 0.75];
 
 /// The most a tube is widened away from its hole.
@@ -143,12 +143,21 @@ fn with_hole(family: &Family, floor: TubeFloor) -> bool {
 
 /// The first axis along which `family`'s tube can widen away from its hole in dimension
 /// `dim`, if any: the third for a loop or a handle (whose skeleton lies, up to waves, in
-/// the plane of the first two), the fourth for a round 2-sphere times a disk.
+/// the plane of the first two), the fourth for a 2-sphere times a disk, round or bumpy.
 fn flattens(family: &Family, dim: usize) -> Option<usize> {
     match family {
         Family::Handle | Family::Loop if dim >= 3 => Some(2),
-        Family::S2xB2 if dim == 4 => Some(3),
+        Family::S2xB2 | Family::BumpyS2xB2 if dim == 4 => Some(3),
         _ => None,
+    }
+}
+
+/// The share of its growth that widens `family`'s hole: a bumpy sphere puts half into its
+/// radius and the rest into bumps that bulge outwards (`recipes::bumpy_sphere`).
+fn hole_share(family: &Family) -> f64 {
+    match family {
+        Family::BumpyShell | Family::BumpyS2xB2 => 0.5,
+        _ => 1.0,
     }
 }
 
@@ -372,7 +381,7 @@ fn sized_for_volume(
         HOLE_KEEPS.iter().find_map(|&keep| {
             let keeps = |stretch: f64| {
                 instance(1.0, thickness, stretch)
-                    .filter(|&(_, _, grow)| grow >= keep)
+                    .filter(|&(_, _, grow)| hole_share(family) * grow >= keep)
                     .map(|(solid, _, _)| estimate_volume(&solid, dim))
             };
             keeps(1.0)?;
@@ -463,6 +472,34 @@ mod tests {
             assert!(narrow < wide, "{params}");
             assert!(narrow < HOLE_KEEPS[0] || volume < 10_000.0, "{params}");
             assert!(round.extent() <= 11.0 + 1e-9);
+        }
+    }
+
+    /// An embedded bumpy 2-sphere of 4-9% of a side-24 image widens its tube along the
+    /// fourth axis and keeps its hole, where kept round it thickens its tube around a small
+    /// sphere whose hole one dilation closes.
+    #[test]
+    fn embedded_bumpy_spheres_widen_their_tube_instead_of_closing_their_hole() {
+        for (seed, volume) in [(1, 15_000.0), (2, 24_000.0), (3, 28_000.0)] {
+            let sized = |widen| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                let floor = TubeFloor::USUAL;
+                let family = Family::BumpyS2xB2;
+                sized_for_volume(&family, 4, 11.0, volume, floor, false, widen, &mut rng).unwrap()
+            };
+            let (solid, params) = sized(true);
+            assert!(solid.extent() <= 11.0 + 1e-9);
+            assert!(params["stretch"].as_f64().unwrap() > 1.0, "{params}");
+            let hole = 0.5 * params["grow"].as_f64().unwrap();
+            assert!(hole >= HOLE_KEEPS[1], "{params}");
+            assert!(
+                estimate_volume(&solid, 4) >= FLAT_REACHED * volume,
+                "{params}"
+            );
+
+            let (_, params) = sized(false);
+            let narrow = 0.5 * params["grow"].as_f64().unwrap();
+            assert!(narrow < hole, "{params}");
         }
     }
 
