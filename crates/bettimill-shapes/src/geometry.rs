@@ -47,7 +47,8 @@ impl Default for TubeFloor {
 }
 
 impl TubeFloor {
-    /// Tubes of radius at least 2 voxels (shells 1.5): every construction's minimum.
+    /// Tubes of radius at least 2 voxels (shells 1.5): every construction's minimum, but
+    /// for small instances sized for a volume (`sizing`'s thin tubes).
     pub const USUAL: TubeFloor = TubeFloor(TUBE_MIN);
 
     /// The floor for a sample whose copies are max-pooled by `factor` (a block of

@@ -127,6 +127,21 @@ const THIN_THICKNESS: (f64, f64) = (0.0, 0.35);
 /// where the room allows; 2.0 is still wider than the thickened tube's 1.25).
 const HOLE_KEEPS: [f64; 3] = [2.5, 1.5, 0.75];
 
+/// The least tube radius of a small instance sized for a volume ([`thins`]): two voxels
+/// across, which no path of face neighbours crosses (it changes the distance to the
+/// skeleton by at most one voxel a step).
+const THIN_TUBE: f64 = 1.0;
+
+/// Bisection steps for the thickest thin tube whose smallest instance fits a volume.
+const THIN_STEPS: usize = 8;
+
+/// Whether a small instance of `family` may draw a tube thinner than the family's minimum,
+/// down to [`THIN_TUBE`]: one whose tube is widened back to the minimum along the flat
+/// axes ([`flattens`]), or a shell, whose wall closes its cavity at two voxels across.
+fn thins(family: &Family, dim: usize) -> bool {
+    flattens(family, dim).is_some() || matches!(family, Family::Shell | Family::BumpyShell)
+}
+
 /// The most a tube is widened away from its hole.
 const STRETCH_MAX: f64 = 6.0;
 
@@ -319,39 +334,47 @@ fn sized_for_volume(
     let grow_floor = if fixed_tube { 0.0 } else { VOLUME_GROW_MIN };
     // The instance at scale s in [0, 1]: bounding radius from the minimum to `upper`,
     // its tube widened by `stretch` away from its plane.
-    let instance = |s: f64, thickness: f64, stretch: f64| -> Option<(Solid, f64, f64)> {
-        let target = base + s * (upper - base);
-        let floor = if extent(tube_min, grow_floor, 1.0).is_some_and(|e| e <= target) {
-            grow_floor
-        } else {
-            0.0
-        };
-        let tube = if fixed_tube {
-            tube_min
-        } else {
-            // Largest tube radius that fits with the floor of growth.
-            let (mut lo, mut hi) = (tube_min, target.max(tube_min));
-            for _ in 0..30 {
+    // The tube radius goes from `least` (the family's minimum, or a thin widened tube's
+    // radius) by `thickness` towards the thickest that fits.
+    let sized =
+        |target: f64, least: f64, thickness: f64, stretch: f64| -> Option<(Solid, f64, f64)> {
+            let floor = if extent(least, grow_floor, 1.0).is_some_and(|e| e <= target) {
+                grow_floor
+            } else {
+                0.0
+            };
+            let tube = if fixed_tube {
+                tube_min
+            } else if thickness == 0.0 {
+                least
+            } else {
+                // Largest tube radius that fits with the floor of growth.
+                let (mut lo, mut hi) = (least, target.max(least));
+                for _ in 0..30 {
+                    let mid = (lo + hi) / 2.0;
+                    match extent(mid, floor, 1.0) {
+                        Some(e) if e <= target => lo = mid,
+                        _ => hi = mid,
+                    }
+                }
+                least + thickness * (lo - least)
+            };
+            if stretch > 1.0 && !extent(tube, 0.0, stretch).is_some_and(|e| e <= target) {
+                return None;
+            }
+            let (mut lo, mut hi) = (0.0, target.max(1.0) * 2.0);
+            for _ in 0..40 {
                 let mid = (lo + hi) / 2.0;
-                match extent(mid, floor, 1.0) {
+                match extent(tube, mid, stretch) {
                     Some(e) if e <= target => lo = mid,
                     _ => hi = mid,
                 }
             }
-            tube_min + thickness * (lo - tube_min)
+            made(tube, lo, stretch).map(|solid| (solid, tube, lo))
         };
-        if stretch > 1.0 && !extent(tube, 0.0, stretch).is_some_and(|e| e <= target) {
-            return None;
-        }
-        let (mut lo, mut hi) = (0.0, target.max(1.0) * 2.0);
-        for _ in 0..40 {
-            let mid = (lo + hi) / 2.0;
-            match extent(tube, mid, stretch) {
-                Some(e) if e <= target => lo = mid,
-                _ => hi = mid,
-            }
-        }
-        made(tube, lo, stretch).map(|solid| (solid, tube, lo))
+    let at_scale = |s: f64, lowest: f64| lowest + s * (upper - lowest);
+    let instance = |s: f64, thickness: f64, stretch: f64| {
+        sized(at_scale(s, base), tube_min, thickness, stretch)
     };
     let volume_at = |s: f64, thickness: f64, stretch: f64| {
         instance(s, thickness, stretch).map(|(solid, _, _)| estimate_volume(&solid, dim))
@@ -391,10 +414,10 @@ fn sized_for_volume(
             (stretch > 1.0 && reached).then_some(stretch)
         })
     };
-    let (s, thickness, stretch) =
+    let (s, lowest, least, thickness, stretch) =
         if volume_at(1.0, drawn_thickness, 1.0).is_some_and(|v| v <= volume) {
             let thicker = |t: f64| volume_at(1.0, t, 1.0);
-            if draw_scale {
+            let (s, thickness, stretch) = if draw_scale {
                 (
                     uniform(rng, ROOM_SCALE.0, ROOM_SCALE.1),
                     drawn_thickness,
@@ -406,15 +429,66 @@ fn sized_for_volume(
                 (1.0, if fixed_tube { drawn_thickness } else { 1.0 }, 1.0)
             } else {
                 (1.0, bisect(&thicker, drawn_thickness, 1.0), 1.0)
+            };
+            (s, base, tube_min, thickness, stretch)
+        } else if thin && widen && floor == TubeFloor::USUAL && thins(family, dim) {
+            // The volume, not the room, limits a small instance, whose tube at the
+            // family's minimum would take up most of its size and leave a narrow hole: its
+            // tube is drawn thinner, down to THIN_TUBE (and widened back to the minimum
+            // along the flat axes, where it has them), so the volume goes into the size of
+            // the hole. A thin instance's scale runs from its own smallest instance,
+            // smaller than the minimum's.
+            let thin_at = |least: f64, s: f64| {
+                let stretch = if flat_from.is_some() {
+                    tube_min / least
+                } else {
+                    1.0
+                };
+                let lowest = extent(least, 0.0, stretch).unwrap_or(base).min(base);
+                let made = sized(at_scale(s, lowest), least, 0.0, stretch)?;
+                Some((estimate_volume(&made.0, dim), lowest, stretch))
+            };
+            let fits = |least: f64| thin_at(least, 0.0).is_some_and(|(v, _, _)| v <= volume);
+            // The radius is drawn up to the thickest whose smallest instance fits the
+            // volume (a thinner tube leaves a wider hole).
+            let mut chosen = None;
+            if fits(THIN_TUBE) {
+                let (mut thickest, mut above) = (THIN_TUBE, tube_min);
+                for _ in 0..THIN_STEPS {
+                    let mid = (thickest + above) / 2.0;
+                    if fits(mid) {
+                        thickest = mid;
+                    } else {
+                        above = mid;
+                    }
+                }
+                let least = uniform(rng, THIN_TUBE, thickest);
+                let thin_volume = |s: f64| thin_at(least, s).map(|(v, _, _)| v);
+                let s = bisect(&thin_volume, 0.0, 1.0);
+                // Close to the volume without passing it: targeting's growth adds little.
+                if let Some((v, lowest, stretch)) = thin_at(least, s) {
+                    if (FLAT_REACHED * volume..=volume).contains(&v) {
+                        chosen = Some((s, lowest, least, 0.0, stretch));
+                    }
+                }
             }
+            // Where no thin instance fits (even the thinnest's smallest instance is larger
+            // than the volume, and its wider hole would keep shrinking from reaching counts
+            // the minimum reaches), the tube stays at the minimum.
+            chosen.unwrap_or_else(|| {
+                let s = bisect(&|s| volume_at(s, drawn_thickness, 1.0), 0.0, 1.0);
+                (s, base, tube_min, drawn_thickness, 1.0)
+            })
         } else {
             (
                 bisect(&|s| volume_at(s, drawn_thickness, 1.0), 0.0, 1.0),
+                base,
+                tube_min,
                 drawn_thickness,
                 1.0,
             )
         };
-    let (solid, tube, grow) = instance(s, thickness, stretch)?;
+    let (solid, tube, grow) = sized(at_scale(s, lowest), least, thickness, stretch)?;
     let mut params = json!({
         "tube_radius": round6(tube),
         "grow": round6(grow),
@@ -500,6 +574,68 @@ mod tests {
             let (_, params) = sized(false);
             let narrow = 0.5 * params["grow"].as_f64().unwrap();
             assert!(narrow < hole, "{params}");
+        }
+    }
+
+    /// Small embedded 2-spheres, handles and shells (0.3-1% of a side-24 image, volumes the
+    /// room exceeds) draw tubes thinner than their minimum, widened back along the flat
+    /// axes where they have them, and their holes come out wider than at the minimum
+    /// tube; with the thicker floor that downscaled copies ask for, they do not.
+    #[test]
+    fn small_instances_thin_their_tube_to_widen_their_hole() {
+        for (family, volume) in [
+            (Family::S2xB2, 1_000.0),
+            (Family::S2xB2, 3_000.0),
+            (Family::Handle, 1_000.0),
+            (Family::Shell, 1_500.0),
+            (Family::Shell, 3_000.0),
+        ] {
+            let (least, _) = tube_range(&family, TubeFloor::USUAL);
+            let mut thinner = 0;
+            for seed in 0..8 {
+                let sized = |floor| {
+                    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                    build_volume(&family, 4, 11.0, volume, floor, false, &mut rng).unwrap()
+                };
+                let (solid, params) = sized(TubeFloor::USUAL);
+                let tube = params["tube_radius"].as_f64().unwrap();
+                assert!((THIN_TUBE..=least).contains(&tube), "{params}");
+                assert!(solid.extent() <= 11.0 + 1e-9);
+                let estimated = estimate_volume(&solid, 4);
+                assert!(estimated >= FLAT_REACHED * volume, "{estimated}: {params}");
+                match params.get("stretch").and_then(Value::as_f64) {
+                    // Widened back to the family's minimum along the flat axes.
+                    Some(stretch) => assert!((stretch * tube - least).abs() < 1e-5, "{params}"),
+                    None => assert_eq!(family, Family::Shell, "{params}"),
+                }
+                // At the family's minimum tube the same volume leaves a narrower hole.
+                if tube < least - 0.1 {
+                    thinner += 1;
+                    let shares = Shares::minimal(share_count(&family));
+                    let at = |grow| {
+                        let solid = make(&family, 4, least, grow, &shares).unwrap();
+                        estimate_volume(&solid, 4)
+                    };
+                    let (mut lo, mut hi) = (0.0, 10.0);
+                    for _ in 0..30 {
+                        let mid = (lo + hi) / 2.0;
+                        if at(mid) <= estimated {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    let grow = params["grow"].as_f64().unwrap();
+                    assert!(grow > lo, "{grow} against {lo} at the minimum: {params}");
+                }
+                let copies = TubeFloor::for_copies(bettimill_grid::Dim::Four, 2);
+                let (_, params) = sized(copies);
+                assert!(params["tube_radius"].as_f64().unwrap() >= copies.radius());
+            }
+            assert!(
+                thinner >= 4,
+                "{family:?} at {volume}: {thinner} of 8 thinner"
+            );
         }
     }
 
