@@ -63,8 +63,8 @@ fn two_builds_of_the_demo_are_byte_identical() {
     );
 }
 
-/// The blake3 of the embedded demo manifest's `index.json` as version 0.9.0 writes it.
-const DEMO_INDEX_BLAKE3: &str = "2dbad93602ed5fb9324e29cdea7e61ad5840ec8083b5d144da7831a3e31fc155";
+/// The blake3 of the embedded demo manifest's `index.json` as version 0.10.0 writes it.
+const DEMO_INDEX_BLAKE3: &str = "4e7802570051c9fa5099112f995804dae68b0f7dba1fa591bc009161d1e62948";
 
 /// The dataset card opens with the YAML front matter the Hugging Face Hub reads, and each
 /// split's `data_files` pattern matches exactly that split's shards in index.json (so
