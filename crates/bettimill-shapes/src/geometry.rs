@@ -654,19 +654,9 @@ impl Piece {
             }
             // Only the kept axes are bounded; the others are handled by the caller.
             Piece::Prism { inner, .. } => inner.extent(),
-            // The inner piece's parts along the stretched axes are stretched with them.
-            Piece::Flat {
-                inner,
-                stretch,
-                from,
-            } => {
-                let (a, b) = inner.split_extent(*from);
-                if b == 0.0 {
-                    inner.extent()
-                } else {
-                    libm::sqrt(a * a + stretch * stretch * b * b)
-                }
-            }
+            // The inner piece's parts along the stretched axes are stretched with them: its
+            // tube of radius 0.
+            Piece::Flat { .. } => self.reach(0.0),
         }
     }
 
