@@ -167,11 +167,12 @@ fn flattens(family: &Family, dim: usize) -> Option<usize> {
     }
 }
 
-/// The share of its growth that widens `family`'s hole: a bumpy sphere puts half into its
-/// radius and the rest into bumps that bulge outwards (`recipes::bumpy_sphere`).
+/// The share of its growth that widens a widened `family`'s hole: a bumpy 2-sphere puts
+/// half into its radius and the rest into bumps that bulge outwards
+/// (`recipes::bumpy_sphere`).
 fn hole_share(family: &Family) -> f64 {
     match family {
-        Family::BumpyShell | Family::BumpyS2xB2 => 0.5,
+        Family::BumpyS2xB2 => 0.5,
         _ => 1.0,
     }
 }
