@@ -15,10 +15,10 @@
 //!
 //! Every object is a skeleton (point, circle, sphere, torus, polyline, ...) thickened by a
 //! radius of at least two voxels, or a thin shell around such a thickening; a thickening
-//! thinner than the skeleton's feature size has the skeleton's homotopy type. A small
-//! object sized for a volume may thin its tube to one voxel of radius across its hole
-//! (widened back to two along the other axes) or its shell's wall to two voxels across,
-//! which no path of face neighbours crosses. Objects keep
+//! thinner than the skeleton's feature size has the skeleton's homotopy type. A small 4D
+//! 2-sphere times a disk sized for a volume may thin its tube to one voxel of radius
+//! across its hole (widened back to two along the fourth axis), a small shell its wall to
+//! two voxels across, which no path of face neighbours crosses. Objects keep
 //! at least two background voxels to each other, to the border and (carve mode) to the
 //! cube's boundary.
 

@@ -136,10 +136,17 @@ const THIN_TUBE: f64 = 1.0;
 const THIN_STEPS: usize = 8;
 
 /// Whether a small instance of `family` may draw a tube thinner than the family's minimum,
-/// down to [`THIN_TUBE`]: one whose tube is widened back to the minimum along the flat
-/// axes ([`flattens`]), or a shell, whose wall closes its cavity at two voxels across.
+/// down to [`THIN_TUBE`]: a 4D 2-sphere times a disk, whose tube is widened back to the
+/// minimum along the fourth axis ([`flattens`]), or a shell, whose wall closes its cavity
+/// at two voxels across. Loops and handles keep the minimum: a thinner tube widens few of
+/// their holes, and it would make them the only tubes thinner than an open curve's (the
+/// ball class's), a width that tells the class instead of the hole.
 fn thins(family: &Family, dim: usize) -> bool {
-    flattens(family, dim).is_some() || matches!(family, Family::Shell | Family::BumpyShell)
+    match family {
+        Family::S2xB2 | Family::BumpyS2xB2 => flattens(family, dim).is_some(),
+        Family::Shell | Family::BumpyShell => true,
+        _ => false,
+    }
 }
 
 /// The most a tube is widened away from its hole.
@@ -232,9 +239,10 @@ pub(crate) fn estimate_volume(solid: &Solid, dim: usize) -> f64 {
 /// cube's cavity, which brings the count to its bin), its tube widened away from its hole
 /// where the family allows and the hole stays open ([`flattens`], [`HOLE_KEEPS`]), else
 /// thickened towards the volume. Such an instance with a hole draws a thin tube
-/// ([`THIN_THICKNESS`]). `None` where [`build`] would give none. Tentacled objects are
-/// drawn as [`build`] draws them where `draw_scale` or their host has no hole; otherwise
-/// their host is sized for the volume.
+/// ([`THIN_THICKNESS`]); where the volume, not the room, limits it, a family that
+/// [`thins`] draws its tube below the family's minimum. `None` where [`build`] would give
+/// none. Tentacled objects are drawn as [`build`] draws them where `draw_scale` or their
+/// host has no hole; otherwise their host is sized for the volume.
 pub(crate) fn build_volume(
     family: &Family,
     dim: usize,
@@ -578,16 +586,28 @@ mod tests {
         }
     }
 
-    /// Small embedded 2-spheres, handles and shells (0.3-1% of a side-24 image, volumes the
-    /// room exceeds) draw tubes thinner than their minimum, widened back along the flat
-    /// axes where they have them, and their holes come out wider than at the minimum
-    /// tube; with the thicker floor that downscaled copies ask for, they do not.
+    /// Small embedded 2-spheres and shells (0.3-1% of a side-24 image, volumes the room
+    /// exceeds) draw tubes thinner than their minimum, widened back along the fourth axis
+    /// where they have it, and their holes come out wider than at the minimum tube; with
+    /// the thicker floor that downscaled copies ask for, they do not. Loops and handles of
+    /// those volumes keep the minimum.
     #[test]
     fn small_instances_thin_their_tube_to_widen_their_hole() {
+        for family in [Family::Handle, Family::Loop] {
+            let (least, _) = tube_range(&family, TubeFloor::USUAL);
+            for seed in 0..8 {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                let (_, params) =
+                    build_volume(&family, 4, 11.0, 1_000.0, TubeFloor::USUAL, false, &mut rng)
+                        .unwrap();
+                let tube = params["tube_radius"].as_f64().unwrap();
+                assert!(tube >= least, "{family:?}: {params}");
+            }
+        }
         for (family, volume) in [
             (Family::S2xB2, 1_000.0),
             (Family::S2xB2, 3_000.0),
-            (Family::Handle, 1_000.0),
+            (Family::BumpyS2xB2, 3_000.0),
             (Family::Shell, 1_500.0),
             (Family::Shell, 3_000.0),
         ] {
