@@ -138,9 +138,10 @@ const THIN_STEPS: usize = 8;
 /// Whether a small instance of `family` may draw a tube thinner than the family's minimum,
 /// down to [`THIN_TUBE`]: a 4D 2-sphere times a disk, whose tube is widened back to the
 /// minimum along the fourth axis ([`flattens`]), or a shell, whose wall closes its cavity
-/// at two voxels across. Loops and handles keep the minimum: a thinner tube widens few of
-/// their holes, and it would make them the only tubes thinner than an open curve's (the
-/// ball class's), a width that tells the class instead of the hole.
+/// at two voxels across: for these the thin tube or wall is what keeps most small holes
+/// wider than one dilation closes. Loops and handles keep the minimum: a thinner tube
+/// widens few of their holes, and it would make them the only tubes thinner than an open
+/// curve's (the ball class's), a width that tells the class instead of the hole.
 fn thins(family: &Family, dim: usize) -> bool {
     match family {
         Family::S2xB2 | Family::BumpyS2xB2 => flattens(family, dim).is_some(),
@@ -593,6 +594,11 @@ mod tests {
     /// those volumes keep the minimum.
     #[test]
     fn small_instances_thin_their_tube_to_widen_their_hole() {
+        for dim in 2..=4 {
+            assert!(!thins(&Family::Handle, dim) && !thins(&Family::Loop, dim));
+            assert!(thins(&Family::Shell, dim) && thins(&Family::BumpyShell, dim));
+            assert_eq!(thins(&Family::S2xB2, dim), dim == 4);
+        }
         for family in [Family::Handle, Family::Loop] {
             let (least, _) = tube_range(&family, TubeFloor::USUAL);
             for seed in 0..8 {
@@ -602,6 +608,8 @@ mod tests {
                         .unwrap();
                 let tube = params["tube_radius"].as_f64().unwrap();
                 assert!(tube >= least, "{family:?}: {params}");
+                assert!(params["thickness"].as_f64().unwrap() > 0.0, "{params}");
+                assert!(params.get("stretch").is_none(), "{params}");
             }
         }
         for (family, volume) in [
@@ -625,7 +633,7 @@ mod tests {
                 let estimated = estimate_volume(&solid, 4);
                 assert!(estimated >= FLAT_REACHED * volume, "{estimated}: {params}");
                 match params.get("stretch").and_then(Value::as_f64) {
-                    // Widened back to the family's minimum along the flat axes.
+                    // Widened back to the family's minimum along the fourth axis.
                     Some(stretch) => assert!((stretch * tube - least).abs() < 1e-5, "{params}"),
                     None => assert_eq!(family, Family::Shell, "{params}"),
                 }
