@@ -24,7 +24,10 @@ held-out samples of every kind. The kinds:
   ellipsoids, closed random polygons, bumpy and bent 2-spheres, hollow bumpy blobs, in
   random 4D frames, splatted voxel by voxel. Each is labelled by ``bettimill.betti`` of its
   voxels (the verifier); a shape whose label is not the class it was drawn for is drawn
-  again, so the held-out set has the same classes, in the same shares, as the others.
+  again, so the held-out set has the same classes, in the same shares, as the others;
+- ``independent-matched``: the same generator with every class at the same sizes (each
+  shape scaled to a foreground fraction drawn from MATCHED), since as drawn its classes
+  differ in size and the foreground count alone tells most of them apart.
 
 Every kind has the same label classes, balanced (chance is 1/classes; the table's chance
 row is the held-out set's most common class): Betti vectors [1,0,0,0], [1,1,0,0],
@@ -35,7 +38,8 @@ left out with the plan's reason; [1,2,1,0], T2xB2, fits neither mode at side 16)
 bettimill makes each class with its canonical construction (``betti = [...]`` classes of
 the manifest).
 
-Rows of the table are what a model trained on, columns the held-out kinds; a model is
+Rows of the table are what a model trained on, columns the held-out kinds (and a row of
+what the foreground count alone tells, per kind: the score with no hole seen); a model is
 trained on each single kind (``independent`` included: the ceiling of this small set-up on
 that generator), on the mix and on each mix that leaves one deformation out. Seeds are
 fixed (numpy, torch, the manifests' seed; torch on one thread), so a re-run prints the
@@ -67,6 +71,8 @@ Run by hand (not in CI), from the repository root, with bettimill and torch inst
     python benches/learnability.py --train 2400 --mix 4800 --repeats 3 \
         --rows canonical,binned,binned-chain,families,independent,all   # the transfer table
     python benches/learnability.py --train 2400 --rows families --fresh   # a probe
+    python benches/learnability.py --side 24 --train 4800 --rows families,independent,independent-matched \
+        --kinds families,independent,independent-matched   # the other generator, sizes matched
 
 On a shared 2-core machine the default run takes about 20 minutes with the three older
 deformations, nearly all of it training (one torch thread; a training of 480 samples
@@ -306,52 +312,54 @@ def polyline(vertices, closed, spacing=0.25):
     return np.vstack(out)
 
 
-def wavy_radii(rng, n, lo, hi):
-    """Tube radii along a curve of n points: a random level with a slow wave on it."""
+def wavy_radii(rng, n, lo, hi, s=1.0):
+    """Tube radii along a curve of n points: a random level with a slow wave on it (all
+    lengths times `s`)."""
     base = rng.uniform(lo, hi)
     wave = rng.uniform(0.0, 0.3) * np.sin(np.linspace(0, rng.uniform(2, 12), n) + rng.uniform(0, 6.3))
-    return np.clip(base * (1 + wave), 1.05, 2.4)
+    return np.clip(base * (1 + wave), 1.05, 2.4) * s
 
 
-def walk(rng, lo, hi):
+def walk(rng, lo, hi, s=1.0):
     """A thickened open random walk inside the box [lo, hi]^4 (a ball, if it does not cross
-    itself)."""
+    itself); steps and radii times `s`."""
     vertices = [rng.uniform(lo + 1.5, hi - 1.5, 4)]
     for _ in range(rng.integers(2, 7)):
         step = rng.normal(size=4)
-        nxt = vertices[-1] + step / np.linalg.norm(step) * rng.uniform(2.0, 4.5)
+        nxt = vertices[-1] + step / np.linalg.norm(step) * rng.uniform(2.0, 4.5) * s
         vertices.append(np.clip(nxt, lo, hi))
     points = polyline(np.array(vertices), closed=False)
-    return splat(points, wavy_radii(rng, len(points), 1.1, 2.0))
+    return splat(points, wavy_radii(rng, len(points), 1.1, 2.0, s))
 
 
-def blob(rng, lo, hi):
-    """A chain of 1-4 overlapping, randomly oriented ellipsoids inside [lo, hi]^4."""
+def blob(rng, lo, hi, s=1.0):
+    """A chain of 1-4 overlapping, randomly oriented ellipsoids inside [lo, hi]^4; their
+    axes and offsets times `s`."""
     points = grid()
     image = np.zeros((SIDE,) * 4, bool)
     centre = rng.uniform(lo + 1, hi - 1, 4)
     for _ in range(rng.integers(1, 5)):
         axes = frame(rng)
-        semi = rng.uniform(1.3, 3.5, 4)
+        semi = rng.uniform(1.3, 3.5, 4) * s
         local = (points - centre) @ axes.T / semi
         image |= (local ** 2).sum(-1) <= 1
-        centre = np.clip(centre + rng.normal(size=4) * 1.5, lo + 1, hi - 1)
+        centre = np.clip(centre + rng.normal(size=4) * 1.5 * s, lo + 1, hi - 1)
     return image & ((points >= np.ceil(lo)) & (points <= np.floor(hi))).all(-1)
 
 
-def loop(rng):
+def loop(rng, s=1.0):
     """A thickened closed random polygon around the middle, in a random 2-plane with jitter
-    out of it."""
+    out of it; its radii and tube times `s`."""
     axes = frame(rng)
     centre = rng.uniform(6.5, 8.5, 4)
     n = rng.integers(5, 10)
     angles = np.sort(rng.uniform(0, 2 * np.pi, n))
-    radius = rng.uniform(3.5, 5.8, n)
+    radius = rng.uniform(3.5, 5.8, n) * s
     plane = np.stack([radius * np.cos(angles), radius * np.sin(angles)], 1)
-    off = rng.normal(scale=0.8, size=(n, 2))
+    off = rng.normal(scale=0.8, size=(n, 2)) * s
     vertices = centre + plane @ axes[:2] + off @ axes[2:]
     points = polyline(vertices, closed=True)
-    return splat(points, wavy_radii(rng, len(points), 1.1, 1.7))
+    return splat(points, wavy_radii(rng, len(points), 1.1, 1.7, s))
 
 
 def fibonacci_sphere(n):
@@ -362,39 +370,40 @@ def fibonacci_sphere(n):
     return np.stack([s * np.cos(phi), s * np.sin(phi), z], 1)
 
 
-def sphere(rng):
+def sphere(rng, s=1.0):
     """A bumpy, stretched 2-sphere in a random 3-space of R^4, bent into the fourth
-    direction, thickened."""
+    direction, thickened; its radius, bend and thickness times `s`."""
     axes = frame(rng)
     d = fibonacci_sphere(2500)
     bumps = rng.normal(size=(3, 3)) * 0.12
     radius = rng.uniform(3.6, 5.2) * (1 + ((d @ bumps) * d).sum(1)) * np.exp(d @ rng.normal(scale=0.1, size=3))
-    surface = (d * radius[:, None]) * rng.uniform(0.85, 1.15, 3)
-    bend = (d @ rng.normal(scale=1.2, size=3)) ** 2 * rng.choice([-1, 1])
+    surface = (d * radius[:, None]) * rng.uniform(0.85, 1.15, 3) * s
+    bend = (d @ rng.normal(scale=1.2, size=3)) ** 2 * rng.choice([-1, 1]) * s
     points = rng.uniform(7.0, 8.0, 4) + surface @ axes[:3] + bend[:, None] * 0.4 * axes[3]
-    return splat(points, np.full(len(points), rng.uniform(1.05, 1.5)))
+    return splat(points, np.full(len(points), rng.uniform(1.05, 1.5) * s))
 
 
-def shell(rng):
+def shell(rng, s=1.0):
     """A hollow blob: the voxels between two nested bumpy, stretched 3-spheres about a
-    point, in a random frame."""
+    point, in a random frame; its radius and wall times `s`."""
     y = (grid() - rng.uniform(7.0, 8.0, 4)) @ frame(rng).T / rng.uniform(0.85, 1.15, 4)
     rho = np.sqrt((y ** 2).sum(-1)) + 1e-9
     u = y / rho[..., None]
     bumps = rng.normal(size=(4, 4)) * 0.08
     outer = rng.uniform(4.6, 6.0) * (1 + np.einsum("...i,ij,...j->...", u, bumps, u)) + u @ rng.normal(scale=0.3, size=4)
-    return (rho <= outer) & (rho > outer - rng.uniform(1.4, 2.2))
+    return (rho <= outer * s) & (rho > (outer - rng.uniform(1.4, 2.2)) * s)
 
 
-def candidate(rng, target):
-    """One shape drawn for the object vector `target` (its label may still differ)."""
+def candidate(rng, target, s=1.0):
+    """One shape drawn for the object vector `target` (its label may still differ), its
+    lengths times `s`."""
     if target == [1, 0, 0, 0]:
-        return walk(rng, 1.5, 13.5) if rng.random() < 0.5 else blob(rng, 1, 14)
+        return walk(rng, 1.5, 13.5, s) if rng.random() < 0.5 else blob(rng, 1, 14, s)
     if target == [2, 0, 0, 0]:
         axis, gap = rng.integers(4), rng.uniform(7.0, 8.0)
         parts = []
         for lo, hi in ((1.5, gap - 1.2), (gap + 1.2, 13.5)):
-            part = walk(rng, 1.5, 13.5) if rng.random() < 0.5 else blob(rng, 1, 14)
+            part = walk(rng, 1.5, 13.5, s) if rng.random() < 0.5 else blob(rng, 1, 14, s)
             coordinate = np.arange(SIDE) / scale()
             keep = (coordinate >= np.ceil(lo)) & (coordinate <= np.floor(hi))
             shape = [1, 1, 1, 1]
@@ -402,25 +411,55 @@ def candidate(rng, target):
             parts.append(part & keep.reshape(shape))
         return parts[0] | parts[1]
     if target == [1, 1, 0, 0]:
-        return loop(rng)
+        return loop(rng, s)
     if target == [1, 0, 1, 0]:
-        return sphere(rng)
+        return sphere(rng, s)
     if target == [1, 0, 0, 1]:
-        return shell(rng)
+        return shell(rng, s)
     raise ValueError(target)
 
 
-def independent_samples(count, mode, seed, classes, tries=400):
+# As drawn, the generator's classes differ in size: its balls, pairs and loops hold 0.1-1%
+# of a side-24 image, its 2-spheres 1-4%, its hollow blobs 3-8%, so the foreground count
+# alone tells 3 classes in 5 apart. `independent-matched` gives every sample a foreground
+# fraction to aim at, drawn log-uniformly from MATCHED whatever the class, and scales the
+# drawn shape (every length by one factor, found in a few renders since a fraction grows
+# about as its fourth power) until it is within 10% of the aim: every class then has the
+# same sizes, and a model must see the holes.
+MATCHED = (0.01, 0.03)
+
+
+def aimed(seed, target, aim, renders=6):
+    """A shape drawn for `target` from `seed`, scaled so that its foreground fraction is
+    within 10% of `aim`; None if `renders` scalings do not get it there."""
+    scale = 1.0
+    for _ in range(renders):
+        shape = candidate(np.random.default_rng(seed), target, scale)
+        share = shape.mean()
+        if abs(np.log(max(share, 1e-9) / aim)) < np.log(1.1):
+            return shape
+        scale = float(np.clip(scale * (aim / max(share, 1e-6)) ** 0.25, 0.4, 3.0))
+    return None
+
+
+def independent_samples(count, mode, seed, classes, tries=400, matched=False):
     """`count` shapes of the numpy generator, the classes in turn, each labelled by
-    bettimill.betti; returns voxels, Betti vectors and the share of candidates accepted."""
+    bettimill.betti; with `matched`, each scaled to a size drawn from MATCHED (see there).
+    Returns voxels, Betti vectors and the share of candidates accepted."""
     rng = np.random.default_rng(seed)
     voxels, betti, drawn = [], [], 0
     for i in range(count):
         target = classes[i % len(classes)]
         want = target if mode == "embed" else carved(target)
+        aim = float(np.exp(rng.uniform(*np.log(MATCHED)))) if matched else None
         for _ in range(tries):
             drawn += 1
-            shape = candidate(rng, target)
+            if matched:
+                shape = aimed(rng.integers(2 ** 63), target, aim)
+                if shape is None:
+                    continue
+            else:
+                shape = candidate(rng, target)
             # Carve mode: the shape is a cavity of the full cube; the cube's border stays
             # solid (the generator's shapes stay at least one voxel inside it).
             image = shape if mode == "embed" else ~shape
@@ -500,6 +539,7 @@ def kind_recipes(mode):
         kinds["binned-chain"] = (CHAIN, bins(mode))
         kinds["families"] = None
     kinds["independent"] = None
+    kinds["independent-matched"] = None
     return kinds, classes, list(deforms), single
 
 
@@ -515,13 +555,18 @@ def kind_samples(name, recipe, args, classes, single, count, seed):
             key += f" clearance {CLEARANCE}"
         voxels, betti = cached(args.cache, key,
                                lambda: family_samples(args.mode, classes, count, seed, args.threads))
-    elif name == "independent":
+    elif name in ("independent", "independent-matched"):
+        matched = name == "independent-matched"
+
         def make():
-            voxels, betti, share = independent_samples(count, args.mode, seed, classes)
+            voxels, betti, share = independent_samples(count, args.mode, seed, classes, matched=matched)
             accepted.append(share)
             return voxels, betti
 
-        voxels, betti = cached(args.cache, f"independent v1 {args.mode} {count} {seed} {classes}{side}", make)
+        key = f"independent v1 {args.mode} {count} {seed} {classes}{side}"
+        if matched:
+            key += f" matched {MATCHED}"
+        voxels, betti = cached(args.cache, key, make)
     else:
         deform, kind_bins = recipe
         text = manifest(deform, args.mode, count, seed, single, classes, kind_bins)
@@ -681,6 +726,24 @@ def scales_table(data, count):
             print(f"| {kind} | {list(label)} | {len(pairs)} | {cells[0]} | {cells[1]} |")
 
 
+def count_alone(data, bins=10):
+    """A kind's held-out accuracy of a guess from the foreground count alone: the commonest
+    training class in each of `bins` bins (equal shares of the training samples) of its
+    training samples' counts. Above chance, the count tells classes apart; a model may
+    score without seeing a hole."""
+    train_voxels, train_betti, test_voxels, test_betti = data
+    counts = train_voxels.reshape(len(train_voxels), -1).sum(1)
+    edges = np.quantile(counts, np.linspace(0, 1, bins + 1))[1:-1]
+    keys = [tuple(b) for b in train_betti.tolist()]
+    guess = {}
+    for k, key in zip(np.searchsorted(edges, counts, side="right"), keys):
+        guess.setdefault(int(k), []).append(key)
+    guess = {k: max(set(v), key=v.count) for k, v in guess.items()}
+    test_counts = test_voxels.reshape(len(test_voxels), -1).sum(1)
+    picks = [guess.get(int(k)) for k in np.searchsorted(edges, test_counts, side="right")]
+    return float(np.mean([p == tuple(b) for p, b in zip(picks, test_betti.tolist())]))
+
+
 def chance(betti):
     _, counts = np.unique(betti, axis=0, return_counts=True)
     return counts.max() / len(betti)
@@ -761,7 +824,7 @@ def main():
         runs.append(("mix", ["canonical", *deforms]))
         for left in deforms:
             runs.append((f"mix-no-{left}", ["canonical", *[d for d in deforms if d != left]]))
-    ours = [k for k in columns if k != "independent"]
+    ours = [k for k in columns if not k.startswith("independent")]
     if len(ours) > 1 + len(deforms):
         runs.append(("all", ours))
 
@@ -826,6 +889,8 @@ def main():
             cells.append(f"{low:.2f}-{high:.2f}")
         print(f"| {row['trained_on']} | {row['samples']} | " + " | ".join(cells) + f" | {row['seconds']:.0f} |")
     print("| chance (most common class) | | " + " | ".join(f"{chance(data[k][3]):.2f}" for k in columns)
+          + (" | " if ranged else "") + " | |")
+    print("| foreground count alone | | " + " | ".join(f"{count_alone(data[k]):.2f}" for k in columns)
           + (" | " if ranged else "") + " | |")
     print("\nItalic: a kind the model never saw in training."
           + (f" Each row is the mean of {args.repeats} trainings from different seeds." if ranged else ""))
