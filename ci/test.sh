@@ -14,6 +14,10 @@ cd "$(dirname "$0")/.."
 echo "== disk space for the build"
 df -h . "${CARGO_TARGET_DIR:-target}" 2>/dev/null || df -h .
 
+# A run from a clean checkout builds everything once, so incremental caches only take disk
+# (about a quarter of the test build's target directory).
+export CARGO_INCREMENTAL=0
+
 echo "== cargo fmt --check"
 cargo fmt --all --check
 
@@ -31,7 +35,8 @@ ci/browser.sh
 # the log, before the tests. Stopped by its PID when this script ends.
 echo "== local S3 server (ci/s3-up.sh)"
 ci/s3-up.sh
-trap 'ci/s3-down.sh' EXIT
+# The disk left at the end (or at a failure) shows how close a run came to filling it.
+trap 'ci/s3-down.sh; df -h . | tail -n 1' EXIT
 
 # The system tests (a real Slurm started by ci/slurm-up.sh, tmpfs mounts as root, the
 # viewer in headless Chromium) run
