@@ -45,8 +45,9 @@ that generator), on the mix and on each mix that leaves one deformation out. See
 fixed (numpy, torch, the manifests' seed; torch on one thread), so a re-run prints the
 same table on the same machine. The run prints wall seconds per training. A training's
 score on a held-out kind it never saw moves by up to about 0.1 with its seed alone;
-``--repeats N`` trains each row N times from different seeds and shows the mean (and the
-range on the independent generator).
+``--repeats N`` trains each row N times from different seeds and shows the mean (and each
+score's range over the trainings). ``--first-repeat K`` runs only trainings K to N-1 of those
+N (their seeds unchanged), so that several processes can share one row's trainings.
 
 Probes of what limits the transfer: ``--fresh`` trains a single kind on ``--train`` x
 ``--epochs`` distinct samples, each seen once (as an on-the-fly loader would), instead of
@@ -782,6 +783,8 @@ def main():
     parser.add_argument("--json", help="also write the table as JSON to this file")
     parser.add_argument("--repeats", type=int, default=1,
                         help="trainings per row, each from its own seed; the table shows their mean")
+    parser.add_argument("--first-repeat", type=int, default=0,
+                        help="run only trainings K..N-1 of --repeats N, seeds as in the full run")
     parser.add_argument("--rows", help="comma-separated trainings to run (e.g. canonical,mix); default all")
     parser.add_argument("--kinds", help="comma-separated kinds to make (held-out columns); default all")
     parser.add_argument("--side", type=int, default=16,
@@ -799,6 +802,8 @@ def main():
     parser.add_argument("--confusion", action="store_true",
                         help="print each training's score per true class on every held-out kind")
     args = parser.parse_args()
+    if not 0 <= args.first_repeat < args.repeats:
+        parser.error(f"--first-repeat {args.first_repeat} must be at least 0 and below --repeats {args.repeats}")
     global SIDE, CLEARANCE
     SIDE = args.side
     CLEARANCE = args.clearance
@@ -852,13 +857,13 @@ def main():
             schedule = argparse.Namespace(**{**vars(args), "epochs": 1})
         start = time.perf_counter()
         runs_scores = []
-        for repeat in range(args.repeats):
+        for repeat in range(args.first_repeat, args.repeats):
             model = train(voxels, betti, schedule, args.seed + number + 1000 * repeat)
             runs_scores.append({k: exact_accuracy(model, data[k][2], data[k][3]) for k in columns})
             if args.confusion:
                 for k in columns:
                     log(f"  {name} #{repeat} on {k}: {confusion(model, data[k][2], data[k][3])}")
-        seconds = (time.perf_counter() - start) / args.repeats
+        seconds = (time.perf_counter() - start) / len(runs_scores)
         scores = {k: float(np.mean([r[k] for r in runs_scores])) for k in columns}
         spread = {k: (min(r[k] for r in runs_scores), max(r[k] for r in runs_scores)) for k in columns}
         rows.append({"trained_on": name, "kinds": kinds, "samples": len(voxels), "seconds": seconds,
@@ -875,25 +880,25 @@ def main():
           + ("; a single kind's training sees each of its samples once" if args.fresh else "")
           + ("; each batch in a random symmetry of the cube" if args.augment else "")
           + (f"; bettimill's manifests with `clearance = {CLEARANCE}`" if CLEARANCE else "") + ").\n")
-    ranged = args.repeats > 1
-    print("| trained on | samples | " + " | ".join(f"held-out {k}" for k in columns)
-          + (" | independent, range over trainings" if ranged else "") + " | training s |")
-    print("|---|---|" + "---|" * len(columns) + ("---|" if ranged else "") + "---|")
+    trainings = args.repeats - args.first_repeat
+    print("| trained on | samples | " + " | ".join(f"held-out {k}" for k in columns) + " | training s |")
+    print("|---|---|" + "---|" * len(columns) + "---|")
     for row in rows:
         cells = []
         for k in columns:
             cell = f"{row['scores'][k]:.2f}"
+            if trainings > 1:
+                low, high = row["spread"][k]
+                cell += f" ({low:.2f}-{high:.2f})"
             cells.append(cell if k in row["kinds"] else f"*{cell}*")
-        if ranged:
-            low, high = row["spread"]["independent"]
-            cells.append(f"{low:.2f}-{high:.2f}")
         print(f"| {row['trained_on']} | {row['samples']} | " + " | ".join(cells) + f" | {row['seconds']:.0f} |")
-    print("| chance (most common class) | | " + " | ".join(f"{chance(data[k][3]):.2f}" for k in columns)
-          + (" | " if ranged else "") + " | |")
-    print("| foreground count alone | | " + " | ".join(f"{count_alone(data[k]):.2f}" for k in columns)
-          + (" | " if ranged else "") + " | |")
+    print("| chance (most common class) | | " + " | ".join(f"{chance(data[k][3]):.2f}" for k in columns) + " | |")
+    print("| foreground count alone | | " + " | ".join(f"{count_alone(data[k]):.2f}" for k in columns) + " | |")
+    repeats = f"trainings {args.first_repeat} to {args.repeats - 1} of {args.repeats}" if args.first_repeat else \
+        f"{args.repeats} trainings"
     print("\nItalic: a kind the model never saw in training."
-          + (f" Each row is the mean of {args.repeats} trainings from different seeds." if ranged else ""))
+          + (f" Each row is the mean of {repeats} from different seeds (range in brackets)."
+             if trainings > 1 else (f" Training {args.first_repeat} of {args.repeats}." if args.first_repeat else "")))
     for name, deform in [(k, None if k == "canonical" else (DEFORMS_SINGLE if single else DEFORMS)[k]) for k in columns if k in DEFORMS or k in DEFORMS_SINGLE]:
         if deform is not None:
             print(f"- {name}: `{json.dumps(deform)}`")
