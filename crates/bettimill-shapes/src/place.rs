@@ -21,7 +21,7 @@
 
 use crate::geometry::{add, round6, sub, uniform, uniform_int, Solid, TubeFloor, P};
 use crate::rotation::Rotation;
-use crate::sizing::{build, build_volume, draw_target, min_extent};
+use crate::sizing::{build, build_volume, draw_target, min_extent, Fit};
 use crate::{Family, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
@@ -102,6 +102,21 @@ impl Placed {
             "solid": self.solid.describe(dim),
         })
     }
+}
+
+/// Draws a centre so that a solid of half-width `widths[k]` along axis `k` stays in
+/// `[lo, hi]` on every axis; `None` if it cannot.
+fn centre_within(dim: usize, lo: i64, hi: i64, widths: &[f64], rng: &mut ChaCha8Rng) -> Option<P> {
+    let mut centre = [0.0; 4];
+    for (slot, &width) in centre.iter_mut().zip(widths).take(dim) {
+        let low = lo as f64 + width;
+        let high = hi as f64 - width;
+        if low > high {
+            return None;
+        }
+        *slot = uniform(rng, low, high);
+    }
+    Some(centre)
 }
 
 /// Draws a centre so that the bounding ball of radius `extent` stays in `[lo, hi]` on
@@ -531,14 +546,15 @@ pub(crate) fn place_tunnel(
     let budget = region.budget();
     let minimum = min_extent(family, dim, floor).unwrap_or(f64::INFINITY);
     let target = uniform(rng, minimum, budget);
-    let (solid, params) =
-        build(family, dim, target, floor, rng).ok_or_else(|| ShapeError::DoesNotFit {
+    let (solid, params) = build(family, dim, target, floor, Fit::Ball, rng).ok_or_else(|| {
+        ShapeError::DoesNotFit {
             family: family.label(),
             dim,
             side,
             mode: Mode::Carve,
             reason: "no cross-section fits".into(),
-        })?;
+        }
+    })?;
     // Choose which image axes the tunnel runs along: a random permutation maps local
     // axes (cross-section first, intervals last) to image axes.
     let mut perm: Vec<usize> = (0..dim).collect();
@@ -614,6 +630,14 @@ fn place_random(
             // Later attempts draw smaller objects, which fit into smaller gaps.
             let shrink = 1.0 - attempt as f64 / PLACEMENT_ATTEMPTS as f64;
             let upper = minimum + (share.max(minimum) - minimum) * shrink;
+            // The rotation comes first, so that the object is sized for the room its
+            // rotated shape needs along each axis; a tentacled object is sized within a
+            // ball, into which its tentacles grow.
+            let rotation = Rotation::random(&free_axes(object, dim), rng);
+            let fit = match object {
+                Family::Tentacled { .. } => Fit::Ball,
+                _ => Fit::Axes(&rotation, dim),
+            };
             let built = match volumes {
                 // Sized for a voxel count: the scale is solved for, within the room.
                 // A cavity in a boxed solid may come out below its volume (the box around
@@ -621,7 +645,7 @@ fn place_random(
                 // an embedded object, or a cavity of the full cube, is what brings the
                 // count to its bin and takes the largest that fits.
                 Some((volumes, draw_scale)) if !at_minimum => {
-                    build_volume(object, dim, upper, volumes[n], floor, draw_scale, rng)
+                    build_volume(object, dim, upper, volumes[n], floor, draw_scale, fit, rng)
                 }
                 _ => {
                     let target = if at_minimum {
@@ -629,14 +653,23 @@ fn place_random(
                     } else {
                         draw_target(object, minimum, upper, rng)
                     };
-                    build(object, dim, target, floor, rng)
+                    build(object, dim, target, floor, fit, rng)
                 }
             };
             let Some((solid, params)) = built else {
                 continue;
             };
-            let rotation = Rotation::random(&free_axes(object, dim), rng);
-            let Some(centre) = random_centre(dim, region.lo, region.hi, solid.extent(), rng) else {
+            let widths: Vec<f64> = match fit {
+                Fit::Ball => vec![solid.extent(); dim],
+                Fit::Axes(..) => (0..dim)
+                    .map(|k| {
+                        solid
+                            .half_width(rotation.axis_in_local(k))
+                            .min(solid.extent())
+                    })
+                    .collect(),
+            };
+            let Some(centre) = centre_within(dim, region.lo, region.hi, &widths, rng) else {
                 continue;
             };
             let placed = Placed {
@@ -784,8 +817,8 @@ pub(crate) fn place_objects(
         }
         let (lo, hi) = grid_cell(region, per_axis, cell, dim);
         let target = draw_target(object, minimum, cell_budget.max(minimum), rng);
-        let (solid, params) = build(object, dim, target, floor, rng)
-            .or_else(|| build(object, dim, minimum, floor, rng))
+        let (solid, params) = build(object, dim, target, floor, Fit::Ball, rng)
+            .or_else(|| build(object, dim, minimum, floor, Fit::Ball, rng))
             .ok_or_else(|| ShapeError::DoesNotFit {
                 family: family.label(),
                 dim,
@@ -816,100 +849,4 @@ pub(crate) fn place_objects(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::{Rng, SeedableRng};
-
-    /// Clipping the scanned rows to each bounding ball keeps every voxel of every solid
-    /// the library builds, rotated and placed at random, in every dimension.
-    #[test]
-    fn clipping_rows_to_the_ball_changes_no_voxel() {
-        let families = [
-            r#"{"family":"ball"}"#,
-            r#"{"family":"handle"}"#,
-            r#"{"family":"shell"}"#,
-            r#"{"family":"torus_shell"}"#,
-            r#"{"family":"handlebody","genus":2}"#,
-            r#"{"family":"curve"}"#,
-            r#"{"family":"loop"}"#,
-            r#"{"family":"knot","knot":"trefoil"}"#,
-            r#"{"family":"link","link":"hopf"}"#,
-            r#"{"family":"s2_x_b2"}"#,
-            r#"{"family":"bumpy_shell"}"#,
-            r#"{"family":"bumpy_s2_x_b2"}"#,
-            r#"{"family":"t2_x_b2"}"#,
-            r#"{"family":"connected_sum","g":1,"h":1,"i":1,"j":2}"#,
-            r#"{"family":"spun_knot","knot":"trefoil"}"#,
-        ];
-        let mut rng = ChaCha8Rng::seed_from_u64(17);
-        let side = 40usize;
-        let region = Region::for_mode(side, Mode::Embed);
-        let (mut built, mut voxels) = (0, 0);
-        for text in families {
-            let family: Family = serde_json::from_str(text).unwrap();
-            for dim in 2..=4 {
-                let Some(minimum) = min_extent(&family, dim, TubeFloor::USUAL) else {
-                    continue;
-                };
-                for _ in 0..6 {
-                    let target = rng.gen_range(minimum..=minimum.max(region.budget()));
-                    let Some((solid, _)) = build(&family, dim, target, TubeFloor::USUAL, &mut rng)
-                    else {
-                        continue;
-                    };
-                    let rotation = Rotation::random(&free_axes(&family, dim), &mut rng);
-                    let extent = solid.extent();
-                    let Some(centre) =
-                        random_centre(dim, region.lo - 4, region.hi + 4, extent * 0.8, &mut rng)
-                    else {
-                        continue;
-                    };
-                    let placed = Placed {
-                        solid,
-                        rotation,
-                        centre,
-                        through_axes: Vec::new(),
-                    };
-                    let (lo, hi) = (region.lo, region.hi);
-                    let clipped = rasterise_clipped(&placed, dim, side, lo, hi, None, true);
-                    let whole = rasterise_clipped(&placed, dim, side, lo, hi, None, false);
-                    assert_eq!(clipped, whole, "{text} {dim}D");
-                    built += 1;
-                    voxels += whole.unwrap().len();
-                }
-            }
-        }
-        assert!(
-            built > 100 && voxels > 100_000,
-            "{built} solids, {voxels} voxels"
-        );
-    }
-
-    /// Runs along the last axis (interior or touching faces, in any dimension, any gap)
-    /// block the same voxels as marking every voxel's cube one by one.
-    #[test]
-    fn blocking_runs_equals_blocking_each_voxel() {
-        let mut rng = ChaCha8Rng::seed_from_u64(5);
-        for (dim, side) in [(2usize, 17usize), (3, 11), (4, 9)] {
-            for gap in [GAP, 3, GAP_MAX] {
-                for _ in 0..20 {
-                    let mut voxels: Vec<usize> = (0..side.pow(dim as u32))
-                        .filter(|_| rng.gen_bool(0.08))
-                        .collect();
-                    // Long runs as well as scattered voxels.
-                    let start = rng.gen_range(0..side.pow(dim as u32) - side);
-                    voxels.extend(start..start + side);
-                    voxels.sort_unstable();
-                    voxels.dedup();
-                    let mut fast = Occupancy::new(dim, side, gap);
-                    fast.add(&voxels);
-                    let mut slow = Occupancy::new(dim, side, gap);
-                    for &v in &voxels {
-                        slow.add_near_a_face(v);
-                    }
-                    assert_eq!(fast.blocked, slow.blocked, "{dim}D side {side} gap {gap}");
-                }
-            }
-        }
-    }
-}
+mod tests;

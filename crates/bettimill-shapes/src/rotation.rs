@@ -89,6 +89,11 @@ impl Rotation {
     }
 
     /// The world offset of a local point.
+    /// World axis `k` as a unit vector in local coordinates.
+    pub(crate) fn axis_in_local(&self, k: usize) -> P {
+        self.m[k]
+    }
+
     pub(crate) fn to_world(&self, local: P) -> P {
         let mut out = ORIGIN;
         for (k, slot) in out.iter_mut().enumerate() {

@@ -10,9 +10,35 @@
 use crate::curves;
 use crate::geometry::{round6, uniform, Piece, Solid, TubeFloor, INNER_GAP, TUBE_MIN};
 use crate::recipes::{make, share_count, tube_range, Shares};
+use crate::rotation::Rotation;
 use crate::Family;
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
+
+/// How an instance's size is measured against the room it is given.
+#[derive(Clone, Copy)]
+pub(crate) enum Fit<'a> {
+    /// The radius of its bounding ball: it fits a box of that half-width whatever its
+    /// rotation (plan-time feasibility, tentacles, which grow into a ball around their
+    /// host).
+    Ball,
+    /// Its largest half-width along the image's axes once rotated: a ring in a slanted
+    /// plane is narrower along every axis than its radius, so it may be larger than a
+    /// ball of the room would allow.
+    Axes(&'a Rotation, usize),
+}
+
+impl Fit<'_> {
+    pub(crate) fn reach(&self, solid: &Solid) -> f64 {
+        match *self {
+            Fit::Ball => solid.extent(),
+            Fit::Axes(rotation, dim) => (0..dim)
+                .map(|k| solid.half_width(rotation.axis_in_local(k)))
+                .fold(0.0, f64::max)
+                .min(solid.extent()),
+        }
+    }
+}
 
 /// Room a tentacle needs beyond its host's extent: the gap and two steps past the host's
 /// tube (`curves::add_tentacles`) plus its own radius, each tentacle radius at most
@@ -51,6 +77,7 @@ pub(crate) fn build(
     dim: usize,
     target: f64,
     floor: TubeFloor,
+    fit: Fit,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Solid, Value)> {
     if let Family::Tentacled { object, tentacles } = family {
@@ -60,7 +87,7 @@ pub(crate) fn build(
         let minimum = min_extent(object, dim, floor)?;
         let host_cap = (0.75 * target).min(target - TENTACLE_ROOM);
         let host_target = uniform(rng, minimum, minimum.max(host_cap));
-        let (solid, params) = build(object, dim, host_target, floor, rng)?;
+        let (solid, params) = build(object, dim, host_target, floor, Fit::Ball, rng)?;
         let (solid, placed) = curves::add_tentacles(solid, dim, *tentacles, target, rng);
         return Some((
             solid,
@@ -70,7 +97,7 @@ pub(crate) fn build(
     let (tube_min, tube_cap) = tube_range(family, floor);
     let shares = Shares::draw(share_count(family), rng);
     let extent = |tube: f64, grow: f64| -> Option<f64> {
-        make(family, dim, tube, grow, &shares).map(|s| s.extent())
+        make(family, dim, tube, grow, &shares).map(|s| fit.reach(&s))
     };
     let base = extent(tube_min, 0.0)?;
     if base > target + 1e-9 {
@@ -244,6 +271,7 @@ pub(crate) fn estimate_volume(solid: &Solid, dim: usize) -> f64 {
 /// [`thins`] draws its tube below the family's minimum. `None` where [`build`] would give
 /// none. Tentacled objects are drawn as [`build`] draws them where `draw_scale` or their
 /// host has no hole; otherwise their host is sized for the volume.
+#[allow(clippy::too_many_arguments)] // One sizing: what, in which room, how large, how measured.
 pub(crate) fn build_volume(
     family: &Family,
     dim: usize,
@@ -251,9 +279,12 @@ pub(crate) fn build_volume(
     volume: f64,
     floor: TubeFloor,
     draw_scale: bool,
+    fit: Fit,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Solid, Value)> {
-    sized_for_volume(family, dim, upper, volume, floor, draw_scale, true, rng)
+    sized_for_volume(
+        family, dim, upper, volume, floor, draw_scale, true, fit, rng,
+    )
 }
 
 /// [`build_volume`], with tubes widened away from their holes only when `widen`: a
@@ -268,6 +299,7 @@ fn sized_for_volume(
     floor: TubeFloor,
     draw_scale: bool,
     widen: bool,
+    fit: Fit,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Solid, Value)> {
     if let Family::Tentacled { object, tentacles } = family {
@@ -276,7 +308,7 @@ fn sized_for_volume(
         // A host without a hole is drawn as `build` draws it, and targeting's noise-led
         // growth makes a lumpy body of it.
         if draw_scale || !with_hole(object, floor) {
-            return build(family, dim, target, floor, rng);
+            return build(family, dim, target, floor, Fit::Ball, rng);
         }
         // A host with a hole, in the part of the room `build` gives it, carries the
         // volume; its tentacles add a little, which targeting takes off again. Where the
@@ -286,14 +318,32 @@ fn sized_for_volume(
         let (solid, params, placed) = if target - TENTACLE_ROOM >= host_minimum {
             let cap = (0.75 * target).min(target - TENTACLE_ROOM);
             let host_upper = uniform(rng, host_minimum, host_minimum.max(cap));
-            let (solid, params) =
-                sized_for_volume(object, dim, host_upper, volume, floor, false, false, rng)?;
+            let (solid, params) = sized_for_volume(
+                object,
+                dim,
+                host_upper,
+                volume,
+                floor,
+                false,
+                false,
+                Fit::Ball,
+                rng,
+            )?;
             let (solid, placed) = curves::add_tentacles(solid, dim, *tentacles, target, rng);
             (solid, params, placed)
         } else {
             let room = upper.max(host_minimum);
-            let (solid, params) =
-                sized_for_volume(object, dim, room, volume, floor, false, widen, rng)?;
+            let (solid, params) = sized_for_volume(
+                object,
+                dim,
+                room,
+                volume,
+                floor,
+                false,
+                widen,
+                Fit::Ball,
+                rng,
+            )?;
             (solid, params, 0)
         };
         return Some((
@@ -335,7 +385,7 @@ fn sized_for_volume(
             .map(Solid::Tube)
     };
     let extent = |tube: f64, grow: f64, stretch: f64| -> Option<f64> {
-        made(tube, grow, stretch).map(|s| s.extent())
+        made(tube, grow, stretch).map(|s| fit.reach(&s))
     };
     let base = extent(tube_min, 0.0, 1.0)?;
     if base > upper + 1e-9 {
@@ -518,6 +568,25 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
 
+    /// A 4D instance of `family` sized for `volume` within a ball of radius 11 (the room of
+    /// a side-24 image), widened or kept round, from `seed`.
+    fn sized_in_room_11(family: &Family, seed: u64, volume: f64, widen: bool) -> (Solid, Value) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let floor = TubeFloor::USUAL;
+        sized_for_volume(
+            family,
+            4,
+            11.0,
+            volume,
+            floor,
+            false,
+            widen,
+            Fit::Ball,
+            &mut rng,
+        )
+        .unwrap()
+    }
+
     /// An embedded 4D handle of 2-9% of a side-24 image: widened away from its hole it
     /// reaches the volume and keeps the hole open, where a round tube of that volume (what
     /// a tentacle's host still is) closes the hole towards its minimum.
@@ -527,21 +596,7 @@ mod tests {
         // the room's whole width).
         for (volume, keep) in [(8_000.0, 0), (15_000.0, 0), (24_000.0, 0), (30_000.0, 2)] {
             // The same draws, widened (as `build_volume` sizes it) or kept round.
-            let sized = |widen| {
-                let mut rng = ChaCha8Rng::seed_from_u64(1);
-                let floor = TubeFloor::USUAL;
-                sized_for_volume(
-                    &Family::Handle,
-                    4,
-                    11.0,
-                    volume,
-                    floor,
-                    false,
-                    widen,
-                    &mut rng,
-                )
-                .unwrap()
-            };
+            let sized = |widen| sized_in_room_11(&Family::Handle, 1, volume, widen);
             let (solid, params) = sized(true);
             assert!(solid.extent() <= 11.0 + 1e-9);
             assert!(params["stretch"].as_f64().unwrap() > 1.0, "{params}");
@@ -565,12 +620,7 @@ mod tests {
     #[test]
     fn embedded_bumpy_spheres_widen_their_tube_instead_of_closing_their_hole() {
         for (seed, volume) in [(1, 15_000.0), (2, 24_000.0), (3, 28_000.0)] {
-            let sized = |widen| {
-                let mut rng = ChaCha8Rng::seed_from_u64(seed);
-                let floor = TubeFloor::USUAL;
-                let family = Family::BumpyS2xB2;
-                sized_for_volume(&family, 4, 11.0, volume, floor, false, widen, &mut rng).unwrap()
-            };
+            let sized = |widen| sized_in_room_11(&Family::BumpyS2xB2, seed, volume, widen);
             let (solid, params) = sized(true);
             assert!(solid.extent() <= 11.0 + 1e-9);
             assert!(params["stretch"].as_f64().unwrap() > 1.0, "{params}");
@@ -603,9 +653,17 @@ mod tests {
             let (least, _) = tube_range(&family, TubeFloor::USUAL);
             for seed in 0..8 {
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
-                let (_, params) =
-                    build_volume(&family, 4, 11.0, 1_000.0, TubeFloor::USUAL, false, &mut rng)
-                        .unwrap();
+                let (_, params) = build_volume(
+                    &family,
+                    4,
+                    11.0,
+                    1_000.0,
+                    TubeFloor::USUAL,
+                    false,
+                    Fit::Ball,
+                    &mut rng,
+                )
+                .unwrap();
                 let tube = params["tube_radius"].as_f64().unwrap();
                 assert!(tube >= least, "{family:?}: {params}");
                 assert!(params["thickness"].as_f64().unwrap() > 0.0, "{params}");
@@ -624,7 +682,8 @@ mod tests {
             for seed in 0..8 {
                 let sized = |floor| {
                     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-                    build_volume(&family, 4, 11.0, volume, floor, false, &mut rng).unwrap()
+                    build_volume(&family, 4, 11.0, volume, floor, false, Fit::Ball, &mut rng)
+                        .unwrap()
                 };
                 let (solid, params) = sized(TubeFloor::USUAL);
                 let tube = params["tube_radius"].as_f64().unwrap();
@@ -687,6 +746,7 @@ mod tests {
                 15_000.0,
                 TubeFloor::USUAL,
                 false,
+                Fit::Ball,
                 &mut rng,
             )
             .unwrap()
@@ -713,6 +773,7 @@ mod tests {
             24_000.0,
             TubeFloor::USUAL,
             true,
+            Fit::Ball,
             &mut rng,
         )
         .unwrap();
