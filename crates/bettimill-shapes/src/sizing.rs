@@ -192,11 +192,14 @@ fn with_hole(family: &Family, floor: TubeFloor) -> bool {
 }
 
 /// The first axis along which `family`'s tube can widen away from its hole in dimension
-/// `dim`, if any: the third for a loop or a handle (whose skeleton lies, up to waves, in
-/// the plane of the first two), the fourth for a 2-sphere times a disk, round or bumpy.
+/// `dim`, if any: the third for a handle (whose circle lies in the plane of the first
+/// two), the fourth for a 2-sphere times a disk, round or bumpy. A loop keeps a round tube
+/// and puts its volume into its ring and tube: its class then holds both cross-sections,
+/// the handle's slab and the loop's round tube, rather than one shape a network could
+/// learn for the class.
 fn flattens(family: &Family, dim: usize) -> Option<usize> {
     match family {
-        Family::Handle | Family::Loop if dim >= 3 => Some(2),
+        Family::Handle if dim >= 3 => Some(2),
         Family::S2xB2 | Family::BumpyS2xB2 if dim == 4 => Some(3),
         _ => None,
     }
