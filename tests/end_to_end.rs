@@ -63,8 +63,8 @@ fn two_builds_of_the_demo_are_byte_identical() {
     );
 }
 
-/// The blake3 of the embedded demo manifest's `index.json` as version 0.11.0 writes it.
-const DEMO_INDEX_BLAKE3: &str = "2d3e33b89232489fdd9829abf9ca9f68114a8e4b5974e2fcf2d622c5d7112e2c";
+/// The blake3 of the embedded demo manifest's `index.json` as version 0.12.0 writes it.
+const DEMO_INDEX_BLAKE3: &str = "9ba2cf2afc062d7b3028c048484b76adb813d1c7fcf871b0947b115085473fa0";
 
 /// The dataset card opens with the YAML front matter the Hugging Face Hub reads, and each
 /// split's `data_files` pattern matches exactly that split's shards in index.json (so
