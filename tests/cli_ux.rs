@@ -687,7 +687,7 @@ fn the_committed_preview_figures_are_pngs() {
     for name in [
         "demo-2d-s000000.png",
         "demo-3d-s000006.png",
-        "demo-4d-s000007.png",
+        "demo-4d-s000004.png",
         "demo-3d-sheet.png",
         "demo-3d-stats.png",
     ] {

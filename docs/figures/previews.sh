@@ -16,7 +16,7 @@ for d in 2d 3d 4d; do
 done
 "$bin" preview "$work/demo-2d" --key s000000 --out "$out/previews/demo-2d-s000000.png" --quiet
 "$bin" preview "$work/demo-3d" --key s000006 --out "$out/previews/demo-3d-s000006.png" --quiet
-"$bin" preview "$work/demo-4d" --key s000007 --out "$out/previews/demo-4d-s000007.png" --quiet
+"$bin" preview "$work/demo-4d" --key s000004 --out "$out/previews/demo-4d-s000004.png" --quiet
 for d in 2d 3d 4d; do
   "$bin" preview "$work/demo-$d" --n 12 --out "$out/previews/demo-$d-sheet.png" --quiet
 done
