@@ -1,32 +1,34 @@
 use super::*;
 use rand::{Rng, SeedableRng};
 
+/// Every family the placement tests build, as manifests spell them.
+const FAMILIES: [&str; 15] = [
+    r#"{"family":"ball"}"#,
+    r#"{"family":"handle"}"#,
+    r#"{"family":"shell"}"#,
+    r#"{"family":"torus_shell"}"#,
+    r#"{"family":"handlebody","genus":2}"#,
+    r#"{"family":"curve"}"#,
+    r#"{"family":"loop"}"#,
+    r#"{"family":"knot","knot":"trefoil"}"#,
+    r#"{"family":"link","link":"hopf"}"#,
+    r#"{"family":"s2_x_b2"}"#,
+    r#"{"family":"bumpy_shell"}"#,
+    r#"{"family":"bumpy_s2_x_b2"}"#,
+    r#"{"family":"t2_x_b2"}"#,
+    r#"{"family":"connected_sum","g":1,"h":1,"i":1,"j":2}"#,
+    r#"{"family":"spun_knot","knot":"trefoil"}"#,
+];
+
 /// Clipping the scanned rows to each bounding ball keeps every voxel of every solid
 /// the library builds, rotated and placed at random, in every dimension.
 #[test]
 fn clipping_rows_to_the_ball_changes_no_voxel() {
-    let families = [
-        r#"{"family":"ball"}"#,
-        r#"{"family":"handle"}"#,
-        r#"{"family":"shell"}"#,
-        r#"{"family":"torus_shell"}"#,
-        r#"{"family":"handlebody","genus":2}"#,
-        r#"{"family":"curve"}"#,
-        r#"{"family":"loop"}"#,
-        r#"{"family":"knot","knot":"trefoil"}"#,
-        r#"{"family":"link","link":"hopf"}"#,
-        r#"{"family":"s2_x_b2"}"#,
-        r#"{"family":"bumpy_shell"}"#,
-        r#"{"family":"bumpy_s2_x_b2"}"#,
-        r#"{"family":"t2_x_b2"}"#,
-        r#"{"family":"connected_sum","g":1,"h":1,"i":1,"j":2}"#,
-        r#"{"family":"spun_knot","knot":"trefoil"}"#,
-    ];
     let mut rng = ChaCha8Rng::seed_from_u64(17);
     let side = 40usize;
     let region = Region::for_mode(side, Mode::Embed);
     let (mut built, mut voxels) = (0, 0);
-    for text in families {
+    for text in FAMILIES {
         let family: Family = serde_json::from_str(text).unwrap();
         for dim in 2..=4 {
             let Some(minimum) = min_extent(&family, dim, TubeFloor::USUAL) else {
@@ -73,22 +75,10 @@ fn clipping_rows_to_the_ball_changes_no_voxel() {
 /// out larger than one sized for the ball from the same draws.
 #[test]
 fn rotated_objects_stay_within_their_half_widths() {
-    let families = [
-        r#"{"family":"ball"}"#,
-        r#"{"family":"handle"}"#,
-        r#"{"family":"shell"}"#,
-        r#"{"family":"curve"}"#,
-        r#"{"family":"loop"}"#,
-        r#"{"family":"knot","knot":"trefoil"}"#,
-        r#"{"family":"s2_x_b2"}"#,
-        r#"{"family":"bumpy_shell"}"#,
-        r#"{"family":"bumpy_s2_x_b2"}"#,
-        r#"{"family":"t2_x_b2"}"#,
-    ];
     let mut rng = ChaCha8Rng::seed_from_u64(29);
     let side = 36usize;
     let (mut checked, mut ring_share) = (0, Vec::new());
-    for text in families {
+    for text in FAMILIES {
         let family: Family = serde_json::from_str(text).unwrap();
         for dim in 2..=4 {
             for _ in 0..6 {
