@@ -122,16 +122,7 @@ fn centre_within(dim: usize, lo: i64, hi: i64, widths: &[f64], rng: &mut ChaCha8
 /// Draws a centre so that the bounding ball of radius `extent` stays in `[lo, hi]` on
 /// every axis; `None` if it cannot.
 fn random_centre(dim: usize, lo: i64, hi: i64, extent: f64, rng: &mut ChaCha8Rng) -> Option<P> {
-    let low = lo as f64 + extent;
-    let high = hi as f64 - extent;
-    if low > high {
-        return None;
-    }
-    let mut centre = [0.0; 4];
-    for slot in centre.iter_mut().take(dim) {
-        *slot = uniform(rng, low, high);
-    }
-    Some(centre)
+    centre_within(dim, lo, hi, &[extent; 4], rng)
 }
 
 /// Flat indices (ascending) of the voxels whose centres lie in the placed solid, within
@@ -659,16 +650,7 @@ fn place_random(
             let Some((solid, params)) = built else {
                 continue;
             };
-            let widths: Vec<f64> = match fit {
-                Fit::Ball => vec![solid.extent(); dim],
-                Fit::Axes(..) => (0..dim)
-                    .map(|k| {
-                        solid
-                            .half_width(rotation.axis_in_local(k))
-                            .min(solid.extent())
-                    })
-                    .collect(),
-            };
+            let widths = fit.half_widths(&solid, dim);
             let Some(centre) = centre_within(dim, region.lo, region.hi, &widths, rng) else {
                 continue;
             };

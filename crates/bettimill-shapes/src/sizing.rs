@@ -29,13 +29,22 @@ pub(crate) enum Fit<'a> {
 }
 
 impl Fit<'_> {
+    /// The room `solid` needs about its centre along each of the first `dim` image axes.
+    pub(crate) fn half_widths(&self, solid: &Solid, dim: usize) -> Vec<f64> {
+        let extent = solid.extent();
+        match *self {
+            Fit::Ball => vec![extent; dim],
+            Fit::Axes(rotation, _) => (0..dim)
+                .map(|k| solid.half_width(rotation.axis_in_local(k)).min(extent))
+                .collect(),
+        }
+    }
+
+    /// The largest of its half-widths: what sizing compares with the room.
     pub(crate) fn reach(&self, solid: &Solid) -> f64 {
         match *self {
             Fit::Ball => solid.extent(),
-            Fit::Axes(rotation, dim) => (0..dim)
-                .map(|k| solid.half_width(rotation.axis_in_local(k)))
-                .fold(0.0, f64::max)
-                .min(solid.extent()),
+            Fit::Axes(_, dim) => self.half_widths(solid, dim).into_iter().fold(0.0, f64::max),
         }
     }
 }
