@@ -66,10 +66,12 @@ fn hash_ignores_comments_and_key_order() {
 #[test]
 fn a_class_that_never_fits_is_refused() {
     check_refused(
-        &GOOD.replace("side = 24", "side = 8"),
+        &GOOD
+            .replace("side = 24", "side = 8")
+            .replace("\"ball\"", "\"handle\""),
         "classes",
         10,
-        "class 1 (ball)",
+        "class 1 (handle)",
     );
 }
 

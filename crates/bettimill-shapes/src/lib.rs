@@ -19,8 +19,8 @@
 //! 2-sphere times a disk sized for a volume may thin its tube to one voxel of radius
 //! across its hole (widened back to two along the fourth axis), a small shell its wall to
 //! two voxels across, which no path of face neighbours crosses. Objects keep
-//! at least two background voxels to each other, to the border and (carve mode) to the
-//! cube's boundary.
+//! at least two background voxels to each other and (carve mode) to the cube's boundary,
+//! and (embed mode) one to the border.
 
 mod betti_class;
 mod curves;

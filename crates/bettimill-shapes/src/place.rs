@@ -26,9 +26,16 @@ use crate::{Family, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
-/// Background voxels kept between two objects, at least, and between an object and the
-/// border.
+/// Background voxels kept between two objects, at least, and between a cavity and the
+/// solid cube's boundary.
 pub(crate) const GAP: i64 = 2;
+
+/// Background layers kept between an object and the border in embed mode: the one layer
+/// deformations never touch (the simple-point test reads all 3^d neighbours). A wider
+/// border would only shrink the room: in a 4D image of side 24 a second layer costs a
+/// tenth of an object's reach, and a ring of a few percent of the image must then be a
+/// fat one with a narrow hole.
+pub(crate) const BORDER: i64 = 1;
 
 /// The widest gap a scene draws between its objects, in background voxels. Growth keeps
 /// the gap by reading every voxel within it of a voxel about to join near another part
@@ -58,13 +65,13 @@ pub(crate) struct Region {
 }
 
 impl Region {
-    /// Embed: two background layers to the border. Carve: the cube fills
+    /// Embed: [`BORDER`] background layers to the border. Carve: the cube fills
     /// `[CUBE_MARGIN, side - 1 - CUBE_MARGIN]` and cavities keep two cube layers to its
     /// boundary.
     pub(crate) fn for_mode(side: usize, mode: Mode) -> Region {
         let side = side as i64;
         let inset = match mode {
-            Mode::Embed => GAP,
+            Mode::Embed => BORDER,
             Mode::Carve => CUBE_MARGIN + GAP,
         };
         Region {
