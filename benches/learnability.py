@@ -79,7 +79,7 @@ On a shared 2-core machine the default run takes about 20 minutes with the three
 deformations, nearly all of it training (one torch thread; a training of 480 samples
 takes about a minute, a mix of 960 about two); the samples are made on 2 threads
 (``--threads``). ``--cache DIR`` keeps the made samples
-(``.npz`` per kind, named by the manifest's text and bettimill's version) for re-runs.
+(``.npz`` per kind, named by the manifest's text and bettimill's build) for re-runs.
 """
 
 import argparse
@@ -484,6 +484,14 @@ def independent_samples(count, mode, seed, classes, tries=400, matched=False):
 # ---------------------------------------------------------------- data sets
 
 
+def engine():
+    """bettimill's version and a digest of its compiled module: the identity of the code
+    that made the samples. A build between releases keeps the version string, so a key of
+    the version alone would hand it the samples of an older build."""
+    with open(bettimill._bettimill.__file__, "rb") as f:
+        return f"{bettimill.__version__} {hashlib.blake2b(f.read(), digest_size=8).hexdigest()}"
+
+
 def cached(cache, key, make):
     if cache is None:
         return make()
@@ -551,7 +559,7 @@ def kind_samples(name, recipe, args, classes, single, count, seed):
     side = "" if SIDE == 16 else f" side {SIDE}"
     accepted = []
     if name == "families":
-        key = f"families {bettimill.__version__} {args.mode} {count} {seed} {classes} {FAMILIES} {CHAIN} {BINS}{side}"
+        key = f"families {engine()} {args.mode} {count} {seed} {classes} {FAMILIES} {CHAIN} {BINS}{side}"
         if CLEARANCE is not None:
             key += f" clearance {CLEARANCE}"
         voxels, betti = cached(args.cache, key,
@@ -571,7 +579,7 @@ def kind_samples(name, recipe, args, classes, single, count, seed):
     else:
         deform, kind_bins = recipe
         text = manifest(deform, args.mode, count, seed, single, classes, kind_bins)
-        voxels, betti = cached(args.cache, f"{bettimill.__version__}\n{text}",
+        voxels, betti = cached(args.cache, f"{engine()}\n{text}",
                                lambda: plan_samples(text, count, args.threads))
     log(f"{name}: {count} samples in {time.perf_counter() - start:.1f} s"
         + (f", {accepted[0]:.0%} of the candidates accepted" if accepted else ""))
