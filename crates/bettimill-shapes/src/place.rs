@@ -102,6 +102,16 @@ pub(crate) struct Placed {
 }
 
 impl Placed {
+    /// A solid bounded on every axis (not a tunnel), turned by `rotation` about `centre`.
+    pub(crate) fn bounded(solid: Solid, rotation: Rotation, centre: P) -> Placed {
+        Placed {
+            solid,
+            rotation,
+            centre,
+            through_axes: Vec::new(),
+        }
+    }
+
     pub(crate) fn describe(&self, dim: usize) -> Value {
         json!({
             "centre": self.centre[..dim].iter().map(|&x| round6(x)).collect::<Vec<_>>(),
@@ -661,12 +671,7 @@ fn place_random(
             let Some(centre) = centre_within(dim, region.lo, region.hi, &widths, rng) else {
                 continue;
             };
-            let placed = Placed {
-                solid,
-                rotation,
-                centre,
-                through_axes: Vec::new(),
-            };
+            let placed = Placed::bounded(solid, rotation, centre);
             let Some(voxels) = rasterise_unless_blocked(
                 &placed,
                 dim,
@@ -823,12 +828,7 @@ pub(crate) fn place_objects(
             let high = hi[k] as f64 - extent;
             centre[k] = uniform(rng, low, high.max(low));
         }
-        let placed = Placed {
-            solid,
-            rotation,
-            centre,
-            through_axes: Vec::new(),
-        };
+        let placed = Placed::bounded(solid, rotation, centre);
         // The centre keeps the bounding ball inside the cell; clipping to the region
         // only guards the image border.
         let voxels = rasterise(&placed, dim, side, region.lo, region.hi);

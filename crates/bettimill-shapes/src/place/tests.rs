@@ -48,12 +48,7 @@ fn clipping_rows_to_the_ball_changes_no_voxel() {
                 else {
                     continue;
                 };
-                let placed = Placed {
-                    solid,
-                    rotation,
-                    centre,
-                    through_axes: Vec::new(),
-                };
+                let placed = Placed::bounded(solid, rotation, centre);
                 let (lo, hi) = (region.lo, region.hi);
                 let clipped = rasterise_clipped(&placed, dim, side, lo, hi, None, true);
                 let whole = rasterise_clipped(&placed, dim, side, lo, hi, None, false);
@@ -119,12 +114,7 @@ fn rotated_objects_stay_within_their_half_widths() {
                 }
                 let mut centre = [0.0; 4];
                 centre[..dim].fill((side as f64 - 1.0) / 2.0);
-                let placed = Placed {
-                    solid,
-                    rotation,
-                    centre,
-                    through_axes: Vec::new(),
-                };
+                let placed = Placed::bounded(solid, rotation, centre);
                 let voxels = rasterise(&placed, dim, side, 0, side as i64 - 1);
                 assert!(!voxels.is_empty(), "{text} {dim}D");
                 for v in voxels {
