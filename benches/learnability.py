@@ -60,7 +60,10 @@ every training and held-out kind, the share of each class answered right and the
 answer it gets most (which shapes a model misreads, and as what); ``--scales N`` trains
 nothing and prints, per kind and class, how wide the holes and gaps of N held-out samples
 are (the fewest Chebyshev dilations after which a Betti number is smaller) and how thin
-their parts (the fewest erosions that change them).
+their parts (the fewest erosions that change them); ``--min-closing K`` trains a single
+kind only on its samples whose closing scale is at least K (their narrowest hole or gap
+survives K - 1 dilations), taken from its training set and ``--extra`` more samples, the
+classes balanced; the held-out sets stay as made.
 
 Run by hand (not in CI), from the repository root, with bettimill and torch installed
 (``ci/python-env.sh`` makes a venv with torch; build the package into it with
@@ -713,6 +716,41 @@ def feature_scales(image, most=6):
     return tuple(found)
 
 
+def closing_at_least(image, label, least):
+    """Whether the narrowest hole or gap of `image` survives `least` - 1 Chebyshev
+    dilations (`feature_scales`' closing scale is at least `least`)."""
+    current = image.astype(bool)
+    for _ in range(least - 1):
+        current = chebyshev_step(current, True)
+        if any(n < o for n, o in zip(bettimill.betti(current.astype(np.uint8)), label)):
+            return False
+    return True
+
+
+def wide_training(name, voxels, betti, make, args):
+    """The training set of kind `name` with only samples whose closing scale is at least
+    --min-closing: from its own samples, then from --extra more made from another seed,
+    the first of each class in turn, classes balanced."""
+    # The classes in the order the training set takes them in turn.
+    classes = [list(c) for c in dict.fromkeys(tuple(int(x) for x in b) for b in betti)]
+    extra_voxels, extra_betti = make(name, args.extra, args.seed + 99)
+    pool_voxels = np.concatenate([voxels, extra_voxels])
+    pool_betti = np.concatenate([betti, extra_betti])
+    wide = np.array([closing_at_least(v, list(b), args.min_closing) for v, b in zip(pool_voxels, pool_betti)])
+    share = len(voxels) // len(classes)
+    picks = []
+    for c in classes:
+        found = np.flatnonzero((pool_betti == c).all(axis=1) & wide)
+        log(f"{name}: {len(found)} of {int((pool_betti == c).all(axis=1).sum())} samples of {c} "
+            f"have a closing scale of at least {args.min_closing}")
+        if len(found) < share:
+            sys.exit(f"--min-closing {args.min_closing}: {name} has {len(found)} wide samples of {c}, "
+                     f"the training needs {share}; make more with a larger --extra")
+        picks.append(found[:share])
+    order = np.array([picks[k][i] for i in range(share) for k in range(len(classes))])
+    return pool_voxels[order], pool_betti[order]
+
+
 def scales_table(data, count):
     """Per kind and class of the held-out samples: how many have closing (opening) scale
     1, 2, 3, 4 and more: the widths of their holes and gaps (and of their parts)."""
@@ -807,6 +845,12 @@ def main():
     parser.add_argument("--scales", type=int, metavar="N",
                         help="print the feature scales (widths of holes, gaps and parts) of the first N "
                              "held-out samples of each kind per class, and stop without training")
+    parser.add_argument("--min-closing", type=int, metavar="K",
+                        help="train only on samples whose narrowest hole or gap survives K - 1 "
+                             "dilations (closing scale at least K), drawn from the training set and "
+                             "--extra more; held-out sets stay as made")
+    parser.add_argument("--extra", type=int, default=7000,
+                        help="samples made besides a kind's training set for --min-closing to draw from")
     parser.add_argument("--confusion", action="store_true",
                         help="print each training's score per true class on every held-out kind")
     args = parser.parse_args()
@@ -859,6 +903,8 @@ def main():
         # repeat r adds r * 1000 (repeat 0 is the single run's training).
         number = int.from_bytes(hashlib.blake2b(name.encode(), digest_size=4).digest(), "little")
         voxels, betti = (data[name][0], data[name][1]) if len(kinds) == 1 else mix(data, kinds, args.mix)
+        if args.min_closing and len(kinds) == 1:
+            voxels, betti = wide_training(name, voxels, betti, make, args)
         schedule = args
         if args.fresh and len(kinds) == 1:
             voxels, betti = make(name, args.train * args.epochs, args.seed + 1)
@@ -887,7 +933,9 @@ def main():
           f"BettiNet4d width {args.width}"
           + ("; a single kind's training sees each of its samples once" if args.fresh else "")
           + ("; each batch in a random symmetry of the cube" if args.augment else "")
-          + (f"; bettimill's manifests with `clearance = {CLEARANCE}`" if CLEARANCE else "") + ").\n")
+          + (f"; bettimill's manifests with `clearance = {CLEARANCE}`" if CLEARANCE else "")
+          + (f"; a single kind's training keeps samples of closing scale {args.min_closing} and up"
+             if args.min_closing else "") + ").\n")
     trainings = args.repeats - args.first_repeat
     print("| trained on | samples | " + " | ".join(f"held-out {k}" for k in columns) + " | training s |")
     print("|---|---|" + "---|" * len(columns) + "---|")
