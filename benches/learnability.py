@@ -856,6 +856,10 @@ def main():
     args = parser.parse_args()
     if not 0 <= args.first_repeat < args.repeats:
         parser.error(f"--first-repeat {args.first_repeat} must be at least 0 and below --repeats {args.repeats}")
+    if args.min_closing is not None and args.min_closing < 2:
+        parser.error(f"--min-closing {args.min_closing}: every sample has a closing scale of at least 1; ask for 2 or more")
+    if args.min_closing and args.fresh:
+        parser.error("--min-closing picks from a kind's training set and --fresh replaces that set: use one of them")
     global SIDE, CLEARANCE
     SIDE = args.side
     CLEARANCE = args.clearance
