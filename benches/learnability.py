@@ -703,28 +703,26 @@ def feature_scales(image, most=6):
     wide."""
     shape = image.astype(bool)
     label = bettimill.betti(shape.astype(np.uint8))
-    found = []
-    for grow in (True, False):
-        current, scale = shape, most + 1
-        for k in range(1, most + 1):
-            current = chebyshev_step(current, grow)
-            now = bettimill.betti(current.astype(np.uint8))
-            if (any(n < o for n, o in zip(now, label)) if grow else now != label):
-                scale = k
-                break
-        found.append(scale)
-    return tuple(found)
+    return steps_to_change(shape, label, True, most), steps_to_change(shape, label, False, most)
+
+
+def steps_to_change(shape, label, grow, most):
+    """The fewest Chebyshev dilations (`grow`) or erosions of `shape`, at most `most`, after
+    which its Betti numbers (`label`) have one smaller (dilations) or differ (erosions);
+    `most` + 1 when none does."""
+    current = shape
+    for k in range(1, most + 1):
+        current = chebyshev_step(current, grow)
+        now = bettimill.betti(current.astype(np.uint8))
+        if (any(n < o for n, o in zip(now, label)) if grow else now != label):
+            return k
+    return most + 1
 
 
 def closing_at_least(image, label, least):
     """Whether the narrowest hole or gap of `image` survives `least` - 1 Chebyshev
     dilations (`feature_scales`' closing scale is at least `least`)."""
-    current = image.astype(bool)
-    for _ in range(least - 1):
-        current = chebyshev_step(current, True)
-        if any(n < o for n, o in zip(bettimill.betti(current.astype(np.uint8)), label)):
-            return False
-    return True
+    return steps_to_change(image.astype(bool), label, True, least - 1) >= least
 
 
 def wide_training(name, voxels, betti, make, args):
