@@ -329,7 +329,7 @@ pub fn show(
         let thick: Vec<f64> = carved
             .clone()
             .map(|s| s.tube_floor)
-            .filter(|&floor| floor != TubeFloor::USUAL)
+            .filter(|&floor| floor.thickens())
             .map(TubeFloor::radius)
             .collect();
         if let Some(radius) = thick.first() {

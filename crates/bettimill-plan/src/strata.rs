@@ -102,9 +102,10 @@ pub(crate) fn strata(
                 // (the copies then record honestly whether they kept the topology).
                 let floor = tube_floor_for(manifest, mode);
                 let (tube_floor, fits) = match family.check_fits_with(dim, side, mode, floor) {
-                    Err(_) if floor != TubeFloor::USUAL => {
-                        (TubeFloor::USUAL, family.check_fits(dim, side, mode))
-                    }
+                    Err(_) if floor.thickens() => (
+                        floor.thin(),
+                        family.check_fits_with(dim, side, mode, floor.thin()),
+                    ),
                     fits => (floor, fits),
                 };
                 let checked = family
@@ -201,7 +202,7 @@ pub(crate) fn reach_in(dim: Dim, side: u32, solid: Solid, stratum: &Stratum) -> 
     let smallest_radius =
         stratum
             .family
-            .smallest_object_radius(dim, stratum.mode, TubeFloor::USUAL);
+            .smallest_object_radius(dim, stratum.mode, stratum.tube_floor.thin());
     // A scene's holes are its objects' own, each at its own size, and a Betti class's
     // those of the construction it is built as.
     let parts = match objects(&stratum.family, dim, stratum.mode) {
@@ -211,7 +212,7 @@ pub(crate) fn reach_in(dim: Dim, side: u32, solid: Solid, stratum: &Stratum) -> 
                 betti: object
                     .expected_betti(dim, Mode::Embed)
                     .unwrap_or_else(|_| vec![1]),
-                radius: object.smallest_object_radius(dim, stratum.mode, TubeFloor::USUAL),
+                radius: object.smallest_object_radius(dim, stratum.mode, stratum.tube_floor.thin()),
                 shape: part_shape(object, dim),
             })
             .collect(),

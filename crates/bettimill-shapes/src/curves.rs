@@ -9,9 +9,7 @@
 //! `sigma * (2r + INNER_GAP)` for a constant `sigma` per curve, computed once by a sweep
 //! over "forbidden scale intervals" of all point pairs and cached.
 
-use crate::geometry::{
-    add, dot, gcd, norm, scale, sub, uniform, Piece, Solid, INNER_GAP, P, TUBE_MIN,
-};
+use crate::geometry::{add, dot, gcd, norm, scale, sub, uniform, Piece, Solid, P, TUBE_MIN};
 use crate::{KnotKind, LinkKind};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
@@ -22,11 +20,11 @@ use std::sync::{Mutex, OnceLock};
 /// graph never meets itself, and bounding its curvature by 1 / (tube + INNER_GAP / 2)
 /// keeps the tube from folding onto itself, so the solid is a ball up to homotopy.
 /// `shares` (which sum to 1) supply its random amplitudes and phases.
-pub(crate) fn open_curve(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> Solid {
+pub(crate) fn open_curve(dim: usize, tube: f64, grow: f64, shares: &[f64], gap: f64) -> Solid {
     let count = shares.len() as f64;
     let random = |k: usize| shares[k % shares.len()] * count;
     let half = tube + grow * (0.5 + 0.25 * random(0));
-    let max_curvature = 1.0 / (tube + INNER_GAP / 2.0);
+    let max_curvature = 1.0 / (tube + gap / 2.0);
     let mut amplitude = [0.0; 4];
     let mut frequency = [0.0; 4];
     let mut phase = [0.0; 4];
@@ -69,10 +67,10 @@ const LOOP_SPACING: f64 = 0.75;
 /// draw would bring two far-apart stretches of the tube within INNER_GAP (or bend it
 /// tighter than the tube), the waves are halved until it does not; without waves it is the
 /// handle's circle, which is clear.
-pub(crate) fn wavy_loop(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> Solid {
+pub(crate) fn wavy_loop(dim: usize, tube: f64, grow: f64, shares: &[f64], gap: f64) -> Solid {
     let count = shares.len() as f64;
     let random = |k: usize| shares[k % shares.len()] * count;
-    let radius = tube + INNER_GAP / 2.0 + grow;
+    let radius = tube + gap / 2.0 + grow;
     // Lobes in the plane (2 or 3 of them), a squeeze of one in-plane axis, and one wave per
     // further axis (1 to 3 periods around the loop).
     // Each choice reads its own share: 0-3 the lobes and the squeeze, 4-5 the waves'
@@ -111,7 +109,7 @@ pub(crate) fn wavy_loop(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> Sol
             p
         });
         // The round circle is the handle's, clear by construction.
-        if damp == 0.0 || round || clear_at(&points, tube) {
+        if damp == 0.0 || round || clear_at(&points, tube, gap) {
             return Solid::Tube(vec![(Piece::polyline(points, true), tube)]);
         }
         // Eight halvings leave waves well under a voxel; then the plain circle.
@@ -121,8 +119,8 @@ pub(crate) fn wavy_loop(dim: usize, tube: f64, grow: f64, shares: &[f64]) -> Sol
 
 /// Whether a tube of radius `tube` around the closed polyline `points` (at its own scale)
 /// meets the two conditions of the module documentation.
-fn clear_at(points: &[P], tube: f64) -> bool {
-    let gap = need(tube);
+fn clear_at(points: &[P], tube: f64, gap: f64) -> bool {
+    let gap = need(tube, gap);
     let n = points.len();
     let bends = (0..n).all(|k| {
         circumradius(points[(k + n - 1) % n], points[k], points[(k + 1) % n]) >= gap / 2.0
@@ -366,12 +364,12 @@ fn curves_with_sigma(key: CurveKey) -> (CurveSet, f64) {
     (set, sigma)
 }
 
-fn need(tube: f64) -> f64 {
-    2.0 * tube + INNER_GAP
+fn need(tube: f64, gap: f64) -> f64 {
+    2.0 * tube + gap
 }
 
 /// The curves scaled to the smallest admissible size plus `grow` voxels of extent.
-fn scaled(key: CurveKey, tube: f64, grow: f64) -> Vec<Vec<P>> {
+fn scaled(key: CurveKey, tube: f64, grow: f64, gap: f64) -> Vec<Vec<P>> {
     let (set, sigma) = curves_with_sigma(key);
     let reach = set
         .components
@@ -379,7 +377,7 @@ fn scaled(key: CurveKey, tube: f64, grow: f64) -> Vec<Vec<P>> {
         .flatten()
         .map(|&p| norm(p))
         .fold(0.0, f64::max);
-    let factor = sigma * need(tube) + grow / reach;
+    let factor = sigma * need(tube, gap) + grow / reach;
     set.components
         .into_iter()
         .map(|c| c.into_iter().map(|p| scale(p, factor)).collect())
@@ -397,28 +395,50 @@ fn tube_of(components: Vec<Vec<P>>, tube: f64) -> Solid {
 
 /// A knotted solid torus (3D) or the knot thickened in 4D, which is homeomorphic to
 /// knot x B2 x I.
-pub(crate) fn knot_solid(knot: KnotKind, _dim: usize, tube: f64, grow: f64) -> Option<Solid> {
-    Some(tube_of(scaled(CurveKey::Knot(knot), tube, grow), tube))
+pub(crate) fn knot_solid(
+    knot: KnotKind,
+    _dim: usize,
+    tube: f64,
+    grow: f64,
+    gap: f64,
+) -> Option<Solid> {
+    Some(tube_of(scaled(CurveKey::Knot(knot), tube, grow, gap), tube))
 }
 
-pub(crate) fn torus_knot_solid(p: u32, q: u32, _dim: usize, tube: f64, grow: f64) -> Option<Solid> {
-    Some(tube_of(scaled(CurveKey::Torus(p, q), tube, grow), tube))
+pub(crate) fn torus_knot_solid(
+    p: u32,
+    q: u32,
+    _dim: usize,
+    tube: f64,
+    grow: f64,
+    gap: f64,
+) -> Option<Solid> {
+    Some(tube_of(
+        scaled(CurveKey::Torus(p, q), tube, grow, gap),
+        tube,
+    ))
 }
 
-pub(crate) fn link_solid(link: LinkKind, _dim: usize, tube: f64, grow: f64) -> Option<Solid> {
-    Some(tube_of(scaled(CurveKey::Link(link), tube, grow), tube))
+pub(crate) fn link_solid(
+    link: LinkKind,
+    _dim: usize,
+    tube: f64,
+    grow: f64,
+    gap: f64,
+) -> Option<Solid> {
+    Some(tube_of(scaled(CurveKey::Link(link), tube, grow, gap), tube))
 }
 
 /// Moves curves into the meridian half-space x0 >= tube + INNER_GAP / 2 (so the spun
 /// copies stay apart across the axis) and spins them: each component becomes a torus.
-pub(crate) fn spun_link_solid(link: LinkKind, tube: f64, grow: f64) -> Option<Solid> {
-    let components = scaled(CurveKey::Link(link), tube, grow);
+pub(crate) fn spun_link_solid(link: LinkKind, tube: f64, grow: f64, gap: f64) -> Option<Solid> {
+    let components = scaled(CurveKey::Link(link), tube, grow, gap);
     let low = components
         .iter()
         .flatten()
         .map(|p| p[0])
         .fold(f64::INFINITY, f64::min);
-    let shift = tube + INNER_GAP / 2.0 - low;
+    let shift = tube + gap / 2.0 - low;
     let inner: Vec<Piece> = components
         .into_iter()
         .map(|c| {
@@ -443,11 +463,12 @@ pub(crate) fn spun_link_solid(link: LinkKind, tube: f64, grow: f64) -> Option<So
 /// to the plane x0 = 0, and spin the resulting knotted arc: a knotted 2-sphere. The cut
 /// widens until the two straight ends are a full gap apart and clear of the rest of the
 /// arc; if no cut works at the smallest scale, the scale grows.
-pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64) -> Option<Solid> {
-    let gap = need(tube);
+pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64, gap: f64) -> Option<Solid> {
+    let inner_gap = gap;
+    let gap = need(tube, gap);
     for attempt in 0..24 {
         let extra = grow + attempt as f64 * 0.5 * tube;
-        let comp = scaled(CurveKey::Knot(knot), tube, extra).remove(0);
+        let comp = scaled(CurveKey::Knot(knot), tube, extra, inner_gap).remove(0);
         let n = comp.len();
         let leftmost = (0..n)
             .min_by(|&a, &b| comp[a][0].total_cmp(&comp[b][0]))
@@ -468,7 +489,7 @@ pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64) -> Option<So
                 continue;
             }
             let low = kept.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min);
-            let shift = tube + INNER_GAP / 2.0 - low;
+            let shift = tube + inner_gap / 2.0 - low;
             let kept: Vec<P> = kept
                 .into_iter()
                 .map(|p| add(p, [shift, 0.0, 0.0, 0.0]))
@@ -530,6 +551,7 @@ pub(crate) fn add_tentacles(
     dim: usize,
     count: u32,
     target: f64,
+    gap: f64,
     rng: &mut ChaCha8Rng,
 ) -> (Solid, u32) {
     let Solid::Tube(mut parts) = solid else {
@@ -558,7 +580,7 @@ pub(crate) fn add_tentacles(
                 .copied()
                 .max_by(|a, b| dot(a.0, direction).total_cmp(&dot(b.0, direction)))
                 .unwrap_or(samples[0]);
-            let clearance = host_radius + radius + INNER_GAP + 0.5;
+            let clearance = host_radius + radius + gap + 0.5;
             let length = uniform(rng, clearance + 3.0, clearance + 16.0);
             let mut points = vec![root];
             let mut heading = direction;
@@ -590,9 +612,9 @@ pub(crate) fn add_tentacles(
             // host sample that is not near the root, and to earlier tentacles.
             let far_from_root = |q: P, s: P| norm(sub(q, s)) >= clearance;
             let host_ok = points.iter().all(|&q| {
-                samples.iter().all(|&(x, r)| {
-                    !far_from_root(x, root) || norm(sub(q, x)) >= r + radius + INNER_GAP
-                })
+                samples
+                    .iter()
+                    .all(|&(x, r)| !far_from_root(x, root) || norm(sub(q, x)) >= r + radius + gap)
             });
             // Two tentacles may only come close where both are still inside the host:
             // meeting outside it, even near their roots, closes a loop through the host
@@ -603,7 +625,7 @@ pub(crate) fn add_tentacles(
                 points.iter().all(|&q| {
                     other.iter().all(|&x| {
                         (inside_host(q, root) && inside_host(x, *other_root))
-                            || norm(sub(q, x)) >= 2.0 * (TUBE_MIN + 0.5) + INNER_GAP
+                            || norm(sub(q, x)) >= 2.0 * (TUBE_MIN + 0.5) + gap
                     })
                 })
             });
@@ -635,6 +657,7 @@ fn random_unit(dim: usize, rng: &mut ChaCha8Rng) -> P {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::INNER_GAP;
 
     /// Linking number of two closed polylines by the discrete Gauss integral.
     fn linking_number(a: &[P], b: &[P]) -> f64 {
@@ -684,12 +707,12 @@ mod tests {
             let (set, sigma) = curves_with_sigma(key);
             assert!(sigma.is_finite() && sigma > 0.0, "{key:?}");
             // At the admissible scale different components keep the full gap.
-            let comps = scaled(key, 2.0, 0.0);
+            let comps = scaled(key, 2.0, 0.0, INNER_GAP);
             for (i, a) in comps.iter().enumerate() {
                 for b in &comps[i + 1..] {
                     for &p in a {
                         for &q in b {
-                            assert!(norm(sub(p, q)) >= need(2.0) - 1e-9);
+                            assert!(norm(sub(p, q)) >= need(2.0, INNER_GAP) - 1e-9);
                         }
                     }
                 }

@@ -272,10 +272,10 @@ pub(crate) fn generate_for(
     // millions of flips to come down to the bin.
     let mut floor = floor;
     let in_box = match placement(region, volume, floor, rng) {
-        Err(_) if binned_carve && floor != TubeFloor::USUAL => {
-            let thin = placement(region, volume, TubeFloor::USUAL, rng);
+        Err(_) if binned_carve && floor.thickens() => {
+            let thin = placement(region, volume, floor.thin(), rng);
             if thin.is_ok() {
-                floor = TubeFloor::USUAL;
+                floor = floor.thin();
             }
             thin
         }
@@ -341,7 +341,7 @@ pub(crate) fn generate_for(
             json!(if mode == Mode::Carve { CUBE_MARGIN } else { 0 }),
         ),
     ];
-    if floor != TubeFloor::USUAL {
+    if floor.thickens() {
         entries.push(("tube_floor", json!(round6(floor.radius()))));
     }
     if let Some(target) = foreground {

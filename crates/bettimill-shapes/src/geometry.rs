@@ -31,14 +31,22 @@ pub(crate) const TUBE_MIN: f64 = 2.0;
 /// Smallest half-thickness of a shell.
 pub(crate) const SHELL_MIN: f64 = 1.5;
 /// Smallest gap between surfaces of two parts of one object that must not touch.
-pub(crate) const INNER_GAP: f64 = 2.5;
+pub(crate) const INNER_GAP: f64 = bettimill_types::MIN_INNER_GAP;
 
 /// The thinnest tube (or shell half-thickness, or ball radius) a construction may have:
 /// [`TubeFloor::USUAL`] (the labels note's 2 voxels), or thicker so that a max-pooled
 /// downscaled copy keeps the construction's topology ([`TubeFloor::for_copies`]). Where a
 /// family's own range starts higher, its range is kept.
+///
+/// It also carries the narrowest gap between two parts of one object that must stay
+/// apart (across a hole, inside a shell, between strands): `INNER_GAP` = 2.5 voxels
+/// unless a manifest asks for wider ([`TubeFloor::with_gap`]). The two floors travel
+/// together because every construction is sized from both.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TubeFloor(f64);
+pub struct TubeFloor {
+    tube: f64,
+    gap: f64,
+}
 
 impl Default for TubeFloor {
     fn default() -> TubeFloor {
@@ -49,7 +57,10 @@ impl Default for TubeFloor {
 impl TubeFloor {
     /// Tubes of radius at least 2 voxels (shells 1.5): every construction's minimum, but
     /// for small instances sized for a volume (`sizing`'s thin tubes).
-    pub const USUAL: TubeFloor = TubeFloor(TUBE_MIN);
+    pub const USUAL: TubeFloor = TubeFloor {
+        tube: TUBE_MIN,
+        gap: INNER_GAP,
+    };
 
     /// The floor for a sample whose copies are max-pooled by `factor` (a block of
     /// `factor^d` voxels is foreground when any of its voxels is): a cavity survives in the
@@ -63,21 +74,53 @@ impl TubeFloor {
     pub fn for_copies(dim: Dim, factor: usize) -> TubeFloor {
         let d = dim.get() as f64;
         let radius = (2.0 * factor as f64 - 1.0) * libm::sqrt(d) / 2.0;
-        TubeFloor(radius.max(TUBE_MIN))
+        TubeFloor {
+            tube: radius.max(TUBE_MIN),
+            gap: INNER_GAP,
+        }
+    }
+
+    /// This floor with gaps at least `gap` voxels wide (never below `INNER_GAP`): holes,
+    /// the insides of shells and the space between strands are built that wide, so that
+    /// they survive dilations a narrower gap would not.
+    pub fn with_gap(self, gap: f64) -> TubeFloor {
+        TubeFloor {
+            gap: gap.max(INNER_GAP),
+            ..self
+        }
+    }
+
+    /// This floor with the usual tubes and the same gaps: what a stratum falls back to
+    /// where thicker tubes do not fit.
+    pub fn thin(self) -> TubeFloor {
+        TubeFloor {
+            tube: TUBE_MIN,
+            ..self
+        }
+    }
+
+    /// Whether tubes are raised above the usual 2 voxels.
+    pub fn thickens(self) -> bool {
+        self.tube > TUBE_MIN
+    }
+
+    /// The narrowest gap between parts of one object that must stay apart, in voxels.
+    pub fn gap(self) -> f64 {
+        self.gap
     }
 
     /// The least tube radius, in voxels.
     pub fn radius(self) -> f64 {
-        self.0
+        self.tube
     }
 
     /// A family's `(minimum, cap)` tube range raised to this floor. The usual floor leaves
     /// every range as it is (shells keep their 1.5-voxel half-thickness).
     pub(crate) fn raise(self, (minimum, cap): (f64, f64)) -> (f64, f64) {
-        if self == TubeFloor::USUAL {
+        if !self.thickens() {
             return (minimum, cap);
         }
-        (minimum.max(self.0), cap.max(self.0))
+        (minimum.max(self.tube), cap.max(self.tube))
     }
 }
 

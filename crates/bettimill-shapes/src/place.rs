@@ -659,7 +659,7 @@ fn place_random(
                     let target = if at_minimum {
                         minimum
                     } else {
-                        draw_target(object, minimum, upper, rng)
+                        draw_target(object, minimum, upper, floor, rng)
                     };
                     build(object, dim, target, floor, fit, rng)
                 }
@@ -810,7 +810,7 @@ pub(crate) fn place_objects(
             rest /= per_axis;
         }
         let (lo, hi) = grid_cell(region, per_axis, cell, dim);
-        let target = draw_target(object, minimum, cell_budget.max(minimum), rng);
+        let target = draw_target(object, minimum, cell_budget.max(minimum), floor, rng);
         let (solid, params) = build(object, dim, target, floor, Fit::Ball, rng)
             .or_else(|| build(object, dim, minimum, floor, Fit::Ball, rng))
             .ok_or_else(|| ShapeError::DoesNotFit {

@@ -10,7 +10,7 @@
 
 use crate::curves;
 use crate::geometry::{
-    add, axis, uniform, Piece, Solid, TubeFloor, INNER_GAP, ORIGIN, P, SHELL_MIN, TUBE_MIN,
+    add, axis, uniform, Piece, Solid, TubeFloor, ORIGIN, P, SHELL_MIN, TUBE_MIN,
 };
 use crate::labels::tunnel_cycles;
 use crate::Family;
@@ -39,8 +39,8 @@ impl Shares {
 /// meet beside the bar in a cusp-shaped notch, and a digitised cusp can pinch off a
 /// background voxel: an extra hole (seen in 1 of 20 2D scenes with bars of length 1).
 /// With this length the notch beside the bar is at least `INNER_GAP` wide.
-fn bar_min(tube: f64) -> f64 {
-    2.0 * tube + INNER_GAP
+fn bar_min(tube: f64, gap: f64) -> f64 {
+    2.0 * tube + gap
 }
 
 /// A row of `count` circles of radius `radius` in the (x0, x1)-plane along x0, centred on
@@ -82,9 +82,16 @@ fn circle_row_half(count: u32, radius: f64, bar: f64) -> f64 {
 /// S1 x (boundary sum of j thickened circles): a circle row in the meridian half-space,
 /// kept `tube + INNER_GAP / 2` away from the spinning axis, spun about x0 = x1 = 0 and
 /// moved to `centre`. Returns the pieces and the largest spun radius of the skeleton.
-fn spun_row(j: u32, radius: f64, bar: f64, tube: f64, axis_gap: f64, centre: P) -> (Piece, f64) {
+fn spun_row(
+    j: u32,
+    radius: f64,
+    bar: f64,
+    (tube, gap): (f64, f64),
+    axis_gap: f64,
+    centre: P,
+) -> (Piece, f64) {
     let half = circle_row_half(j, radius, bar);
-    let shift = tube + INNER_GAP / 2.0 + axis_gap + half;
+    let shift = tube + gap / 2.0 + axis_gap + half;
     let inner: Vec<Piece> = circle_row(j, radius, bar, tube)
         .into_iter()
         .map(|(piece, _)| translate(piece, [shift, 0.0, 0.0, 0.0]))
@@ -231,11 +238,12 @@ fn connected_sum(
     tube: f64,
     grow: f64,
     shares: &Shares,
+    gap: f64,
 ) -> Vec<(Piece, f64)> {
     let n = (g + h + i) as f64;
     // Shares: 0 = hole sizes, 1 = bars, 2 = spun offsets.
-    let radius = tube + INNER_GAP / 2.0 + shares.get(0) * grow / n;
-    let bar = bar_min(tube) + shares.get(1) * grow / n.max(1.0);
+    let radius = tube + gap / 2.0 + shares.get(0) * grow / n;
+    let bar = bar_min(tube, gap) + shares.get(1) * grow / n.max(1.0);
     let axis_gap = shares.get(2) * grow / n;
     // Summand kinds in a fixed order: g circles, h spheres, i spun rows.
     let mut kinds = Vec::new();
@@ -246,7 +254,8 @@ fn connected_sum(
         match kind {
             0 | 1 => radius,
             _ => {
-                let (_, reach) = spun_row(j, radius, bar_min(tube), tube, axis_gap, ORIGIN);
+                let (_, reach) =
+                    spun_row(j, radius, bar_min(tube, gap), (tube, gap), axis_gap, ORIGIN);
                 reach
             }
         }
@@ -271,7 +280,7 @@ fn connected_sum(
                 radius,
                 axes: 3.min(dim),
             },
-            _ => spun_row(j, radius, bar_min(tube), tube, axis_gap, centre).0,
+            _ => spun_row(j, radius, bar_min(tube, gap), (tube, gap), axis_gap, centre).0,
         };
         out.push((piece, tube));
         x += 2.0 * half;
@@ -325,8 +334,9 @@ pub(crate) fn make(
     tube: f64,
     grow: f64,
     shares: &Shares,
+    gap: f64,
 ) -> Option<Solid> {
-    let hole = tube + INNER_GAP / 2.0;
+    let hole = tube + gap / 2.0;
     Some(match family {
         Family::Ball => Solid::Tube(vec![(Piece::Point(ORIGIN), tube + grow)]),
         Family::Handle => Solid::Tube(vec![(
@@ -378,7 +388,7 @@ pub(crate) fn make(
         Family::Handlebody { genus } => Solid::Tube(circle_row(
             *genus,
             hole + shares.get(0) * grow / *genus as f64,
-            bar_min(tube) + shares.get(1) * grow / (*genus as f64),
+            bar_min(tube, gap) + shares.get(1) * grow / (*genus as f64),
             tube,
         )),
         Family::S2xB2 => Solid::Tube(vec![(
@@ -405,16 +415,21 @@ pub(crate) fn make(
             let (piece, _) = spun_row(
                 *j,
                 hole + shares.get(0) * grow / *j as f64,
-                bar_min(tube) + shares.get(1) * grow / *j as f64,
-                tube,
+                bar_min(tube, gap) + shares.get(1) * grow / *j as f64,
+                (tube, gap),
                 shares.get(2) * grow,
                 ORIGIN,
             );
             Solid::Tube(vec![(piece, tube)])
         }
-        Family::ConnectedSum { g, h, i, j } => {
-            Solid::Tube(connected_sum((*g, *h, *i, *j), dim, tube, grow, shares))
-        }
+        Family::ConnectedSum { g, h, i, j } => Solid::Tube(connected_sum(
+            (*g, *h, *i, *j),
+            dim,
+            tube,
+            grow,
+            shares,
+            gap,
+        )),
         Family::Tunnel { intervals, .. } => {
             let keep = dim - *intervals as usize;
             let cycles = tunnel_cycles(family);
@@ -422,7 +437,7 @@ pub(crate) fn make(
                 circle_row(
                     cycles,
                     hole + shares.get(0) * grow / cycles as f64,
-                    bar_min(tube) + (1.0 - shares.get(0)) * grow / cycles as f64,
+                    bar_min(tube, gap) + (1.0 - shares.get(0)) * grow / cycles as f64,
                     tube,
                 )
             } else {
@@ -443,13 +458,13 @@ pub(crate) fn make(
                     .collect(),
             )
         }
-        Family::Curve => curves::open_curve(dim, tube, grow, &shares.0),
-        Family::Loop => curves::wavy_loop(dim, tube, grow, &shares.0),
-        Family::Knot { knot } => curves::knot_solid(*knot, dim, tube, grow)?,
-        Family::TorusKnot { p, q } => curves::torus_knot_solid(*p, *q, dim, tube, grow)?,
-        Family::Link { link } => curves::link_solid(*link, dim, tube, grow)?,
-        Family::SpunKnot { knot } => curves::spun_knot_solid(*knot, tube, grow)?,
-        Family::SpunLink { link } => curves::spun_link_solid(*link, tube, grow)?,
+        Family::Curve => curves::open_curve(dim, tube, grow, &shares.0, gap),
+        Family::Loop => curves::wavy_loop(dim, tube, grow, &shares.0, gap),
+        Family::Knot { knot } => curves::knot_solid(*knot, dim, tube, grow, gap)?,
+        Family::TorusKnot { p, q } => curves::torus_knot_solid(*p, *q, dim, tube, grow, gap)?,
+        Family::Link { link } => curves::link_solid(*link, dim, tube, grow, gap)?,
+        Family::SpunKnot { knot } => curves::spun_knot_solid(*knot, tube, grow, gap)?,
+        Family::SpunLink { link } => curves::spun_link_solid(*link, tube, grow, gap)?,
         // Composite families are built from their parts, and a Betti class from its
         // realisation, never by this function.
         Family::Tentacled { .. } | Family::Scene { .. } | Family::Betti { .. } => return None,

@@ -8,7 +8,7 @@
 //! here, in the room the host leaves.
 
 use crate::curves;
-use crate::geometry::{round6, uniform, Piece, Solid, TubeFloor, INNER_GAP, TUBE_MIN};
+use crate::geometry::{round6, uniform, Piece, Solid, TubeFloor, TUBE_MIN};
 use crate::recipes::{make, share_count, tube_range, Shares};
 use crate::rotation::Rotation;
 use crate::Family;
@@ -52,7 +52,9 @@ impl Fit<'_> {
 /// Room a tentacle needs beyond its host's extent: the gap and two steps past the host's
 /// tube (`curves::add_tentacles`) plus its own radius, each tentacle radius at most
 /// TUBE_MIN + 0.5.
-const TENTACLE_ROOM: f64 = 2.0 * (TUBE_MIN + 0.5) + INNER_GAP + 0.5 + 2.5;
+fn tentacle_room(floor: TubeFloor) -> f64 {
+    2.0 * (TUBE_MIN + 0.5) + floor.gap() + 0.5 + 2.5
+}
 
 /// The smallest bounding radius of one object of the family with tubes at least `floor`
 /// (tentacles need none extra: they are added only where space remains; see
@@ -64,16 +66,23 @@ pub(crate) fn min_extent(family: &Family, dim: usize, floor: TubeFloor) -> Optio
     };
     let (tube, _) = tube_range(family, floor);
     let shares = Shares::minimal(share_count(family));
-    make(family, dim, tube, 0.0, &shares).map(|s| s.extent())
+    make(family, dim, tube, 0.0, &shares, floor.gap()).map(|s| s.extent())
 }
 
 /// A random bounding radius for `object` between `minimum` and `upper`. A tentacled
-/// object draws from `minimum + TENTACLE_ROOM` up when there is that much room, so that its
+/// object draws from `minimum + tentacle_room(floor)` up when there is that much room, so that its
 /// host leaves space for tentacles (draws near the minimum would place none in most
 /// samples); where there is not, it keeps the plain range and places what fits.
-pub(crate) fn draw_target(object: &Family, minimum: f64, upper: f64, rng: &mut ChaCha8Rng) -> f64 {
+pub(crate) fn draw_target(
+    object: &Family,
+    minimum: f64,
+    upper: f64,
+    floor: TubeFloor,
+    rng: &mut ChaCha8Rng,
+) -> f64 {
+    let room = tentacle_room(floor);
     let lo = match object {
-        Family::Tentacled { .. } if minimum + TENTACLE_ROOM <= upper => minimum + TENTACLE_ROOM,
+        Family::Tentacled { .. } if minimum + room <= upper => minimum + room,
         _ => minimum,
     };
     uniform(rng, lo, upper)
@@ -94,10 +103,11 @@ pub(crate) fn build(
         // tentacle must leave the host by a gap and a few steps before it counts, so the
         // host leaves that much room when the target allows it (see `draw_target`).
         let minimum = min_extent(object, dim, floor)?;
-        let host_cap = (0.75 * target).min(target - TENTACLE_ROOM);
+        let host_cap = (0.75 * target).min(target - tentacle_room(floor));
         let host_target = uniform(rng, minimum, minimum.max(host_cap));
         let (solid, params) = build(object, dim, host_target, floor, Fit::Ball, rng)?;
-        let (solid, placed) = curves::add_tentacles(solid, dim, *tentacles, target, rng);
+        let (solid, placed) =
+            curves::add_tentacles(solid, dim, *tentacles, target, floor.gap(), rng);
         return Some((
             solid,
             json!({"host": params, "tentacles_requested": tentacles, "tentacles_placed": placed}),
@@ -106,7 +116,7 @@ pub(crate) fn build(
     let (tube_min, tube_cap) = tube_range(family, floor);
     let shares = Shares::draw(share_count(family), rng);
     let extent = |tube: f64, grow: f64| -> Option<f64> {
-        make(family, dim, tube, grow, &shares).map(|s| fit.reach(&s))
+        make(family, dim, tube, grow, &shares, floor.gap()).map(|s| fit.reach(&s))
     };
     let base = extent(tube_min, 0.0)?;
     if base > target + 1e-9 {
@@ -137,7 +147,7 @@ pub(crate) fn build(
             _ => hi = mid,
         }
     }
-    let solid = make(family, dim, tube, lo, &shares)?;
+    let solid = make(family, dim, tube, lo, &shares, floor.gap())?;
     let params = json!({
         "tube_radius": round6(tube),
         "grow": round6(lo),
@@ -316,7 +326,7 @@ fn sized_for_volume(
 ) -> Option<(Solid, Value)> {
     if let Family::Tentacled { object, tentacles } = family {
         let minimum = min_extent(family, dim, floor)?;
-        let target = draw_target(family, minimum, upper.max(minimum), rng);
+        let target = draw_target(family, minimum, upper.max(minimum), floor, rng);
         // A host without a hole is drawn as `build` draws it, and targeting's noise-led
         // growth makes a lumpy body of it.
         if draw_scale || !with_hole(object, floor) {
@@ -327,8 +337,8 @@ fn sized_for_volume(
         // room holds no tentacle, the host takes all of it (rather than its minimum, whose
         // hole targeting's growth would fill) and is sized as the object alone.
         let host_minimum = min_extent(object, dim, floor)?;
-        let (solid, params, placed) = if target - TENTACLE_ROOM >= host_minimum {
-            let cap = (0.75 * target).min(target - TENTACLE_ROOM);
+        let (solid, params, placed) = if target - tentacle_room(floor) >= host_minimum {
+            let cap = (0.75 * target).min(target - tentacle_room(floor));
             let host_upper = uniform(rng, host_minimum, host_minimum.max(cap));
             let (solid, params) = sized_for_volume(
                 object,
@@ -341,7 +351,8 @@ fn sized_for_volume(
                 Fit::Ball,
                 rng,
             )?;
-            let (solid, placed) = curves::add_tentacles(solid, dim, *tentacles, target, rng);
+            let (solid, placed) =
+                curves::add_tentacles(solid, dim, *tentacles, target, floor.gap(), rng);
             (solid, params, placed)
         } else {
             let room = upper.max(host_minimum);
@@ -383,7 +394,7 @@ fn sized_for_volume(
         uniform(rng, 0.15, 0.85)
     };
     let made = |tube: f64, grow: f64, stretch: f64| -> Option<Solid> {
-        let solid = make(family, dim, tube, grow, &shares)?;
+        let solid = make(family, dim, tube, grow, &shares, floor.gap())?;
         if stretch <= 1.0 {
             return Some(solid);
         }
@@ -503,7 +514,7 @@ fn sized_for_volume(
                 (1.0, bisect(&thicker, drawn_thickness, 1.0), 1.0)
             };
             (s, base, tube_min, thickness, stretch)
-        } else if thin && widen && floor == TubeFloor::USUAL && thins(family, dim) {
+        } else if thin && widen && !floor.thickens() && thins(family, dim) {
             // The volume, not the room, limits a small instance, whose tube at the
             // family's minimum would take up most of its size and leave a narrow hole: its
             // tube is drawn thinner, down to THIN_TUBE (and widened back to the minimum
@@ -578,6 +589,7 @@ fn sized_for_volume(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::INNER_GAP;
     use rand::SeedableRng;
 
     /// A 4D instance of `family` sized for `volume` within a ball of radius 11 (the room of
@@ -713,7 +725,7 @@ mod tests {
                     thinner += 1;
                     let shares = Shares::minimal(share_count(&family));
                     let at = |grow| {
-                        let solid = make(&family, 4, least, grow, &shares).unwrap();
+                        let solid = make(&family, 4, least, grow, &shares, INNER_GAP).unwrap();
                         estimate_volume(&solid, 4)
                     };
                     let (mut lo, mut hi) = (0.0, 10.0);

@@ -13,6 +13,14 @@ pub use deform::{
     MAX_CLEARANCE, MAX_COUNT, MAX_DISTANCE, MAX_OCTAVES, MAX_STEPS,
 };
 
+/// The narrowest gap, in voxels, between two parts of one object that must stay apart
+/// (the two sides of a hole, a shell's inside, two strands of a knot): it exceeds the
+/// diagonal of a 4D voxel (2), so the foreground never bridges it, and the width a digital
+/// plane needs to separate background in 4D. A manifest's `inner_gap` raises it.
+pub const MIN_INNER_GAP: f64 = 2.5;
+/// The widest `inner_gap` a manifest may ask for.
+pub const MAX_INNER_GAP: f64 = 16.0;
+
 /// The largest side of a 4D cube whose Betti numbers the exact route computes: with a
 /// border of one voxel and each side rounded up to a multiple of 4, the image must have at
 /// most 2^32 voxels (32-bit places; (254 + 2)^4 = 2^32). Manifests refuse larger 4D sides.
