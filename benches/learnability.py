@@ -125,8 +125,10 @@ DEFORMS = {
 # 0.1-1% of the image, its hollow blobs 3-8%, and a model trained on 0.4-6% read nearly
 # every hollow blob as a 2-sphere. The smallest bin stays above the thinnest 4D shell
 # (about 140 voxels, 0.2%).
-# The manifests' `clearance` (--clearance); None leaves it out.
+# The manifests' `clearance` (--clearance) and `inner_gap` (--inner-gap); None leaves
+# each out.
 CLEARANCE = None
+INNER_GAP = None
 BINS = [[0.0025, 0.004], [0.004, 0.01], [0.01, 0.02], [0.02, 0.035], [0.035, 0.06], [0.06, 0.09]]
 # Every deformation in turn, each sample drawing its strengths (from none) per step, as
 # the 4d-mixed-128 preset does.
@@ -198,6 +200,8 @@ def manifest(kind_deform, mode, samples, seed, single, classes=CLASSES, bins=Non
     ]
     if CLEARANCE is not None:
         lines.append(f"clearance = {CLEARANCE}")
+    if INNER_GAP is not None:
+        lines.append(f"inner_gap = {INNER_GAP}")
     for c in classes:
         lines += ["", "[[classes]]", f"betti = {toml_value(c)}"]
     if kind_deform is not None:
@@ -565,6 +569,8 @@ def kind_samples(name, recipe, args, classes, single, count, seed):
         key = f"families {engine()} {args.mode} {count} {seed} {classes} {FAMILIES} {CHAIN} {BINS}{side}"
         if CLEARANCE is not None:
             key += f" clearance {CLEARANCE}"
+        if INNER_GAP is not None:
+            key += f" inner_gap {INNER_GAP}"
         voxels, betti = cached(args.cache, key,
                                lambda: family_samples(args.mode, classes, count, seed, args.threads))
     elif name in ("independent", "independent-matched"):
@@ -835,6 +841,9 @@ def main():
                         help="the images' side (the independent generator scales its shapes with it)")
     parser.add_argument("--clearance", help="the manifests' `clearance` (e.g. '[1, 5]'): the narrowest gap "
                              "growth leaves, drawn per sample")
+    parser.add_argument("--inner-gap", type=float,
+                        help="the manifests' `inner_gap`: how wide constructions build their holes, "
+                             "the insides of shells and the gaps between strands (voxels)")
     parser.add_argument("--augment", action="store_true",
                         help="train on a random symmetry of the 4D cube of each batch")
     parser.add_argument("--fresh", action="store_true",
@@ -858,9 +867,10 @@ def main():
         parser.error(f"--min-closing {args.min_closing}: every sample has a closing scale of at least 1; ask for 2 or more")
     if args.min_closing and args.fresh:
         parser.error("--min-closing picks from a kind's training set and --fresh replaces that set: use one of them")
-    global SIDE, CLEARANCE
+    global SIDE, CLEARANCE, INNER_GAP
     SIDE = args.side
     CLEARANCE = args.clearance
+    INNER_GAP = args.inner_gap
     if args.quick:
         args.train, args.test, args.mix, args.epochs = 50, 20, 100, 2
     if args.cache:
@@ -936,6 +946,7 @@ def main():
           + ("; a single kind's training sees each of its samples once" if args.fresh else "")
           + ("; each batch in a random symmetry of the cube" if args.augment else "")
           + (f"; bettimill's manifests with `clearance = {CLEARANCE}`" if CLEARANCE else "")
+          + (f"; bettimill's manifests with `inner_gap = {INNER_GAP}`" if INNER_GAP else "")
           + (f"; a single kind's training keeps samples of closing scale {args.min_closing} and up"
              if args.min_closing else "") + ").\n")
     trainings = args.repeats - args.first_repeat

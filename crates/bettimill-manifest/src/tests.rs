@@ -479,3 +479,27 @@ fn a_clearance_out_of_range_is_refused_with_the_range() {
         Some(bettimill_types::Spread::Range([0, 8]))
     );
 }
+
+#[test]
+fn an_inner_gap_out_of_range_is_refused_with_the_range() {
+    for setting in ["inner_gap = 2", "inner_gap = 16.5", "inner_gap = nan"] {
+        let text = GOOD.replace("seed = 1\n", &format!("seed = 1\n{setting}\n"));
+        match parse(&text) {
+            Err(ManifestError::Invalid {
+                field,
+                line,
+                reason,
+                ..
+            }) => {
+                assert_eq!((field.as_str(), line), ("inner_gap", 9), "{setting}");
+                assert!(
+                    reason.contains("from 2.5 to 16 voxels"),
+                    "{setting}: {reason}"
+                );
+            }
+            other => panic!("{setting}: expected a refusal, got {other:?}"),
+        }
+    }
+    let text = GOOD.replace("seed = 1\n", "seed = 1\ninner_gap = 5\n");
+    assert_eq!(parse(&text).unwrap().inner_gap, Some(5.0));
+}

@@ -340,7 +340,7 @@ pub(crate) fn check_reach(manifest: &Manifest, strata: &[Stratum]) -> Result<(),
 /// cavity thinner than a few blocks, so its cavities are at least
 /// [`TubeFloor::for_copies`] of the largest copy's pooling factor. Embed mode (objects grow
 /// under max pooling; what closes is background between them) and manifests without
-/// copies keep [`TubeFloor::USUAL`].
+/// copies keep [`TubeFloor::USUAL`]. Gaps are the manifest's `inner_gap` in either mode.
 pub fn tube_floor_for(manifest: &Manifest, mode: Mode) -> TubeFloor {
     match manifest.resolutions.iter().max() {
         Some(&largest) if mode == Mode::Carve => {
@@ -348,6 +348,7 @@ pub fn tube_floor_for(manifest: &Manifest, mode: Mode) -> TubeFloor {
         }
         _ => TubeFloor::USUAL,
     }
+    .with_gap(manifest.inner_gap.unwrap_or(bettimill_types::MIN_INNER_GAP))
 }
 
 /// The manifest spelling of a mode.

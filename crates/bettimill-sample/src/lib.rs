@@ -14,12 +14,17 @@ use bettimill_deform::{Phase, APART};
 pub use bettimill_format::{Label, Pooling, ResolutionLabel, TOOL_VERSION};
 use bettimill_grid::npy;
 use bettimill_grid::{BinaryImage, Mode};
-use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask};
+use bettimill_plan::{attempt_rng, derive_seed, mode_name, Plan, SampleTask, TubeFloor};
 use bettimill_shapes::Generated;
 use serde::{Deserialize, Serialize};
 
 /// How many attempts a sample gets before the build reports it as failed.
 pub const MAX_ATTEMPTS: u32 = 16;
+
+/// How many attempts build with a manifest's wider `inner_gap` before the rest fall back
+/// to the usual gap. A rule of the attempt alone, so that [`construction`] at a label's
+/// `attempt` is the construction that sample started from.
+pub const WIDE_GAP_ATTEMPTS: u32 = 4;
 
 /// A verified sample.
 #[derive(Clone, Debug)]
@@ -534,6 +539,14 @@ fn generate(
     let foreground = stratum
         .hypervolume
         .map(|(lo, hi)| position_in_bin(lo, hi, &task.seed, attempt));
+    // A manifest's wider `inner_gap` is the plan's estimate of what shrinks into the bin;
+    // where the wider objects still stop above it, later attempts build with the usual gap
+    // (the construction records which), so every stratum the plan accepts builds.
+    let floor = if attempt < WIDE_GAP_ATTEMPTS {
+        stratum.tube_floor
+    } else {
+        stratum.tube_floor.with_gap(TubeFloor::USUAL.gap())
+    };
     let generated = bettimill_shapes::generate_planned_for(
         &stratum.family,
         plan.dimension,
@@ -541,7 +554,7 @@ fn generate(
         stratum.mode,
         foreground,
         plan.solid,
-        stratum.tube_floor,
+        floor,
         &mut rng,
     )?;
     let phase = match &generated.phase_box {

@@ -43,10 +43,24 @@ pub(crate) fn check_fits(
             mode,
             reason,
         } => {
-            let way_on = match smallest_side(family, dim, mode, floor, side + 1) {
+            let mut way_on = match smallest_side(family, dim, mode, floor, side + 1) {
                 Some(fits) => format!("the smallest side that fits is {fits}"),
                 None => format!("no side up to {MAX_SEARCHED_SIDE} fits"),
             };
+            // A gap the manifest widened is part of the reason and of the way on.
+            if floor.gap() > TubeFloor::USUAL.gap() {
+                let usual = floor.with_gap(TubeFloor::USUAL.gap());
+                let without = check_sizes(family, dim, side, mode, usual, true).is_ok();
+                way_on.push_str(&format!(
+                    " with holes at least inner_gap = {} voxels wide{}",
+                    round6(floor.gap()),
+                    if without {
+                        " (it fits with the usual gap)"
+                    } else {
+                        ""
+                    }
+                ));
+            }
             ShapeError::DoesNotFit {
                 family: label,
                 dim: d,
@@ -343,6 +357,9 @@ pub(crate) fn generate_for(
     ];
     if floor.thickens() {
         entries.push(("tube_floor", json!(round6(floor.radius()))));
+    }
+    if floor.gap() != TubeFloor::USUAL.gap() {
+        entries.push(("inner_gap", json!(round6(floor.gap()))));
     }
     if let Some(target) = foreground {
         entries.push(("foreground_target", json!(target)));
