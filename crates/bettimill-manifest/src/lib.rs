@@ -120,8 +120,8 @@ pub struct Manifest {
     /// The narrowest gap, in voxels, that constructions leave between two parts of one
     /// object that must stay apart: across a hole, inside a shell or a 2-sphere, between
     /// the strands of a knot ([`bettimill_types::MIN_INNER_GAP`] to
-    /// [`bettimill_types::MAX_INNER_GAP`]; default the minimum). With `inner_gap = 6.5` and
-    /// `clearance = 5`, nearly every hole of a 4D sample survives one dilation.
+    /// [`bettimill_types::MAX_INNER_GAP`]; default the minimum). Wider holes survive more
+    /// dilations; `clearance` keeps growth from narrowing them again.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inner_gap: Option<f64>,
     /// Optional topology-preserving deformations applied in order to the phase that
