@@ -464,11 +464,11 @@ pub(crate) fn spun_link_solid(link: LinkKind, tube: f64, grow: f64, gap: f64) ->
 /// widens until the two straight ends are a full gap apart and clear of the rest of the
 /// arc; if no cut works at the smallest scale, the scale grows.
 pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64, gap: f64) -> Option<Solid> {
-    let inner_gap = gap;
-    let gap = need(tube, gap);
+    // How far apart two strands' axes stay.
+    let apart = need(tube, gap);
     for attempt in 0..24 {
         let extra = grow + attempt as f64 * 0.5 * tube;
-        let comp = scaled(CurveKey::Knot(knot), tube, extra, inner_gap).remove(0);
+        let comp = scaled(CurveKey::Knot(knot), tube, extra, gap).remove(0);
         let n = comp.len();
         let leftmost = (0..n)
             .min_by(|&a, &b| comp[a][0].total_cmp(&comp[b][0]))
@@ -485,11 +485,11 @@ pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64, gap: f64) ->
                 let d = sub(a, b);
                 (d[1] * d[1] + d[2] * d[2] + d[3] * d[3]).sqrt()
             };
-            if lateral(ends[0], ends[1]) < gap {
+            if lateral(ends[0], ends[1]) < apart {
                 continue;
             }
             let low = kept.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min);
-            let shift = tube + inner_gap / 2.0 - low;
+            let shift = tube + gap / 2.0 - low;
             let kept: Vec<P> = kept
                 .into_iter()
                 .map(|p| add(p, [shift, 0.0, 0.0, 0.0]))
@@ -509,8 +509,8 @@ pub(crate) fn spun_knot_solid(knot: KnotKind, tube: f64, grow: f64, gap: f64) ->
                     let seg_b = kept[root];
                     kept.iter().enumerate().all(|(k, &p)| {
                         let along = arc_index_distance(k, root, &kept);
-                        along < PI * gap / 2.0
-                            || crate::geometry::segment_distance(p, seg_a, seg_b) >= gap
+                        along < PI * apart / 2.0
+                            || crate::geometry::segment_distance(p, seg_a, seg_b) >= apart
                     })
                 });
             if !clear {
