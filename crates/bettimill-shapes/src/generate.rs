@@ -48,7 +48,7 @@ pub(crate) fn check_fits(
                 None => format!("no side up to {MAX_SEARCHED_SIDE} fits"),
             };
             // A gap the manifest widened is part of the reason and of the way on.
-            if floor.gap() > TubeFloor::USUAL.gap() {
+            if floor.widens() {
                 let usual = floor.with_gap(TubeFloor::USUAL.gap());
                 let without = check_sizes(family, dim, side, mode, usual, true).is_ok();
                 way_on.push_str(&format!(
@@ -358,7 +358,7 @@ pub(crate) fn generate_for(
     if floor.thickens() {
         entries.push(("tube_floor", json!(round6(floor.radius()))));
     }
-    if floor.gap() != TubeFloor::USUAL.gap() {
+    if floor.widens() {
         entries.push(("inner_gap", json!(round6(floor.gap()))));
     }
     if let Some(target) = foreground {

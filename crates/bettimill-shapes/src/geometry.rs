@@ -104,6 +104,11 @@ impl TubeFloor {
         self.tube > TUBE_MIN
     }
 
+    /// Whether gaps are raised above the usual 2.5 voxels (a manifest's `inner_gap`).
+    pub fn widens(self) -> bool {
+        self.gap > INNER_GAP
+    }
+
     /// The narrowest gap between parts of one object that must stay apart, in voxels.
     pub fn gap(self) -> f64 {
         self.gap
