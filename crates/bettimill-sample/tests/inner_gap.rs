@@ -1,7 +1,7 @@
 //! A manifest's `inner_gap`: constructions build their holes, the insides of their shells
-//! and 2-spheres that wide, so one dilation closes none of them, where the usual gap of 2.5
-//! voxels closes some. The construction records the gap; a manifest without it records
-//! none.
+//! and 2-spheres that wide, and a scene's parts half as far apart, so one dilation closes
+//! none of them, where the usual gap of 2.5 voxels closes some. The construction records
+//! the gap; a manifest without it records none.
 
 use bettimill_grid::BinaryImage;
 use bettimill_plan::Plan;
@@ -132,4 +132,48 @@ fn a_bin_the_wide_objects_cannot_shrink_to_builds_with_the_usual_gap() {
         }
     }
     assert!(fell_back > 0, "no sample needed the usual gap");
+}
+
+/// The gap the placement of a scene's parts kept, and how it was found.
+fn scene_gaps(text: &str) -> Vec<(i64, String)> {
+    let plan = plan(text);
+    plan.shards()
+        .flat_map(|s| plan.shard_tasks(&s))
+        .map(|task| {
+            let label = make_sample(&plan, &task)
+                .expect("a planned scene builds")
+                .label;
+            let gap = label.construction["gap_voxels"].as_i64().unwrap();
+            (
+                gap,
+                label.construction["placement"]
+                    .as_str()
+                    .unwrap()
+                    .to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_wide_inner_gap_keeps_the_parts_of_a_scene_as_far_apart() {
+    let pairs = MANIFEST.replace(
+        r#"family = ["handle", "loop", "shell", "s2_x_b2"]"#,
+        r#"family = "scene"
+objects = [{ family = "ball" }, { family = "ball" }]"#,
+    );
+    // Half of 6.5, rounded up: parts 4 voxels apart survive one dilation.
+    let wide = scene_gaps(&pairs);
+    assert!(
+        wide.iter()
+            .all(|(gap, placement)| placement != "random" || (4..=6).contains(gap)),
+        "{wide:?}"
+    );
+    assert!(
+        wide.iter().any(|(_, placement)| placement == "random"),
+        "{wide:?}"
+    );
+    assert_eq!(closed_by_a_dilation(&plan(&pairs)), 0);
+    let usual = scene_gaps(&pairs.replace("inner_gap = 6.5\n", ""));
+    assert!(usual.iter().any(|(gap, _)| *gap < 4), "{usual:?}");
 }

@@ -8,9 +8,9 @@
 //! none of its voxels falls into that dilation. With a gap of 2 any two objects keep at
 //! least two background voxels between them in every direction, which is what the
 //! labels note asks for (touching cavities gave wrong labels). A scene draws its gap per
-//! sample, from [`GAP`] to [`widest_gap`]: parts that always stand two voxels apart would
-//! teach a network that two components meet across a narrow gap, where shapes made any
-//! other way stand at every distance.
+//! sample, from [`narrowest_gap`] to [`widest_gap`]: parts that always stand two voxels
+//! apart would teach a network that two components meet across a narrow gap, where shapes
+//! made any other way stand at every distance.
 //!
 //! The layout search ([`place_objects`]) tries random sizes, rotations and positions,
 //! largest object first, for a few rounds (the later ones at minimum sizes); then falls
@@ -46,6 +46,16 @@ const GAP_MAX: i64 = 6;
 /// quarter of the side, from [`GAP`] up to [`GAP_MAX`].
 pub(crate) fn widest_gap(side: usize) -> i64 {
     (side as i64 / 4).clamp(GAP, GAP_MAX)
+}
+
+/// The narrowest gap a scene draws between its objects under `floor`: half the floor's
+/// inner gap, rounded up, and never below [`GAP`]. Along a 4D diagonal a dilation step
+/// covers two voxels' width, so parts this far apart merge after as many dilations as it
+/// takes to close the narrowest hole an object may have; a manifest that widens its holes
+/// (`inner_gap`) widens the gaps between parts alike. The usual inner gap (2.5) gives
+/// [`GAP`].
+pub(crate) fn narrowest_gap(floor: TubeFloor) -> i64 {
+    (libm::ceil(floor.gap() / 2.0) as i64).max(GAP)
 }
 
 /// The largest ratio between two objects' shares of a scene's voxel count. Components
@@ -756,16 +766,21 @@ pub(crate) fn place_objects(
         let sum: f64 = raw.iter().sum();
         raw.iter().map(|x| total * x / sum).collect()
     });
-    // The gap between objects, drawn per sample; the rounds at minimum sizes and the
-    // fallbacks keep the narrowest, which the plan's feasibility check assumed.
+    // The gap between objects, drawn per sample; the rounds at minimum sizes keep the
+    // narrowest, and the fallbacks keep `GAP`, which the plan's feasibility check assumed.
+    let narrowest = narrowest_gap(floor);
     let drawn_gap = if count > 1 {
-        uniform_int(rng, GAP as u64, widest_gap(side) as u64) as i64
+        uniform_int(
+            rng,
+            narrowest as u64,
+            widest_gap(side).max(narrowest) as u64,
+        ) as i64
     } else {
         GAP
     };
     for round in 0..RANDOM_ROUNDS {
         let at_minimum = round >= RANDOM_ROUNDS / 2;
-        let gap = if at_minimum { GAP } else { drawn_gap };
+        let gap = if at_minimum { narrowest } else { drawn_gap };
         if let Some(out) = place_random(
             &sorted_objects,
             &sorted_minima,
