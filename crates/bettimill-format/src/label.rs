@@ -58,6 +58,12 @@ pub struct Label {
     /// the manifest sets none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clearance: Option<u32>,
+    /// How many dilations of the topological phase the sample was checked to survive with
+    /// its Betti numbers unchanged, as the manifest's `survives_dilations` asks (0 when the
+    /// last attempts, which skip the check so that every stratum builds, made it); absent
+    /// when the manifest asks for none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub survives_dilations: Option<u32>,
     /// The gap, in background voxels, that growth kept between the components of the
     /// topological phase: the construction's `gap_voxels` (drawn per sample in a scene),
     /// 2 or 0 where hypervolume targeting could reach the bin only with the narrowest gap

@@ -124,6 +124,11 @@ pub struct Manifest {
     /// dilations; `clearance` keeps growth from narrowing them again.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inner_gap: Option<f64>,
+    /// How many dilations (Chebyshev steps) of the topological phase every sample's Betti
+    /// numbers must survive, checked per sample: an attempt whose holes or gaps that many
+    /// dilations close is made again (0 to [`MAX_SURVIVED_DILATIONS`]; default none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub survives_dilations: Option<u32>,
     /// Optional topology-preserving deformations applied in order to the phase that
     /// carries each sample's topology (one `[deform]` table or an array of `[[deform]]`
     /// tables; the schema, its defaults and ranges are `bettimill_types::deform`'s).
@@ -276,6 +281,10 @@ pub enum CompressionSetting {
     /// `.npy.zst` members (HF datasets decodes them; webdataset needs a one-line decoder).
     Zstd,
 }
+
+/// The most dilations a manifest's `survives_dilations` may ask for: as many as a
+/// manifest's widest `clearance` keeps a gap open against from both sides.
+pub const MAX_SURVIVED_DILATIONS: u32 = 4;
 
 /// Array size (bytes of voxels) from which `compression = "auto"` compresses: 1 MiB, a 4D
 /// image of side 32 or a 3D image of side 102.
@@ -884,6 +893,15 @@ impl Manifest {
                     source,
                     "inner_gap",
                     format!("is {gap}; it must be from {MIN_INNER_GAP} to {MAX_INNER_GAP} voxels"),
+                ));
+            }
+        }
+        if let Some(n) = self.survives_dilations {
+            if n > MAX_SURVIVED_DILATIONS {
+                return Err(ManifestError::invalid(
+                    source,
+                    "survives_dilations",
+                    format!("is {n}; it must be from 0 to {MAX_SURVIVED_DILATIONS}"),
                 ));
             }
         }

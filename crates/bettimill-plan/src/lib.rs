@@ -173,6 +173,10 @@ pub struct Plan {
     /// (`None`: unrestricted).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clearance: Option<Spread<u32>>,
+    /// How many dilations of the topological phase every sample's Betti numbers survive,
+    /// checked per sample (`None` or 0: not checked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub survives_dilations: Option<u32>,
     /// Upper bound of one sample's bytes in a shard, uncompressed.
     pub sample_bytes: u64,
 }
@@ -386,6 +390,7 @@ impl Plan {
             deform: manifest.deform.clone(),
             solid: manifest.solid.unwrap_or_default(),
             clearance: manifest.clearance,
+            survives_dilations: manifest.survives_dilations,
             sample_bytes,
         })
     }

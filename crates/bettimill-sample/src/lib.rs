@@ -26,6 +26,12 @@ pub const MAX_ATTEMPTS: u32 = 16;
 /// `attempt` is the construction that sample started from.
 pub const WIDE_GAP_ATTEMPTS: u32 = 4;
 
+/// How many attempts check a manifest's `survives_dilations`. The check refuses what the
+/// image's room forces on some samples (a loop grown to a large bin wraps round its own
+/// hole), so the last attempts skip it and the label says so: every stratum the plan
+/// accepts builds.
+pub const DILATION_CHECKED_ATTEMPTS: u32 = 12;
+
 /// A verified sample.
 #[derive(Clone, Debug)]
 pub struct Sample {
@@ -464,6 +470,28 @@ pub fn make_sample_observed(
             );
             continue;
         }
+        let survives_dilations = plan.survives_dilations.filter(|&n| n > 0).map(|n| {
+            if attempt < DILATION_CHECKED_ATTEMPTS {
+                n
+            } else {
+                0
+            }
+        });
+        if let Some(n) = survives_dilations.filter(|&n| n > 0) {
+            let dilated = phase.dilated(&image, n as usize);
+            let closed = bettimill_homology::topology(&verification_window(&dilated)).betti;
+            if closed != topology.betti {
+                last = format!(
+                    "{n} dilation(s) of the {} change the Betti numbers to {closed:?}",
+                    if phase.value == 1 {
+                        "objects"
+                    } else {
+                        "cavities"
+                    }
+                );
+                continue;
+            }
+        }
         let mut downscaled = Vec::new();
         let mut resolutions = Vec::new();
         let pooling = pooling_for(stratum.mode);
@@ -506,6 +534,7 @@ pub fn make_sample_observed(
             construction: generated.construction,
             deform: applied,
             clearance: clearance.map(|c| if kept_clearance { c } else { 0 }),
+            survives_dilations,
             separation: separated.then(|| apart.as_ref().map_or(0, |a| a.gap() as u32)),
             hypervolume_bin: stratum.hypervolume,
             resolutions,

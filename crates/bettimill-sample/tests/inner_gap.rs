@@ -1,7 +1,8 @@
 //! A manifest's `inner_gap`: constructions build their holes, the insides of their shells
 //! and 2-spheres that wide, and a scene's parts half as far apart, so one dilation closes
 //! none of them, where the usual gap of 2.5 voxels closes some. The construction records
-//! the gap; a manifest without it records none.
+//! the gap; a manifest without it records none. And `survives_dilations`, which checks
+//! what growth did to those gaps: an attempt a dilation changes is made again.
 
 use bettimill_grid::BinaryImage;
 use bettimill_plan::Plan;
@@ -176,4 +177,61 @@ objects = [{ family = "ball" }, { family = "ball" }]"#,
     assert_eq!(closed_by_a_dilation(&plan(&pairs)), 0);
     let usual = scene_gaps(&pairs.replace("inner_gap = 6.5\n", ""));
     assert!(usual.iter().any(|(gap, _)| *gap < 4), "{usual:?}");
+}
+
+#[test]
+fn survives_dilations_makes_again_what_a_dilation_closes() {
+    // The usual gap: a dilation closes at least 4 of these 24 samples as first built.
+    let text = MANIFEST.replace("inner_gap = 6.5\n", "survives_dilations = 1\n");
+    let plan = plan(&text);
+    let mut made_again = 0;
+    for task in plan.shards().flat_map(|s| plan.shard_tasks(&s)) {
+        let sample = make_sample(&plan, &task).expect("every planned sample builds");
+        let label = &sample.label;
+        assert_eq!(label.survives_dilations, Some(1), "{}", label.key);
+        let after = bettimill_homology::topology(&dilated(&sample.image)).betti;
+        assert_eq!(after, label.betti, "{}", label.key);
+        made_again += usize::from(label.attempt > 0);
+    }
+    assert!(made_again > 0, "no sample was made again");
+    let usual = self::plan(MANIFEST);
+    let task = usual.shard_tasks(&usual.shards().next().unwrap()).remove(0);
+    assert_eq!(
+        make_sample(&usual, &task).unwrap().label.survives_dilations,
+        None
+    );
+}
+
+#[test]
+fn a_bin_no_attempt_reaches_with_open_holes_builds_unchecked_and_says_so() {
+    // A loop grown to 6-9% of a side-24 image wraps round its own hole: most attempts
+    // fail the check, and the last ones skip it.
+    let text = MANIFEST
+        .replace(
+            r#"family = ["handle", "loop", "shell", "s2_x_b2"]"#,
+            "family = \"loop\"\n\n[hypervolume]\nunit = \"fraction\"\nbins = [[0.06, 0.09]]",
+        )
+        .replace(
+            "samples = 24\nshard_size = 24",
+            "samples = 6\nshard_size = 6",
+        )
+        .replace(
+            "inner_gap = 6.5\n",
+            "inner_gap = 6.5\nclearance = 5\nsurvives_dilations = 1\n",
+        );
+    let plan = plan(&text);
+    let mut unchecked = 0;
+    for task in plan.shards().flat_map(|s| plan.shard_tasks(&s)) {
+        let sample = make_sample(&plan, &task).expect("a planned stratum builds");
+        let label = &sample.label;
+        if label.attempt >= bettimill_sample::DILATION_CHECKED_ATTEMPTS {
+            assert_eq!(label.survives_dilations, Some(0), "{}", label.key);
+            unchecked += 1;
+        } else {
+            assert_eq!(label.survives_dilations, Some(1), "{}", label.key);
+            let after = bettimill_homology::topology(&dilated(&sample.image)).betti;
+            assert_eq!(after, label.betti, "{}", label.key);
+        }
+    }
+    assert!(unchecked > 0, "every loop kept its hole open");
 }
