@@ -125,10 +125,11 @@ DEFORMS = {
 # 0.1-1% of the image, its hollow blobs 3-8%, and a model trained on 0.4-6% read nearly
 # every hollow blob as a 2-sphere. The smallest bin stays above the thinnest 4D shell
 # (about 140 voxels, 0.2%).
-# The manifests' `clearance` (--clearance) and `inner_gap` (--inner-gap); None leaves
-# each out.
+# The manifests' `clearance` (--clearance), `inner_gap` (--inner-gap) and
+# `survives_dilations` (--survives-dilations); None leaves each out.
 CLEARANCE = None
 INNER_GAP = None
+SURVIVES = None
 BINS = [[0.0025, 0.004], [0.004, 0.01], [0.01, 0.02], [0.02, 0.035], [0.035, 0.06], [0.06, 0.09]]
 # Every deformation in turn, each sample drawing its strengths (from none) per step, as
 # the 4d-mixed-128 preset does.
@@ -202,6 +203,8 @@ def manifest(kind_deform, mode, samples, seed, single, classes=CLASSES, bins=Non
         lines.append(f"clearance = {CLEARANCE}")
     if INNER_GAP is not None:
         lines.append(f"inner_gap = {INNER_GAP}")
+    if SURVIVES is not None:
+        lines.append(f"survives_dilations = {SURVIVES}")
     for c in classes:
         lines += ["", "[[classes]]", f"betti = {toml_value(c)}"]
     if kind_deform is not None:
@@ -571,6 +574,8 @@ def kind_samples(name, recipe, args, classes, single, count, seed):
             key += f" clearance {CLEARANCE}"
         if INNER_GAP is not None:
             key += f" inner_gap {INNER_GAP}"
+        if SURVIVES is not None:
+            key += f" survives_dilations {SURVIVES}"
         voxels, betti = cached(args.cache, key,
                                lambda: family_samples(args.mode, classes, count, seed, args.threads))
     elif name in ("independent", "independent-matched"):
@@ -844,6 +849,9 @@ def main():
     parser.add_argument("--inner-gap", type=float,
                         help="the manifests' `inner_gap`: how wide constructions build their holes, "
                              "the insides of shells and the gaps between strands (voxels)")
+    parser.add_argument("--survives-dilations", type=int, metavar="N",
+                        help="the manifests' `survives_dilations`: bettimill makes again each sample "
+                             "whose holes or gaps N dilations close (the last attempts skip the check)")
     parser.add_argument("--augment", action="store_true",
                         help="train on a random symmetry of the 4D cube of each batch")
     parser.add_argument("--fresh", action="store_true",
@@ -867,10 +875,11 @@ def main():
         parser.error(f"--min-closing {args.min_closing}: every sample has a closing scale of at least 1; ask for 2 or more")
     if args.min_closing and args.fresh:
         parser.error("--min-closing picks from a kind's training set and --fresh replaces that set: use one of them")
-    global SIDE, CLEARANCE, INNER_GAP
+    global SIDE, CLEARANCE, INNER_GAP, SURVIVES
     SIDE = args.side
     CLEARANCE = args.clearance
     INNER_GAP = args.inner_gap
+    SURVIVES = args.survives_dilations
     if args.quick:
         args.train, args.test, args.mix, args.epochs = 50, 20, 100, 2
     if args.cache:
@@ -947,6 +956,7 @@ def main():
           + ("; each batch in a random symmetry of the cube" if args.augment else "")
           + (f"; bettimill's manifests with `clearance = {CLEARANCE}`" if CLEARANCE else "")
           + (f"; bettimill's manifests with `inner_gap = {INNER_GAP}`" if INNER_GAP else "")
+          + (f"; bettimill's manifests with `survives_dilations = {SURVIVES}`" if SURVIVES else "")
           + (f"; a single kind's training keeps samples of closing scale {args.min_closing} and up"
              if args.min_closing else "") + ").\n")
     trainings = args.repeats - args.first_repeat
