@@ -1,6 +1,7 @@
 //! `bettimill plan`'s estimates: the cost model's fields
 //! in `--json`, `--pilot` building and measuring real samples, and the model's compressed
-//! size against a pilot's measured bytes, and the line on carved tubes for the copies.
+//! size against a pilot's measured bytes, the line on carved tubes for the copies, and the
+//! one on the attempts `survives_dilations` adds.
 //! Nothing here compares times: CPU and wall seconds depend on the machine and its load,
 //! bytes do not.
 
@@ -148,4 +149,27 @@ fn plan_says_which_carved_strata_get_tubes_for_the_copies() {
     .unwrap();
     let out = run_in(tmp.path(), &["plan", path.to_str().unwrap()]);
     assert!(!text(&out.stdout).contains("carved tubes"));
+}
+
+#[test]
+fn plan_says_that_survives_dilations_adds_attempts_the_model_does_not_count() {
+    let tmp = Dir::new();
+    let m = manifest(tmp.path(), "checked", 3, 24, "none");
+    let out = run_in(tmp.path(), &["plan", m.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(!text(&out.stdout).contains("survives_dilations"));
+    let body = std::fs::read_to_string(&m).unwrap();
+    std::fs::write(
+        &m,
+        body.replace("seed = 5\n", "seed = 5\nsurvives_dilations = 1\n"),
+    )
+    .unwrap();
+    let out = run_in(tmp.path(), &["plan", m.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("survives_dilations = 1: the model counts one attempt a sample")
+            && stdout.contains("--pilot measures it"),
+        "{stdout}"
+    );
 }

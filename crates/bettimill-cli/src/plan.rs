@@ -355,6 +355,13 @@ pub fn show(
         cpu_figure(model.cpu_seconds_per_sample),
         human_duration(model.cpu_seconds).trim_start_matches("about "),
     );
+    // The model prices one attempt a sample; the check makes again every attempt whose
+    // holes a dilation closes, how many depends on the shapes and the bins.
+    if let Some(n) = plan.survives_dilations.filter(|&n| n > 0) {
+        outln!(
+            "survives_dilations = {n}: the model counts one attempt a sample, the check makes again those a dilation changes (3 times the CPU on the learnability bench's 4D families); --pilot measures it"
+        );
+    }
     if let Some(p) = &pilot {
         outln!(
             "pilot (measured here: {} of {} built in {} CPU-s): {} CPU-s and {} a sample; build time {} on {}, output about {}",
