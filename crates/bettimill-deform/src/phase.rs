@@ -225,17 +225,13 @@ impl Phase {
     /// holes and gaps, and whether the copy keeps the Betti numbers tells how wide they
     /// are. The box is a cube, so the dilation runs one axis at a time.
     pub fn dilated(&self, image: &BinaryImage, steps: usize) -> BinaryImage {
-        let d = image.dim().get();
+        let layout = Layout::new(image, self);
         let (shape, strides) = (image.shape(), image.strides());
         let mut mask: Vec<bool> = (0..image.len())
-            .map(|v| {
-                let c = image.coords(v);
-                image.data()[v] == self.value
-                    && (0..d).all(|a| (self.lo[a]..=self.hi[a]).contains(&c[a]))
-            })
+            .map(|v| image.data()[v] == self.value && layout.in_box(v))
             .collect();
         let mut before = vec![false; mask.len()];
-        for a in 0..d {
+        for a in 0..image.dim().get() {
             let (n, stride) = (shape[a], strides[a]);
             before.copy_from_slice(&mask);
             for (v, out) in mask.iter_mut().enumerate() {

@@ -498,13 +498,8 @@ fn an_inner_gap_out_of_range_is_refused_with_the_range() {
 #[test]
 fn survives_dilations_beyond_the_most_is_refused_with_the_range() {
     let text = GOOD.replace("seed = 1\n", "seed = 1\nsurvives_dilations = 5\n");
-    match parse(&text) {
-        Err(ManifestError::Invalid { field, reason, .. }) => {
-            assert_eq!(field, "survives_dilations");
-            assert!(reason.contains("from 0 to 4"), "{reason}");
-        }
-        other => panic!("expected a refusal, got {other:?}"),
-    }
+    let reason = check_refused(&text, "survives_dilations", 9);
+    assert!(reason.contains("from 0 to 4"), "{reason}");
     let text = GOOD.replace("seed = 1\n", "seed = 1\nsurvives_dilations = 2\n");
     assert_eq!(parse(&text).unwrap().survives_dilations, Some(2));
 }
