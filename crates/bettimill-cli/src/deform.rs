@@ -20,6 +20,9 @@ pub enum MethodArg {
     Tentacles,
     /// Random-walk bodies (`--count` walkers of `--steps` steps).
     Walk,
+    /// Narrow necks: `--count` slabs across the image's foreground, each eroded for
+    /// `--steps` iterations inside the slab.
+    Pinch,
     /// 2D only: the paper's hit-or-miss thickening (thinning of the background), each flip
     /// guarded by the simple-point test; `--steps` counts rounds; no noise, no seed.
     HitOrMiss,
@@ -53,11 +56,11 @@ pub struct DeformArgs {
     /// default).
     #[arg(long, default_value_t = bettimill_deform::DEFAULT_MAX_DISTANCE)]
     max_distance: u32,
-    /// Dilate/erode: the share of the frontier that may flip per iteration, in (0, 1]; 1 is
+    /// Dilate/erode/pinch: the share of the frontier that may flip per iteration, in (0, 1]; 1 is
     /// plain topology-preserving morphology (the manifest's default).
     #[arg(long, default_value_t = bettimill_deform::DEFAULT_GROWTH_PROBABILITY)]
     growth_probability: f64,
-    /// Tentacles and walk: how many.
+    /// Tentacles, walk and pinch: how many.
     #[arg(long, default_value_t = bettimill_deform::DEFAULT_COUNT)]
     count: u32,
     /// Refuse input values other than 0 and 1.
@@ -78,6 +81,7 @@ pub fn run(args: &DeformArgs) -> anyhow::Result<ExitStatus> {
         MethodArg::Erode => Method::Erode,
         MethodArg::Tentacles => Method::Tentacles,
         MethodArg::Walk => Method::Walk,
+        MethodArg::Pinch => Method::Pinch,
         MethodArg::HitOrMiss => Method::Dilate,
     };
     let settings = DeformSettings {

@@ -21,6 +21,7 @@
 //!   and 4D without enumerating structuring elements.
 //! - [`Method::Tentacles`] and [`Method::Walk`]: thick paths grown from the phase's
 //!   surface along persistent or plain random walks (`walkers.rs`).
+//! - [`Method::Pinch`]: necks, erosion confined to slabs across the phase (`pinch.rs`).
 //! - [`target_hypervolume_phase`] brings the foreground count into `[lo, hi]` by the same
 //!   noise-guided growth or shrinking of the phase.
 //! - [`draw_settings`] turns a manifest's step, whose settings may be ranges, into one
@@ -54,6 +55,7 @@ pub mod hitmiss;
 mod morphology;
 mod moves;
 mod phase;
+mod pinch;
 mod walkers;
 
 use bettimill_grid::BinaryImage;
@@ -225,9 +227,11 @@ pub fn deform_phase_counted(
                 noise_frequency: settings.noise_frequency,
                 octaves: settings.octaves,
                 seed,
+                slab: None,
             },
             apart,
         )?,
+        Method::Pinch => pinch::run(image, phase, apart, settings, seed)?,
         Method::Tentacles | Method::Walk => walkers::run(
             image,
             phase,
@@ -243,7 +247,7 @@ pub fn deform_phase_counted(
     let to = match settings.method {
         Method::Moves => None,
         Method::Dilate | Method::Tentacles | Method::Walk => Some(phase.value),
-        Method::Erode => Some(phase.other()),
+        Method::Erode | Method::Pinch => Some(phase.other()),
     };
     report.foreground_before = foreground;
     report.foreground_after = match to {
@@ -259,14 +263,14 @@ pub fn deform_phase_counted(
 /// voxels farther than that from every cavity are never touched.
 ///
 /// Per method: an iteration of dilation adds one layer of the frontier (distance 1); an
-/// erosion only removes phase voxels (0); a move's target has a face neighbour in the
+/// erosion or a neck only removes phase voxels (0); a move's target has a face neighbour in the
 /// phase (1 per move); a tentacle or walker starts on the frontier and paints a ball of
 /// radius 1 around each of its unit-distance steps (`steps + 2`).
 pub fn reach(settings: &DeformSettings) -> u64 {
     let steps = u64::from(settings.steps);
     match settings.method {
         Method::Dilate | Method::Moves => steps,
-        Method::Erode => 0,
+        Method::Erode | Method::Pinch => 0,
         Method::Tentacles | Method::Walk => {
             if settings.count == 0 {
                 0

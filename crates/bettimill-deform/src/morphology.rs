@@ -115,6 +115,28 @@ pub(crate) struct Morphology<'a> {
     pub(crate) noise_frequency: f64,
     pub(crate) octaves: u32,
     pub(crate) seed: u64,
+    /// Only voxels in this slab take part (a neck of [`crate::Method::Pinch`]).
+    pub(crate) slab: Option<Slab>,
+}
+
+/// The voxels whose centres lie within `half` of the hyperplane `normal . x = offset`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Slab {
+    /// A unit vector (its first `d` coordinates).
+    pub(crate) normal: [f64; 4],
+    pub(crate) offset: f64,
+    pub(crate) half: f64,
+}
+
+impl Slab {
+    /// The signed depth of a voxel's centre along the normal.
+    pub(crate) fn depth(normal: &[f64; 4], c: [usize; 4]) -> f64 {
+        normal.iter().zip(c).map(|(n, x)| n * x as f64).sum()
+    }
+
+    pub(crate) fn holds(&self, c: [usize; 4]) -> bool {
+        (Slab::depth(&self.normal, c) - self.offset).abs() <= self.half
+    }
 }
 
 pub(crate) fn run(
@@ -163,7 +185,9 @@ pub(crate) fn run(
     };
     // Voxels that joined the frontier and have no key yet: keyed when an iteration needs
     // them, so the frontier after the last iteration costs no noise.
+    let in_slab = |v: usize| job.slab.is_none_or(|slab| slab.holds(layout.coords(v)));
     let mut joined = layout.frontier(image, flip_from);
+    joined.retain(|&v| in_slab(v));
     let mut queued = BitSet::new(image.len());
     for &v in &joined {
         queued.insert(v);
@@ -260,7 +284,7 @@ pub(crate) fn run(
         for &v in &kept {
             if data[v] == flip_to {
                 layout.for_each_face_neighbour_in_box(v, |u| {
-                    if data[u] == flip_from && queued.insert(u) {
+                    if data[u] == flip_from && in_slab(u) && queued.insert(u) {
                         joined.push(u);
                     }
                 });
@@ -772,6 +796,7 @@ mod tests {
                     noise_frequency: 0.2,
                     octaves: 2,
                     seed: round,
+                    slab: None,
                 };
                 let mut expected = image.clone();
                 let applied = run_reference(&mut expected, &job);

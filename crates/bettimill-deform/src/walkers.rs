@@ -38,17 +38,17 @@ const TURN: f64 = 0.3;
 const PASSES: usize = 2;
 
 /// A uniform draw in (0, 1], from 53 random bits (never 0, so its logarithm is finite).
-fn unit_open(rng: &mut ChaCha8Rng) -> f64 {
+pub(crate) fn unit_open(rng: &mut ChaCha8Rng) -> f64 {
     ((rng.gen::<u64>() >> 11) as f64 + 1.0) / (1u64 << 53) as f64
 }
 
 /// A standard normal draw (Box-Muller, with libm so every machine gives the same bits).
-fn normal(rng: &mut ChaCha8Rng) -> f64 {
+pub(crate) fn normal(rng: &mut ChaCha8Rng) -> f64 {
     let (u1, u2) = (unit_open(rng), unit_open(rng));
     libm::sqrt(-2.0 * libm::log(u1)) * libm::cos(2.0 * std::f64::consts::PI * u2)
 }
 
-fn normalise(v: &mut [f64; 4], d: usize) -> bool {
+pub(crate) fn normalise(v: &mut [f64; 4], d: usize) -> bool {
     let norm = libm::sqrt(v[..d].iter().map(|x| x * x).sum::<f64>());
     if norm < 1e-9 {
         return false;

@@ -28,7 +28,8 @@ fn method() -> impl Strategy<Value = Method> {
         Just(Method::Dilate),
         Just(Method::Erode),
         Just(Method::Tentacles),
-        Just(Method::Walk)
+        Just(Method::Walk),
+        Just(Method::Pinch)
     ]
 }
 

@@ -13,8 +13,8 @@
 //!     + deformation: per step, voxels x DEFORM_SCAN_NS (one scan for the frontier)
 //!       + the step's own work: moves x DEFORM_NS_PER_MOVE, or iterations x kept share x
 //!       side^(d-1) x DEFORM_NS_PER_FRONTIER_VOXEL (dilate, erode: the frontier follows
-//!       the phase's surface), or walkers x steps x DEFORM_NS_PER_WALK_STEP, at the
-//!       ranges' midpoints
+//!       the phase's surface; pinch: necks x PINCH_SLAB_SHARE of that), or walkers x
+//!       steps x DEFORM_NS_PER_WALK_STEP, at the ranges' midpoints
 //!     + voxels of the downscaled copies x DOWNSCALE_NS_PER_VOXEL
 //!     + SAMPLE_FIXED_SECONDS
 //! ```
@@ -94,6 +94,11 @@ pub const DEFORM_NS_PER_MOVE: [f64; 3] = [2_000.0, 4_000.0, 8_000.0];
 /// its simple-point test), by dimension, with the frontier taken as `side^(d-1)` voxels
 /// (4D: the reduced 4D mixed 128 preset with and without its deformations).
 pub const DEFORM_NS_PER_FRONTIER_VOXEL: [f64; 3] = [300.0, 400.0, 75.0];
+
+/// The share of a phase's frontier inside one neck's slab
+/// ([`Method::Pinch`](bettimill_types::Method::Pinch)): a slab three voxels thick across
+/// objects about a dozen voxels wide.
+pub const PINCH_SLAB_SHARE: f64 = 0.25;
 
 /// CPU nanoseconds per tentacle or walker step (the simple-point tests of a ball of
 /// radius 1), by dimension.
@@ -307,6 +312,14 @@ fn deform_seconds(plan: &Plan, volume: f64) -> f64 {
                     mid(&step.steps)
                         * mid_real(&step.growth_probability)
                         * surface
+                        * DEFORM_NS_PER_FRONTIER_VOXEL[d]
+                }
+                Method::Pinch => {
+                    mid(&step.steps)
+                        * mid(&step.count)
+                        * mid_real(&step.growth_probability)
+                        * surface
+                        * PINCH_SLAB_SHARE
                         * DEFORM_NS_PER_FRONTIER_VOXEL[d]
                 }
                 Method::Tentacles | Method::Walk => {

@@ -29,6 +29,10 @@ pub enum Method {
     /// Random-walk bodies: `count` walkers each take `steps` unit steps from the phase's
     /// surface and add the voxels they cross, giving lumpy, branching outgrowths.
     Walk,
+    /// Necks: `count` times, a slab three voxels thick across the phase, at a random
+    /// direction and depth, inside which the phase shrinks as in [`Method::Erode`] for
+    /// `steps` iterations. One part then looks like two blobs joined by a narrow neck.
+    Pinch,
 }
 
 impl Method {
@@ -40,6 +44,7 @@ impl Method {
             Method::Erode => "erode",
             Method::Tentacles => "tentacles",
             Method::Walk => "walk",
+            Method::Pinch => "pinch",
         }
     }
 }
@@ -124,8 +129,8 @@ pub struct DeformStep {
     /// The deformation.
     pub method: Method,
     /// Moves ([`Method::Moves`]), iterations ([`Method::Dilate`], [`Method::Erode`]) or
-    /// voxels per tentacle or walker ([`Method::Tentacles`], [`Method::Walk`]); 0 skips
-    /// the step for that sample.
+    /// voxels per tentacle or walker ([`Method::Tentacles`], [`Method::Walk`]), or
+    /// iterations per neck ([`Method::Pinch`]); 0 skips the step for that sample.
     pub steps: Spread<u32>,
     /// Noise frequency in lattice cells per voxel, in (0, 1].
     #[serde(default = "default_noise_frequency")]
@@ -136,11 +141,11 @@ pub struct DeformStep {
     /// Moves only: the largest Chebyshev distance a voxel travels (1 ..= [`MAX_DISTANCE`]).
     #[serde(default = "default_max_distance")]
     pub max_distance: u32,
-    /// Dilate and erode: the share (0, 1] of the frontier that may flip per iteration, at
-    /// the highest noise for dilation and the lowest for erosion.
+    /// Dilate, erode and pinch: the share (0, 1] of the frontier that may flip per
+    /// iteration, at the highest noise for dilation and the lowest for erosion.
     #[serde(default = "default_growth_probability")]
     pub growth_probability: Spread<f64>,
-    /// Tentacles and walk: how many (1 ..= [`MAX_COUNT`]).
+    /// Tentacles, walk and pinch: how many (1 ..= [`MAX_COUNT`]).
     #[serde(default = "default_count")]
     pub count: Spread<u32>,
 }
@@ -323,7 +328,7 @@ impl Deformation {
 pub struct DeformSettings {
     /// The deformation.
     pub method: Method,
-    /// Moves, iterations, or voxels per tentacle or walker.
+    /// Moves, iterations (per neck for pinch), or voxels per tentacle or walker.
     pub steps: u32,
     /// Noise frequency in lattice cells per voxel, in (0, 1].
     pub noise_frequency: f64,
@@ -331,9 +336,9 @@ pub struct DeformSettings {
     pub octaves: u32,
     /// Moves: the largest Chebyshev distance a voxel travels.
     pub max_distance: u32,
-    /// Dilate and erode: the share of the frontier that may flip per iteration.
+    /// Dilate, erode and pinch: the share of the frontier that may flip per iteration.
     pub growth_probability: f64,
-    /// Tentacles and walk: how many.
+    /// Tentacles, walk and pinch: how many.
     pub count: u32,
 }
 
