@@ -12,7 +12,7 @@ held-out samples of every kind. The kinds:
   class reaches, so that the foreground count does not tell the class; without bins each
   class's count sits in a narrow band of its own, and a model can read the label off it;
 - ``binned-chain``: binned, and every deformation in turn with strengths drawn per sample
-  from none upward (CHAIN), as the 4d-mixed-128 preset does;
+  from none upward (CHAIN), as the 4d-mixed-128 preset does, and necks (`pinch`) besides;
 - ``families``: binned-chain over several constructions of each class (FAMILIES: curves,
   loops, bumpy spheres, objects with tentacles, pairs of different objects), not the
   canonical one alone;
@@ -132,10 +132,12 @@ INNER_GAP = None
 SURVIVES = None
 BINS = [[0.0025, 0.004], [0.004, 0.01], [0.01, 0.02], [0.02, 0.035], [0.035, 0.06], [0.06, 0.09]]
 # Every deformation in turn, each sample drawing its strengths (from none) per step, as
-# the 4d-mixed-128 preset does.
+# the 4d-mixed-128 preset does, with necks besides: without them the other generator's
+# chains of blobs read as two parts.
 CHAIN = [
     {"method": "erode", "steps": [0, 3], "noise_frequency": [0.05, 0.3], "growth_probability": [0.2, 0.8]},
     {"method": "dilate", "steps": [0, 3], "noise_frequency": [0.05, 0.3], "growth_probability": [0.2, 0.8]},
+    {"method": "pinch", "steps": [0, 6], "count": [1, 2], "growth_probability": [0.5, 1.0]},
     {"method": "tentacles", "steps": [0, 8], "count": [1, 4]},
     {"method": "walk", "steps": [0, 30], "count": [1, 3]},
     {"method": "moves", "steps": [0, 600], "noise_frequency": [0.05, 0.3]},
