@@ -85,8 +85,8 @@ fn foreground_after(image: &BinaryImage, before: u64, flipped: u64, to: u8) -> u
     after
 }
 
-/// What a deformation did.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+/// What a deformation did (`Default`: nothing yet, counts to be filled in).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DeformReport {
     /// Moves applied ([`Method::Moves`]) or voxels flipped (dilation, erosion, targeting).
     pub applied: u64,

@@ -146,13 +146,7 @@ pub(crate) fn run(
 ) -> Result<DeformReport, DeformError> {
     let dim = image.dim();
     // The foreground counts are the caller's (`deform_phase_counted`), from the flips.
-    let mut report = DeformReport {
-        applied: 0,
-        rejected: 0,
-        iterations: 0,
-        foreground_before: 0,
-        foreground_after: 0,
-    };
+    let mut report = DeformReport::default();
     let layout = Layout::new(image, job.phase);
     if job.steps == 0 || layout.is_empty() {
         return Ok(report);

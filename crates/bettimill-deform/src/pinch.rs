@@ -35,14 +35,8 @@ pub(crate) fn run(
     settings: &DeformSettings,
     seed: u64,
 ) -> Result<DeformReport, DeformError> {
-    let mut report = DeformReport {
-        applied: 0,
-        rejected: 0,
-        iterations: 0,
-        // The foreground counts are the caller's (`deform_phase_counted`).
-        foreground_before: 0,
-        foreground_after: 0,
-    };
+    // The foreground counts are the caller's (`deform_phase_counted`).
+    let mut report = DeformReport::default();
     let d = image.dim().get();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(PINCH_STREAM);

@@ -133,14 +133,8 @@ pub(crate) fn run(
         apart,
         value,
         phase,
-        report: DeformReport {
-            applied: 0,
-            rejected: 0,
-            iterations: 0,
-            // The foreground counts are the caller's (`deform_phase_counted`).
-            foreground_before: 0,
-            foreground_after: 0,
-        },
+        // The foreground counts are the caller's (`deform_phase_counted`).
+        report: DeformReport::default(),
         layout,
     };
     if steps == 0 || count == 0 || painter.layout.is_empty() {
