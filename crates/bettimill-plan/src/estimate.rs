@@ -308,18 +308,15 @@ fn deform_seconds(plan: &Plan, volume: f64) -> f64 {
         .map(|step| {
             let work = match step.method {
                 Method::Moves => mid(&step.steps) * DEFORM_NS_PER_MOVE[d],
-                Method::Dilate | Method::Erode => {
+                Method::Dilate | Method::Erode | Method::Pinch => {
+                    // A neck erodes only the share of the frontier in its slab.
+                    let frontier = match step.method {
+                        Method::Pinch => surface * PINCH_SLAB_SHARE * mid(&step.count),
+                        _ => surface,
+                    };
                     mid(&step.steps)
                         * mid_real(&step.growth_probability)
-                        * surface
-                        * DEFORM_NS_PER_FRONTIER_VOXEL[d]
-                }
-                Method::Pinch => {
-                    mid(&step.steps)
-                        * mid(&step.count)
-                        * mid_real(&step.growth_probability)
-                        * surface
-                        * PINCH_SLAB_SHARE
+                        * frontier
                         * DEFORM_NS_PER_FRONTIER_VOXEL[d]
                 }
                 Method::Tentacles | Method::Walk => {
