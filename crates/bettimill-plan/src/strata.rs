@@ -261,6 +261,7 @@ fn objects(family: &Family, dim: Dim, mode: Mode) -> Vec<Family> {
 fn part_shape(family: &Family, dim: Dim) -> reach::PartShape {
     match family {
         Family::Ball
+        | Family::Split { .. }
         | Family::Handle
         | Family::S2xB2
         | Family::BumpyS2xB2

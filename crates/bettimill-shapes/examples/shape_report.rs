@@ -143,6 +143,8 @@ fn all_families() -> Vec<Family> {
     use Family::*;
     let mut out = vec![
         Ball,
+        Split { parts: 2 },
+        Split { parts: 3 },
         Handle,
         Shell,
         TorusShell,

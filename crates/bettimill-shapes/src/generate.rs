@@ -152,7 +152,7 @@ fn check_sizes(
         "{} objects with bounding radii {:?} could not be packed with {} background voxels between them",
         objects.len(),
         minima.iter().map(|&m| round6(m)).collect::<Vec<_>>(),
-        crate::place::GAP
+        crate::geometry::GAP
     )))
 }
 
@@ -262,7 +262,7 @@ pub(crate) fn generate_for(
                 Ok((
                     vec![place_tunnel(family, d, side, region, floor, rng)?],
                     "tunnel",
-                    crate::place::GAP,
+                    crate::geometry::GAP,
                 ))
             } else {
                 let canvas = PlacementArea {

@@ -33,6 +33,20 @@ pub(crate) const SHELL_MIN: f64 = 1.5;
 /// Smallest gap between surfaces of two parts of one object that must not touch.
 pub(crate) const INNER_GAP: f64 = bettimill_types::MIN_INNER_GAP;
 
+/// Background voxels kept between two objects, at least, and between a cavity and the
+/// solid cube's boundary.
+pub(crate) const GAP: i64 = 2;
+
+/// The narrowest gap between two parts (a scene's objects, a split ball's pieces) under a
+/// floor whose inner gap is `inner_gap`: half of it, rounded up, and never below [`GAP`].
+/// Along a 4D diagonal a dilation step covers two voxels' width, so parts this far apart
+/// merge after as many dilations as it takes to close the narrowest hole an object may
+/// have; a manifest that widens its holes (`inner_gap`) widens the gaps between parts
+/// alike. The usual inner gap (2.5) gives [`GAP`].
+pub(crate) fn narrowest_gap(inner_gap: f64) -> i64 {
+    (libm::ceil(inner_gap / 2.0) as i64).max(GAP)
+}
+
 /// The thinnest tube (or shell half-thickness, or ball radius) a construction may have:
 /// [`TubeFloor::USUAL`] (the labels note's 2 voxels), or thicker so that a max-pooled
 /// downscaled copy keeps the construction's topology ([`TubeFloor::for_copies`]). Where a
@@ -867,84 +881,8 @@ pub(crate) fn segment_distance(p: P, a: P, b: P) -> f64 {
     norm(sub(ap, scale(ab, t)))
 }
 
-/// A skeleton with a thickening rule: the set an object occupies in its local frame.
-#[derive(Clone, Debug)]
-pub(crate) enum Solid {
-    /// Points within `radius` of some piece (each piece has its own radius).
-    Tube(Vec<(Piece, f64)>),
-    /// Points whose distance to `piece` lies in `[offset - radius, offset + radius]`: a
-    /// thickened boundary of the `offset`-neighbourhood of the piece.
-    Shell {
-        piece: Piece,
-        offset: f64,
-        radius: f64,
-    },
-}
-
-impl Solid {
-    pub(crate) fn contains(&self, p: P) -> bool {
-        match self {
-            Solid::Tube(parts) => parts.iter().any(|(piece, r)| piece.within(p, *r)),
-            Solid::Shell {
-                piece,
-                offset,
-                radius,
-            } => (piece.distance(p) - offset).abs() <= *radius,
-        }
-    }
-
-    /// Radius of a ball around the local origin that contains the solid.
-    pub(crate) fn extent(&self) -> f64 {
-        match self {
-            Solid::Tube(parts) => parts
-                .iter()
-                .map(|(piece, r)| piece.reach(*r))
-                .fold(0.0, f64::max),
-            Solid::Shell {
-                piece,
-                offset,
-                radius,
-            } => piece.extent() + offset + radius,
-        }
-    }
-
-    /// An upper bound of `|x . e|` over the solid: its half-width along the unit vector
-    /// `e` about the local origin.
-    pub(crate) fn half_width(&self, e: P) -> f64 {
-        let minus = scale(e, -1.0);
-        let both = |piece: &Piece, r: f64| piece.support(e, r).max(piece.support(minus, r));
-        match self {
-            Solid::Tube(parts) => parts
-                .iter()
-                .map(|(piece, r)| both(piece, *r))
-                .fold(0.0, f64::max),
-            Solid::Shell {
-                piece,
-                offset,
-                radius,
-            } => both(piece, offset + radius),
-        }
-    }
-
-    pub(crate) fn describe(&self, dim: usize) -> Value {
-        match self {
-            Solid::Tube(parts) => json!({
-                "kind": "tube",
-                "parts": parts.iter().map(|(piece, r)| {
-                    json!({"skeleton": piece.describe(dim), "radius": round6(*r)})
-                }).collect::<Vec<_>>()
-            }),
-            Solid::Shell {
-                piece,
-                offset,
-                radius,
-            } => json!({
-                "kind": "shell", "skeleton": piece.describe(dim),
-                "offset": round6(*offset), "radius": round6(*radius)
-            }),
-        }
-    }
-}
+mod solid;
+pub(crate) use solid::Solid;
 
 #[cfg(test)]
 mod tests;

@@ -55,6 +55,12 @@ pub(crate) fn embed_betti(family: &Family, dim: Dim) -> Result<Betti, ShapeError
     };
     let z2 = match family {
         Family::Ball | Family::Curve => unit(d, &[1]),
+        Family::Split { parts } => {
+            if !(2..=4).contains(parts) {
+                return Err(invalid(family, "parts must be between 2 and 4"));
+            }
+            unit(d, &[*parts as u64])
+        }
         Family::Handle | Family::Loop => unit(d, &[1, 1]),
         Family::Shell | Family::BumpyShell => {
             let mut b = unit(d, &[1]);

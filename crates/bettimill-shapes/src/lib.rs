@@ -45,7 +45,7 @@ pub use bettimill_grid::Mode;
 
 /// Layers of a carved full cube, inside the image's empty border, that its cavities never
 /// reach: they are placed and deformed only inside them, so the solid's faces stay as built.
-pub const CAVITY_INSET: usize = place::GAP as usize;
+pub const CAVITY_INSET: usize = geometry::GAP as usize;
 
 /// Layers of a boxed solid ([`Solid::Box`]) around its cavities that stay as built.
 pub const BOX_WALL: usize = generate::BOX_WALL as usize;
@@ -185,6 +185,15 @@ pub enum Family {
         #[serde(default)]
         genus: u32,
     },
+    /// A ball cut through by `parts - 1` parallel slabs: `parts` pieces whose flat faces
+    /// face each other across gaps as narrow as the scenes' narrowest gap between objects
+    /// (and no narrower, whatever the slabs' slant). The other side of a neck: two parts
+    /// close together, where a neck is one part narrowed to a thread.
+    Split {
+        /// The pieces (2 to 4).
+        #[serde(default = "two_parts")]
+        parts: u32,
+    },
     /// A thickened smooth open curve (contractible).
     Curve,
     /// A thickened closed curve that is not round (lobes, a squeeze, waves out of its
@@ -243,6 +252,11 @@ pub enum Family {
         /// b_0..b_{d-1} of the image (of the carved cube in carve mode).
         betti: Vec<u64>,
     },
+}
+
+/// A split ball's usual number of pieces.
+fn two_parts() -> u32 {
+    2
 }
 
 /// Why a shape could not be generated.
@@ -427,6 +441,7 @@ impl Family {
                     format!("tunnel(intervals={intervals},circle={circle})")
                 }
             }
+            Family::Split { parts } => format!("split(parts={parts})"),
             Family::Curve => "curve".into(),
             Family::Loop => "loop".into(),
             Family::Knot { knot } => format!("knot({})", knot.name()),

@@ -19,16 +19,14 @@
 //! passed plan-time feasibility always produces a sample. Tunnels, which run from face to
 //! face, have their own placement ([`place_tunnel`]).
 
-use crate::geometry::{add, round6, sub, uniform, uniform_int, Solid, TubeFloor, P};
+use crate::geometry::{
+    add, narrowest_gap, round6, sub, uniform, uniform_int, Solid, TubeFloor, GAP, P,
+};
 use crate::rotation::Rotation;
 use crate::sizing::{build, build_volume, draw_target, min_extent, Fit};
 use crate::{Family, Mode, ShapeError};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
-
-/// Background voxels kept between two objects, at least, and between a cavity and the
-/// solid cube's boundary.
-pub(crate) const GAP: i64 = 2;
 
 /// Background layers kept between an object and the border in embed mode: the one layer
 /// deformations never touch (the simple-point test reads all 3^d neighbours). A wider
@@ -46,16 +44,6 @@ const GAP_MAX: i64 = 6;
 /// quarter of the side, from [`GAP`] up to [`GAP_MAX`].
 pub(crate) fn widest_gap(side: usize) -> i64 {
     (side as i64 / 4).clamp(GAP, GAP_MAX)
-}
-
-/// The narrowest gap a scene draws between its objects under `floor`: half the floor's
-/// inner gap, rounded up, and never below [`GAP`]. Along a 4D diagonal a dilation step
-/// covers two voxels' width, so parts this far apart merge after as many dilations as it
-/// takes to close the narrowest hole an object may have; a manifest that widens its holes
-/// (`inner_gap`) widens the gaps between parts alike. The usual inner gap (2.5) gives
-/// [`GAP`].
-pub(crate) fn narrowest_gap(floor: TubeFloor) -> i64 {
-    (libm::ceil(floor.gap() / 2.0) as i64).max(GAP)
 }
 
 /// The largest ratio between two objects' shares of a scene's voxel count. Components
@@ -768,7 +756,7 @@ pub(crate) fn place_objects(
     });
     // The gap between objects, drawn per sample; the rounds at minimum sizes keep the
     // narrowest, and the fallbacks keep `GAP`, which the plan's feasibility check assumed.
-    let narrowest = narrowest_gap(floor);
+    let narrowest = narrowest_gap(floor.gap());
     let drawn_gap = if count > 1 {
         uniform_int(
             rng,
@@ -778,9 +766,13 @@ pub(crate) fn place_objects(
     } else {
         GAP
     };
+    // A split ball's pieces stand the narrowest gap apart (`recipes::split_ball`), and
+    // growth keeps that gap between every two parts, not a scene's wider one.
+    let split = objects.iter().any(|o| matches!(o, Family::Split { .. }));
     for round in 0..RANDOM_ROUNDS {
         let at_minimum = round >= RANDOM_ROUNDS / 2;
         let gap = if at_minimum { narrowest } else { drawn_gap };
+        let kept = if split { narrowest } else { gap };
         if let Some(out) = place_random(
             &sorted_objects,
             &sorted_minima,
@@ -790,7 +782,7 @@ pub(crate) fn place_objects(
             at_minimum,
             gap,
         ) {
-            return Ok((out, "random", gap));
+            return Ok((out, "random", kept));
         }
     }
     let fits_grid = grid_fits(&minima, dim, region);

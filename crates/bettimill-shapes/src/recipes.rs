@@ -10,7 +10,7 @@
 
 use crate::curves;
 use crate::geometry::{
-    add, axis, uniform, Piece, Solid, TubeFloor, ORIGIN, P, SHELL_MIN, TUBE_MIN,
+    add, axis, narrowest_gap, uniform, Piece, Solid, TubeFloor, ORIGIN, P, SHELL_MIN, TUBE_MIN,
 };
 use crate::labels::tunnel_cycles;
 use crate::Family;
@@ -295,10 +295,41 @@ fn connected_sum(
     out
 }
 
+/// A ball sliced across the local x0-axis into `parts` pieces with rounded edges
+/// ([`Solid::Slices`]): cores of `2 * grow` shared out, each thickened by `tube`. The
+/// slabs between the pieces keep [`narrowest_gap`] background voxels between them (the
+/// gap of the narrowest scene under the same inner gap) whatever the rotation: two voxels
+/// on either side of a slab `2 * half` wide differ by more than `2 * half` along its unit
+/// normal `n`, at most `|n|_1 <= sqrt(d)` times their Chebyshev distance, so with
+/// `half = gap * sqrt(d) / 2` they are more than `gap` apart. An axis-aligned slab leaves
+/// up to twice that.
+fn split_ball(parts: u32, dim: usize, tube: f64, grow: f64, shares: &Shares, gap: f64) -> Solid {
+    let kept = narrowest_gap(gap) as f64;
+    // The slack keeps a voxel centre on the slab's edge out by far more than the rotation's
+    // rounding error.
+    let half = kept * libm::sqrt(dim as f64) / 2.0 + 1e-6;
+    let parts = parts as usize;
+    let core_of = |k: usize| 2.0 * grow * shares.get(k);
+    let between = 2.0 * (half + tube);
+    let core = ((0..parts).map(core_of).sum::<f64>() + between * (parts - 1) as f64) / 2.0;
+    let mut lo = -core;
+    let mut slices = Vec::new();
+    for k in 0..parts {
+        let hi = (lo + core_of(k)).min(core);
+        slices.push((lo, hi));
+        lo = hi + between;
+    }
+    Solid::Slices {
+        core,
+        slices,
+        round: tube,
+    }
+}
+
 /// The tube radius range of a family, `(minimum, cap)`, raised to `floor`.
 pub(crate) fn tube_range(family: &Family, floor: TubeFloor) -> (f64, f64) {
     floor.raise(match family {
-        Family::Ball => (TUBE_MIN, TUBE_MIN),
+        Family::Ball | Family::Split { .. } => (TUBE_MIN, TUBE_MIN),
         Family::Shell | Family::TorusShell | Family::BumpyShell => (SHELL_MIN, 3.0),
         Family::Tunnel { .. } if tunnel_cycles(family) == 0 => (TUBE_MIN, TUBE_MIN),
         Family::Knot { .. }
@@ -319,6 +350,7 @@ pub(crate) fn share_count(family: &Family) -> usize {
         Family::Handlebody { .. } | Family::S1xHandlebody { .. } => 3,
         Family::ConnectedSum { .. } => 3,
         Family::Tunnel { .. } => 2,
+        Family::Split { parts } => *parts as usize,
         Family::Curve => 8,
         Family::Loop => 10,
         Family::BumpyShell | Family::BumpyS2xB2 => 13,
@@ -458,6 +490,7 @@ pub(crate) fn make(
                     .collect(),
             )
         }
+        Family::Split { parts } => split_ball(*parts, dim, tube, grow, shares, gap),
         Family::Curve => curves::open_curve(dim, tube, grow, &shares.0, gap),
         Family::Loop => curves::wavy_loop(dim, tube, grow, &shares.0, gap),
         Family::Knot { knot } => curves::knot_solid(*knot, dim, tube, grow, gap)?,

@@ -63,6 +63,19 @@ fn curve() {
 }
 
 #[test]
+fn split_balls_come_in_their_pieces() {
+    for parts in 2..=4 {
+        // Four parts fit a 4D carved cube from side 36: a costly case that tells nothing
+        // the others do not.
+        let mut cases = vec![(Dim::Two, 40, 20), (Dim::Three, 40, 10)];
+        if parts < 4 {
+            cases.push((Dim::Four, 16 + 4 * parts as usize, 2));
+        }
+        check(Family::Split { parts }, &cases);
+    }
+}
+
+#[test]
 fn scene_of_balls_and_handles_keeps_components_apart() {
     let scene = Family::Scene {
         objects: vec![Family::Ball, Family::Handle, Family::Ball, Family::Handle],
@@ -108,6 +121,11 @@ fn serde_names_match_the_manifest_syntax() {
             },
         ),
         (r#"{"family":"s2_x_b2"}"#, Family::S2xB2),
+        (r#"{"family":"split"}"#, Family::Split { parts: 2 }),
+        (
+            r#"{"family":"split","parts":3}"#,
+            Family::Split { parts: 3 },
+        ),
         (
             r#"{"family":"scene","objects":[{"family":"ball"},{"family":"handle"}]}"#,
             Family::Scene {
@@ -497,4 +515,83 @@ fn a_raised_tube_floor_is_kept_by_every_object_and_recorded() {
     )
     .unwrap();
     assert!(usual.construction.get("tube_floor").is_none());
+}
+
+/// The smallest Chebyshev distance between foreground voxels of different components
+/// ((3^d - 1)-adjacency) of a small image, by brute force over pairs.
+fn closest_parts(image: &BinaryImage) -> i64 {
+    let shape = image.shape().to_vec();
+    let d = shape.len();
+    let coords = |mut v: usize| {
+        let mut c = vec![0i64; d];
+        for a in (0..d).rev() {
+            c[a] = (v % shape[a]) as i64;
+            v /= shape[a];
+        }
+        c
+    };
+    let on: Vec<Vec<i64>> = (0..image.len())
+        .filter(|&v| image.data()[v] == 1)
+        .map(coords)
+        .collect();
+    let far = |a: &[i64], b: &[i64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).max().unwrap();
+    // Components by flood fill over the voxel list.
+    let mut label = vec![usize::MAX; on.len()];
+    let mut parts = 0;
+    for start in 0..on.len() {
+        if label[start] != usize::MAX {
+            continue;
+        }
+        label[start] = parts;
+        let mut stack = vec![start];
+        while let Some(i) = stack.pop() {
+            for j in 0..on.len() {
+                if label[j] == usize::MAX && far(&on[i], &on[j]) == 1 {
+                    label[j] = parts;
+                    stack.push(j);
+                }
+            }
+        }
+        parts += 1;
+    }
+    let mut closest = i64::MAX;
+    for i in 0..on.len() {
+        for j in i + 1..on.len() {
+            if label[i] != label[j] {
+                closest = closest.min(far(&on[i], &on[j]));
+            }
+        }
+    }
+    closest
+}
+
+#[test]
+fn split_pieces_keep_the_narrowest_gap_at_any_slant() {
+    // The usual inner gap keeps 2 voxels between pieces; a widened one (6.5) keeps 4, as
+    // its scenes do. The gap the sample records (which growth then keeps) is the same.
+    // In 3D a slab's slant may shorten its width along the axes by sqrt(3).
+    for (inner_gap, kept) in [(None, 2), (Some(6.5), 4)] {
+        let floor = inner_gap.map_or(TubeFloor::USUAL, |g| TubeFloor::USUAL.with_gap(g));
+        for seed in 0..12u64 {
+            let generated = generate_planned_for(
+                &Family::Split { parts: 2 },
+                Dim::Three,
+                32,
+                Mode::Embed,
+                None,
+                Solid::Cube,
+                floor,
+                &mut ChaCha8Rng::seed_from_u64(seed),
+            )
+            .unwrap();
+            assert_eq!(generated.gap, kept);
+            let closest = closest_parts(&generated.image);
+            // Never closer than the gap, and never so far that the pieces stop facing
+            // each other closely (an axis-aligned slab leaves at most twice the gap).
+            assert!(
+                (kept as i64 + 1..=2 * kept as i64 + 2).contains(&closest),
+                "seed {seed}: pieces {closest} apart"
+            );
+        }
+    }
 }

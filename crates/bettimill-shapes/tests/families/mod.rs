@@ -46,6 +46,7 @@ pub fn cases() -> Vec<(Family, [usize; 3])> {
         (Ball, [32, 32, 16]),
         (Handle, [32, 32, 20]),
         (Shell, [32, 32, 20]),
+        (Split { parts: 2 }, [32, 32, 24]),
         (TorusShell, [32, 40, 0]),
         (Handlebody { genus: 2 }, [32, 40, 32]),
         (Handlebody { genus: 3 }, [48, 48, 0]),
