@@ -56,8 +56,8 @@ pub struct DeformArgs {
     /// default).
     #[arg(long, default_value_t = bettimill_deform::DEFAULT_MAX_DISTANCE)]
     max_distance: u32,
-    /// Dilate/erode/pinch: the share of the frontier that may flip per iteration, in (0, 1]; 1 is
-    /// plain topology-preserving morphology (the manifest's default).
+    /// Dilate/erode/pinch: the share of the frontier that may flip per iteration, in (0, 1]
+    /// (the manifest's default); 1 is plain topology-preserving morphology.
     #[arg(long, default_value_t = bettimill_deform::DEFAULT_GROWTH_PROBABILITY)]
     growth_probability: f64,
     /// Tentacles, walk and pinch: how many.
