@@ -63,8 +63,8 @@ fn two_builds_of_the_demo_are_byte_identical() {
     );
 }
 
-/// The blake3 of the embedded demo manifest's `index.json` as version 0.16.0 writes it.
-const DEMO_INDEX_BLAKE3: &str = "d1a1d9b0d4375749466f756e43d45f2d4432df176db53168f75f84f32e6b45db";
+/// The blake3 of the embedded demo manifest's `index.json` as version 0.17.0 writes it.
+const DEMO_INDEX_BLAKE3: &str = "43e6bca117bfbb7b4a3d62b89cacd87cb45420550015d90a587b53afe1507b7d";
 
 /// The dataset card opens with the YAML front matter the Hugging Face Hub reads, and each
 /// split's `data_files` pattern matches exactly that split's shards in index.json (so
