@@ -132,7 +132,7 @@ INNER_GAP = None
 SURVIVES = None
 # A smaller bin for the families' classes that reach it (all but the hollow ones, whose
 # wall around a cavity that survives a dilation needs more voxels). The other generator's
-# balls, pairs and loops hold 0.1-1% of a side-24 image, a third of its pairs less than
+# balls, pairs and loops hold 0.1-1% of a side-24 image, four in ten of its pairs less than
 # BINS' smallest bin; models trained without this bin read four in five of those as one.
 SMALL_BIN = [0.001, 0.0025]
 BINS = [[0.0025, 0.004], [0.004, 0.01], [0.01, 0.02], [0.02, 0.035], [0.035, 0.06], [0.06, 0.09]]
